@@ -1,0 +1,8 @@
+# Used by catkin_python_setup() only; do not call directly.
+from catkin_pkg.python_setup import generate_distutils_setup
+from setuptools import setup
+
+setup(**generate_distutils_setup(
+    packages=['turtlesim', 'rosbridge'],
+    package_dir={'': 'src'},
+))

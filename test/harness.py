@@ -1,0 +1,135 @@
+"""Real processes for the tests: a private roscore per session, nodes started with rosrun/roslaunch,
+and the stock CLI tools. Every process is started in its own process group and killed at teardown."""
+import os
+import signal
+import socket
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+
+import rosgraph
+
+REPO = Path(__file__).resolve().parent.parent
+ARTIFACTS = REPO / "test" / "artifacts"
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def wait_for(predicate, timeout=10.0, interval=0.05, what="condition"):
+    """Polls predicate() until it returns something truthy; returns it, or raises AssertionError."""
+    deadline = time.monotonic() + timeout
+    while True:
+        value = predicate()
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out after {timeout}s waiting for {what}")
+        time.sleep(interval)
+
+
+class Proc:
+    """A process in its own process group; its stdout+stderr go to a log file that tests can read."""
+
+    def __init__(self, args, env, log_path, **popen_kwargs):
+        self.args = args
+        self.log_path = Path(log_path)
+        self._log = open(self.log_path, "wb")
+        self.popen = subprocess.Popen(args, env=env, stdout=self._log, stderr=subprocess.STDOUT,
+                                      start_new_session=True, **popen_kwargs)
+
+    @property
+    def pid(self):
+        return self.popen.pid
+
+    def output(self):
+        return self.log_path.read_text(errors="replace")
+
+    def wait_output(self, text, timeout=10.0):
+        return wait_for(lambda: text in self.output(), timeout, what=f"{text!r} in output of {self.args}")
+
+    def alive(self):
+        return self.popen.poll() is None
+
+    def signal(self, sig):
+        if self.alive():
+            os.killpg(self.popen.pid, sig)
+
+    def stop(self, timeout=5.0):
+        """SIGINT, then SIGKILL the whole group; returns the exit code."""
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+            try:
+                os.killpg(self.popen.pid, sig)
+            except ProcessLookupError:
+                break
+            try:
+                self.popen.wait(timeout)
+                break
+            except subprocess.TimeoutExpired:
+                continue
+        try:  # children that outlived the leader
+            os.killpg(self.popen.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        self._log.close()
+        return self.popen.wait()
+
+
+class RosMaster:
+    """A private roscore on a free port (never 11311), with the environment to reach it."""
+
+    def __init__(self, workdir, host="127.0.0.1"):
+        self.workdir = Path(workdir)
+        self.port = free_port()
+        self.uri = f"http://{host}:{self.port}"
+        self.env = dict(os.environ)
+        self.env.update(ROS_MASTER_URI=self.uri, ROS_IP=host, ROS_HOME=str(self.workdir / "ros_home"),
+                        ROS_LOG_DIR=str(self.workdir / "ros_log"), PYTHONUNBUFFERED="1",
+                        PATH="/usr/bin:/bin:" + os.environ.get("PATH", ""))
+        self.env.pop("ROS_HOSTNAME", None)
+        self.procs = []
+        self.core = None
+
+    def start(self):
+        self.core = self.spawn(["roscore", "-p", str(self.port)], "roscore")
+        wait_for(self.online, 20, what="roscore")
+        return self
+
+    def online(self):
+        try:
+            rosgraph.Master("/harness", master_uri=self.uri).getPid()
+            return True
+        except Exception:
+            return False
+
+    def spawn(self, args, name=None, env=None, **kwargs):
+        """Starts a process with this master's environment; it is stopped at teardown."""
+        name = name or Path(str(args[0])).name
+        log = self.workdir / f"{name}-{len(self.procs)}.log"
+        proc = Proc(args, {**self.env, **(env or {})}, log, **kwargs)
+        self.procs.append(proc)
+        return proc
+
+    def run(self, args, timeout=20, check=True, env=None, input=None):
+        """Runs a CLI command to completion against this master; returns its stdout."""
+        res = subprocess.run(args, env={**self.env, **(env or {})}, capture_output=True, text=True,
+                             timeout=timeout, input=input)
+        if check and res.returncode != 0:
+            raise AssertionError(f"{args} exited {res.returncode}:\n{res.stdout}\n{res.stderr}")
+        return res
+
+    def master(self):
+        return rosgraph.Master("/harness", master_uri=self.uri)
+
+    def stop(self):
+        for proc in reversed(self.procs):
+            proc.stop()
+        self.procs.clear()
+
+
+def make_workdir(prefix):
+    return Path(tempfile.mkdtemp(prefix=prefix))
