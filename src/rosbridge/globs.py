@@ -38,3 +38,18 @@ def allowed(name, patterns):
 def filter_names(names, patterns):
     """The names that `patterns` allow, in their original order."""
     return [name for name in names if allowed(name, patterns)]
+
+
+class Globs:
+    """The three filters of one bridge: topics, services and params pattern lists (None = all allowed)."""
+
+    def __init__(self, topics=None, services=None, params=None):
+        self.topics, self.services, self.params = topics, services, params
+
+    @classmethod
+    def parse(cls, topics_glob="", services_glob="", params_glob=""):
+        """From the launch args' text, e.g. Globs.parse(topics_glob="[/turtle1/*]")."""
+        return cls(parse_globs(topics_glob), parse_globs(services_glob), parse_globs(params_glob))
+
+    def __repr__(self):
+        return f"Globs(topics={self.topics!r}, services={self.services!r}, params={self.params!r})"

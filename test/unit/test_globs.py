@@ -1,6 +1,6 @@
 import pytest
 
-from rosbridge.globs import allowed, filter_names, parse_globs
+from rosbridge.globs import Globs, allowed, filter_names, parse_globs
 
 
 @pytest.mark.parametrize("text, expected", [
@@ -44,3 +44,11 @@ def test_none_allows_everything_and_a_non_matching_pattern_hides_everything():
 def test_filter_names_keeps_order():
     assert filter_names(["/b/x", "/a", "/b/y", "/c"], ["/b/*", "/a"]) == ["/b/x", "/a", "/b/y"]
     assert filter_names(["/b", "/a"], None) == ["/b", "/a"]
+
+
+def test_globs_parse_reads_the_three_launch_args():
+    globs = Globs.parse(topics_glob="[/turtle1/*]", services_glob="", params_glob="['/a', '/b/*']")
+    assert globs.topics == ["/turtle1/*"]
+    assert globs.services is None
+    assert globs.params == ["/a", "/b/*"]
+    assert Globs().topics is None and Globs().services is None and Globs().params is None
