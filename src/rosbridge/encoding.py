@@ -1,0 +1,94 @@
+"""The wire encodings of outgoing messages besides plain JSON text: CBOR (`compression: cbor`), JSON packed
+into a PNG image (`compression: png`), and `fragment` ops for messages larger than a client's fragment_size."""
+import base64
+import io
+import json
+import math
+import re
+import struct
+
+import cbor2
+from PIL import Image
+
+from rosbridge.convert import encoder_factory, json_leaf_encoder
+
+# RFC 8746 tags of the little-endian typed arrays, with the matching struct codes. uint8 arrays go as plain
+# CBOR byte strings instead, as the reference sends them.
+TYPED_ARRAY_TAGS = {
+    "int8": (72, "b"), "uint16": (69, "H"), "int16": (77, "h"), "uint32": (70, "I"), "int32": (78, "i"),
+    "uint64": (71, "Q"), "int64": (79, "q"), "float32": (85, "f"), "float64": (86, "d"),
+}
+
+
+def _typed_array(tag, code):
+    return lambda items: cbor2.CBORTag(tag, struct.pack(f"<{len(items)}{code}", *items))
+
+
+def _byte_string(value):
+    return value if isinstance(value, bytes) else bytes(value)
+
+
+def _cbor_leaf_encoder(base, is_array):
+    if not is_array:
+        # CBOR carries NaN and +-Inf, so floats go as they are; time/duration as in JSON
+        return None if base in ("float32", "float64") else json_leaf_encoder(base, is_array)
+    if base == "uint8":
+        return _byte_string
+    if base in TYPED_ARRAY_TAGS:
+        return _typed_array(*TYPED_ARRAY_TAGS[base])
+    return json_leaf_encoder(base, is_array)
+
+
+_cbor_encoder_for = encoder_factory(_cbor_leaf_encoder)
+
+
+def to_cbor_value(msg):
+    """The message as Python values for cbor2: like convert.to_json, but uint8[]/char[] as bytes, other
+    numeric arrays (fixed or variable) as RFC 8746 little-endian typed arrays, and NaN/Inf kept."""
+    return _cbor_encoder_for(type(msg))(msg)
+
+
+def cbor_frame(obj):
+    """The bytes of a binary websocket frame holding `obj` (e.g. a publish op whose msg is to_cbor_value(...))."""
+    return cbor2.dumps(obj)
+
+
+_NON_ASCII = re.compile(r"[^\x00-\x7f]")
+
+
+def _escape_non_ascii(json_text):
+    # roslibjs rebuilds the text with one String.fromCharCode per byte, which would garble UTF-8; JSON allows
+    # non-ASCII characters only inside strings, where \uXXXX escapes mean the same.
+    if json_text.isascii():
+        return json_text
+    return _NON_ASCII.sub(lambda match: json.dumps(match.group()).strip('"'), json_text)
+
+
+def png_frame(text):
+    """JSON `text` packed into an RGB PNG image, base64: the `data` of a `png` op.
+
+    Its bytes fill the R, G, B channels of the pixels row by row, in a roughly square image; the last pixels
+    are padded with newlines, which JSON.parse ignores. Non-ASCII characters are sent as \\u escapes."""
+    data = _escape_non_ascii(text).encode("ascii")
+    pixels = max(1, math.ceil(len(data) / 3))
+    width = max(1, math.isqrt(pixels))
+    height = math.ceil(pixels / width)
+    image = Image.frombytes("RGB", (width, height), data.ljust(width * height * 3, b"\n"))
+    buffer = io.BytesIO()
+    image.save(buffer, format="PNG")
+    return base64.b64encode(buffer.getvalue()).decode("ascii")
+
+
+def png_unframe(data):
+    """The JSON text held in a png op's `data` (with the padding removed), as a client reads it."""
+    with Image.open(io.BytesIO(base64.b64decode(data))) as image:
+        return image.convert("RGB").tobytes().rstrip(b"\n").decode("utf-8")
+
+
+def fragments(text, size, id):
+    """`text` cut into `fragment` ops of at most `size` characters each, numbered from 0."""
+    if size < 1:
+        raise ValueError(f"fragment size must be at least 1, got {size}")
+    total = max(1, math.ceil(len(text) / size))
+    return [{"op": "fragment", "id": id, "data": text[num * size:(num + 1) * size], "num": num, "total": total}
+            for num in range(total)]
