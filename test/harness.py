@@ -133,3 +133,23 @@ class RosMaster:
 
 def make_workdir(prefix):
     return Path(tempfile.mkdtemp(prefix=prefix))
+
+
+def start_bridge(ros, node_name="rosbridge_websocket", timeout=30.0, **launch_args):
+    """Runs `roslaunch turtlesim rosbridge_websocket.launch` on a free port of 127.0.0.1 (launch args may
+    override, e.g. authenticate="true"); returns (Proc, port) once the server listens. Give each bridge that
+    runs at the same time its own node_name."""
+    args = {"port": 0, "address": "127.0.0.1", "node_name": node_name, **launch_args}
+    param = f"/{node_name}/actual_port"
+    master = ros.master()
+    if master.hasParam(param):
+        master.deleteParam(param)
+    proc = ros.spawn(["roslaunch", "turtlesim", "rosbridge_websocket.launch",
+                      *(f"{key}:={value}" for key, value in args.items())], node_name)
+
+    def port():
+        if not proc.alive():
+            raise AssertionError(f"rosbridge exited early:\n{proc.output()}")
+        return master.getParam(param) if master.hasParam(param) else None
+
+    return proc, wait_for(port, timeout, what=f"{param} (bridge log: {proc.log_path})")

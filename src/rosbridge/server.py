@@ -1,0 +1,199 @@
+"""The rosbridge_websocket node: a Tornado server whose "/" is both the rosbridge v2 websocket endpoint and
+the web page (web_root/index.html; other files of web_root are served as static files).
+
+One IOLoop thread serves every client; rospy's threads and the service-call pool only hand work to it."""
+import asyncio
+import concurrent.futures
+import fnmatch
+import logging
+import os
+import time
+from pathlib import Path
+
+import rosgraph
+import rospy
+import tornado.httpserver
+import tornado.ioloop
+import tornado.netutil
+import tornado.web
+import tornado.websocket
+
+from rosbridge import protocol
+from rosbridge.globs import Globs, parse_globs
+from rosbridge.ros_side import RosBackend
+from rosbridge.rosapi import Rosapi
+
+DEFAULT_WEB_ROOT = Path(__file__).resolve().parents[2] / "web"
+DEFAULT_MAX_MESSAGE_SIZE = 8_000_000
+log = logging.getLogger("rosbridge")
+
+
+class Bridge:
+    """What every connection shares: the ROS side, the protocol settings and the connection policy."""
+
+    def __init__(self, backend, config, allowed_origins=None, delay_between_messages=0.0, use_compression=False):
+        self.backend, self.config = backend, config
+        self.allowed_origins = allowed_origins  # None: same host only (and clients that send no Origin)
+        self.delay_between_messages = delay_between_messages
+        self.use_compression = use_compression
+        self.clients = set()
+
+    def client_opened(self, handler):
+        self.clients.add(handler)
+        self.backend.set_client_count(len(self.clients))
+
+    def client_closed(self, handler):
+        if handler in self.clients:
+            self.clients.discard(handler)
+            self.backend.set_client_count(len(self.clients))
+
+
+class BridgeSocket(tornado.websocket.WebSocketHandler):
+    """One rosbridge client; a plain HTTP GET of the same URL gets the index page instead."""
+
+    def initialize(self, bridge, index_page=None):
+        self.bridge, self.index_page = bridge, index_page
+        self.session = None
+        self._close_reason = None
+
+    async def get(self, *args, **kwargs):
+        if self.request.headers.get("Upgrade", "").lower() != "websocket" and self.index_page is not None:
+            self.set_header("Content-Type", "text/html; charset=UTF-8")
+            self.finish(self.index_page.read_bytes())
+            return
+        await super().get(*args, **kwargs)
+
+    def check_origin(self, origin):
+        patterns = self.bridge.allowed_origins
+        if patterns is None:
+            return super().check_origin(origin)  # same host as the page that opens the socket
+        return any(fnmatch.fnmatchcase(origin.lower(), pattern.lower()) for pattern in patterns)
+
+    def get_compression_options(self):
+        return {} if self.bridge.use_compression else None
+
+    def open(self, *args):
+        loop = tornado.ioloop.IOLoop.current()
+        peer = f"{self.request.remote_ip}"
+        self.session = protocol.Session(self.bridge.backend, self.bridge.config, time.time, loop.call_later,
+                                        self._wake, self._close_after_sending, name=peer)
+        self.set_nodelay(True)
+        self.bridge.client_opened(self)
+
+    def on_message(self, message):
+        if isinstance(message, bytes):
+            self.session.handle_binary(message)
+        else:
+            self.session.handle_text(message)
+
+    def on_close(self):
+        if self.session is not None:
+            self.session.closed()
+        self.bridge.client_closed(self)
+
+    def _wake(self):
+        tornado.ioloop.IOLoop.current().add_callback(self._flush)
+
+    def _close_after_sending(self, reason):
+        self._close_reason = reason
+        self._wake()
+
+    async def _flush(self):
+        """Writes the session's queued frames; waits whenever the socket is backed up, so the session's
+        bounded queue (not Tornado's unbounded buffer) absorbs a slow client."""
+        session, delay = self.session, self.bridge.delay_between_messages
+        try:
+            while (frame := session.take_frame()) is not None:
+                if self.ws_connection is None:
+                    return
+                if isinstance(frame, protocol.Utf8Text) or isinstance(frame, str):
+                    done = self.write_message(frame, binary=False)
+                else:
+                    done = self.write_message(frame, binary=True)
+                if self.ws_connection.stream.writing():
+                    await done
+                if delay:
+                    await asyncio.sleep(delay)
+        except tornado.websocket.WebSocketClosedError:
+            return
+        if self._close_reason is not None:
+            self.close(1008, self._close_reason)
+
+
+def routes(bridge, web_root):
+    """The route table: "/" is the websocket (and the page), other paths are files of web_root."""
+    index = Path(web_root) / "index.html" if web_root else None
+    table = [(r"/", BridgeSocket, {"bridge": bridge, "index_page": index if index and index.is_file() else None})]
+    if web_root:
+        table.append((r"/(.+)", tornado.web.StaticFileHandler, {"path": str(web_root)}))
+    return table
+
+
+def _param(name, default):
+    value = rospy.get_param("~" + name, default)
+    return default if value in ("None", None) else value
+
+
+def main():
+    rospy.init_node("rosbridge_websocket")
+    max_message_size = int(_param("max_message_size", DEFAULT_MAX_MESSAGE_SIZE))
+    authenticate = bool(_param("authenticate", False))
+    secret = None
+    if authenticate:
+        secret_file = _param("secret_file", "")
+        if secret_file:
+            secret = Path(secret_file).read_text().strip()
+        else:
+            rospy.logerr("authenticate is on but secret_file is not set: every client will be refused")
+    globs = Globs.parse(str(_param("topics_glob", "")), str(_param("services_glob", "")),
+                        str(_param("params_glob", "")))
+    config = protocol.Config(max_message_size=max_message_size,
+                             fragment_timeout=float(_param("fragment_timeout", 600)),
+                             max_queue=int(_param("max_queue", 1000)),
+                             globs=globs, authenticate=authenticate, auth_secret=secret,
+                             auth_time_delta=float(_param("auth_time_delta", 5.0)))
+    loop = tornado.ioloop.IOLoop.current()
+    executor = concurrent.futures.ThreadPoolExecutor(max_workers=8, thread_name_prefix="rosbridge-call")
+    rosapi = Rosapi(rosgraph.get_master_uri(), rospy.get_name(), globs, rospy.Time.now)
+    backend = RosBackend(loop, executor, rosapi=rosapi,
+                         unregister_timeout=float(_param("unregister_timeout", 10.0)))
+    origins = parse_globs(str(_param("allowed_origins", "")))
+    bridge = Bridge(backend, config, allowed_origins=origins,
+                    delay_between_messages=float(_param("delay_between_messages", 0)),
+                    use_compression=bool(_param("use_compression", False)))
+    backend.set_client_count(0)
+
+    web_root = str(_param("web_root", str(DEFAULT_WEB_ROOT)))
+    settings = {
+        # Tornado closes the socket on frames over its limit; ours answers an error and keeps it open
+        "websocket_max_message_size": max(4 * max_message_size, 64_000_000),
+        "websocket_ping_interval": float(_param("websocket_ping_interval", 0)) or None,
+        "websocket_ping_timeout": float(_param("websocket_ping_timeout", 30)),
+    }
+    app = tornado.web.Application(routes(bridge, web_root), **settings)
+    ssl_options = None
+    if _param("ssl", False):
+        ssl_options = {"certfile": _param("certfile", ""), "keyfile": _param("keyfile", "")}
+    address = str(_param("address", ""))
+    sockets = tornado.netutil.bind_sockets(int(_param("port", 9090)), address or None)
+    server = tornado.httpserver.HTTPServer(app, ssl_options=ssl_options, max_buffer_size=settings[
+        "websocket_max_message_size"])
+    server.add_sockets(sockets)
+    port = sockets[0].getsockname()[1]
+    rospy.set_param("~actual_port", port)
+    scheme = "wss" if ssl_options else "ws"
+    rospy.loginfo("Rosbridge WebSocket server started at %s://%s:%d (page: %s)", scheme, address or "0.0.0.0",
+                  port, web_root or "off")
+
+    rospy.on_shutdown(lambda: loop.add_callback(loop.stop))
+    try:
+        loop.start()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.stop()
+        executor.shutdown(wait=False, cancel_futures=True)
+
+
+if __name__ == "__main__":
+    main()
