@@ -1,0 +1,443 @@
+"""The benchmark suite: runs every measurement `--rounds` times against baselines measured in the same run,
+prints a markdown table of medians and writes bench/README.md. Start it with `bash bench/run`."""
+import argparse
+import json
+import os
+import re
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+BENCH = Path(__file__).resolve().parent
+REPO = BENCH.parent
+sys.path.insert(0, str(REPO / "test"))
+import harness  # noqa: E402  (the tests' process tools: private roscore, process groups, logs)
+
+import stats  # noqa: E402
+
+PY = "/usr/bin/python3"
+
+
+class Run:
+    """One suite run: a private roscore and helpers to start roles and read their results."""
+
+    def __init__(self, workdir):
+        self.workdir = Path(workdir)
+        self.ros = harness.RosMaster(self.workdir).start()
+        self.ros.env["PYTHONPATH"] = f"{BENCH}:{self.ros.env.get('PYTHONPATH', '')}"
+        self.topics = 0
+
+    def topic(self, stem):
+        """A fresh topic name per measurement, so no publisher or latched message of an earlier one interferes."""
+        self.topics += 1
+        return f"/bench/{stem}{self.topics}"
+
+    def role(self, script, *args, name=None):
+        """Starts one bench role (ros_roles.py / ws_roles.py / transport_server.py); stdin is its cue."""
+        return self.ros.spawn([PY, str(BENCH / script), *map(str, args)], name or script.split(".")[0],
+                              stdin=subprocess.PIPE)
+
+    @staticmethod
+    def ready(proc, timeout=30):
+        harness.wait_for(lambda: "READY" in proc.output() or not proc.alive(), timeout, what=f"{proc.args} READY")
+        if "READY" not in proc.output():
+            raise RuntimeError(f"{proc.args[2:4]} failed:\n{proc.output()[-2000:]}")
+
+    @staticmethod
+    def go(proc):
+        proc.popen.stdin.write(b"go\n")
+        proc.popen.stdin.flush()
+
+    @staticmethod
+    def result(proc, timeout=120):
+        def found():
+            return re.findall(r"^RESULT (.*)$", proc.output(), re.M) or (not proc.alive() and ["dead"])
+        last = harness.wait_for(found, timeout, what=f"RESULT of {proc.args[2:4]}")[-1]
+        if last == "dead":
+            raise RuntimeError(f"{proc.args[2:4]} died:\n{proc.output()[-2000:]}")
+        return json.loads(last)
+
+    def stop(self, *procs):
+        for p in procs:
+            p.stop()
+            if p in self.ros.procs:
+                self.ros.procs.remove(p)
+
+    def bridge(self, **launch_args):
+        """A fresh bridge (the launch file, as a user starts it): (Proc, websocket URL, ProcStat of the server)."""
+        proc, port = harness.start_bridge(self.ros, **launch_args)
+        return proc, f"ws://127.0.0.1:{port}", stats.ProcStat(bridge_pid(proc.pid))
+
+    def transport(self, *args):
+        port = harness.free_port()
+        proc = self.role("transport_server.py", "--port", port, *args)
+        self.ready(proc)
+        return proc, f"ws://127.0.0.1:{port}/", stats.ProcStat(proc.pid)
+
+    def close(self):
+        self.ros.stop()
+
+
+def bridge_pid(launch_pid):
+    """The pid of the websocket server node that roslaunch started (the process whose CPU and memory count)."""
+    def find():
+        for entry in os.listdir("/proc"):
+            if not entry.isdigit():
+                continue
+            try:
+                cmd = Path(f"/proc/{entry}/cmdline").read_bytes().split(b"\0")
+                stat = Path(f"/proc/{entry}/stat").read_text()
+            except OSError:
+                continue
+            if any(c.endswith(b"rosbridge_websocket") for c in cmd[:3]) and descends(stat, launch_pid):
+                return int(entry)
+        return None
+    return harness.wait_for(find, 20, what="the rosbridge_websocket process")
+
+
+def descends(stat, ancestor):
+    ppid = int(stat.rsplit(")", 1)[1].split()[1])
+    while ppid > 1:
+        if ppid == ancestor:
+            return True
+        try:
+            ppid = int(Path(f"/proc/{ppid}/stat").read_text().rsplit(")", 1)[1].split()[1])
+        except OSError:
+            return False
+    return False
+
+
+class Cpu:
+    """CPU seconds a process spends between start and stop."""
+
+    def __init__(self, proc_stat):
+        self.proc_stat = proc_stat
+        self.start = proc_stat.cpu_seconds()
+
+    def us_per(self, messages):
+        return (self.proc_stat.cpu_seconds() - self.start) * 1e6 / messages if messages else None
+
+
+# ---- measurements: each returns a dict of figures for one round ------------------------------------------
+
+def rospy_pubsub(run, kind, count):
+    """Plain rospy publisher -> rospy subscriber: delivered rate, and each node's CPU per message."""
+    topic = run.topic("plain")
+    sub = run.role("ros_roles.py", "count", "--topic", topic, "--kind", kind, "--count", count)
+    pub = run.role("ros_roles.py", "pub", "--topic", topic, "--kind", kind, "--count", count)
+    run.ready(pub), run.ready(sub)
+    pub_cpu, sub_cpu = Cpu(stats.ProcStat(pub.pid)), Cpu(stats.ProcStat(sub.pid))
+    run.go(pub)
+    got = run.result(sub)
+    figures = {"rate": got["rate"], "delivered": got["received"] / count,
+               "pub_us": pub_cpu.us_per(count), "sub_us": sub_cpu.us_per(got["received"])}
+    run.stop(pub, sub)
+    return figures
+
+
+def bridge_in(run, url, server, kind, count):
+    """Websocket client publishes through the bridge -> rospy subscriber."""
+    topic = run.topic("in")
+    sub = run.role("ros_roles.py", "count", "--topic", topic, "--kind", kind, "--count", count)
+    client = run.role("ws_roles.py", "publish", "--url", url, "--topic", topic, "--kind", kind, "--count", count)
+    run.ready(client), run.ready(sub)
+    cpu = Cpu(server)
+    run.go(client)
+    got = run.result(sub)
+    figures = {"rate": got["received"] and got["rate"], "delivered": got["received"] / count,
+               "server_us": cpu.us_per(got["received"])}
+    run.stop(client, sub)
+    return figures
+
+
+def bridge_out(run, url, server, kind, count, compression="none"):
+    """rospy publisher at full speed -> the bridge -> one subscribed websocket client."""
+    topic = run.topic("out")
+    client = run.role("ws_roles.py", "subscribe", "--url", url, "--topic", topic, "--kind", kind,
+                      "--count", count, "--compression", compression)
+    run.ready(client)
+    pub = run.role("ros_roles.py", "pub", "--topic", topic, "--kind", kind, "--count", count)
+    run.ready(pub)
+    cpu = Cpu(server)
+    run.go(pub)
+    got = run.result(client)
+    figures = {"rate": got["rate"], "delivered": got["received"] / count,
+               "server_us": cpu.us_per(got["received"]),
+               "wire_bytes": got["bytes"] / got["received"] if got["received"] else None}
+    if got["statuses"]:
+        figures["status"] = got["statuses"]
+    run.stop(client, pub)
+    return figures
+
+
+def transport_in(run, count):
+    server, url, stat = run.transport("--no-echo")
+    client = run.role("ws_roles.py", "publish", "--url", url, "--count", count)
+    run.ready(client)
+    cpu = Cpu(stat)
+    run.go(client)
+    run.result(client)
+    run.go(client)  # closes the socket: the server then reports what it received
+    got = run.result(server)
+    figures = {"rate": got["rate"], "server_us": cpu.us_per(got["received"])}
+    run.stop(client, server)
+    return figures
+
+
+def transport_out(run, count):
+    server, url, stat = run.transport("--count", count)
+    client = run.role("ws_roles.py", "subscribe", "--url", url, "--count", count)
+    run.ready(client)
+    time.sleep(0.3)  # the subscribe frame reaches the server
+    cpu = Cpu(stat)
+    run.go(server)
+    got = run.result(client)
+    figures = {"rate": got["rate"], "server_us": cpu.us_per(got["received"])}
+    run.stop(client, server)
+    return figures
+
+
+def rtt(run, url=None, count=300):
+    """Round trips at 100 Hz: over the websocket through the bridge and a rospy echo node (url given),
+    plain rospy through the same echo node (url None)."""
+    ping, pong = run.topic("ping"), run.topic("pong")
+    echo = run.role("ros_roles.py", "echo", "--kind", "float", "--topic", ping, "--out", pong)
+    run.ready(echo)
+    if url:
+        client = run.role("ws_roles.py", "rtt", "--url", url, "--kind", "float", "--topic", ping, "--out", pong,
+                          "--count", count, "--rate", 100)
+    else:
+        client = run.role("ros_roles.py", "rtt", "--kind", "float", "--topic", ping, "--out", pong,
+                          "--count", count, "--rate", 100)
+    got = run.result(client)
+    run.stop(client, echo)
+    return got
+
+
+def transport_rtt(run, count=300):
+    server, url, _ = run.transport()
+    client = run.role("ws_roles.py", "rtt", "--url", url, "--kind", "float", "--topic", "/t", "--out", "/t",
+                      "--count", count, "--rate", 100)
+    got = run.result(client)
+    run.stop(client, server)
+    return got
+
+
+def fanout(run, clients, messages=30):
+    """`clients` websocket clients on one 10 Hz topic of a fresh bridge: loss, memory and threads."""
+    bridge, url, server = run.bridge()
+    time.sleep(1.0)
+    idle_rss, idle_threads = server.rss_mb(), server.threads()
+    topic = run.topic("fan")
+    procs = max(1, min(2, clients // 300))  # the clients, multiplexed in one or two processes
+    groups = [run.role("ws_roles.py", "fanout", "--url", url, "--topic", topic, "--count", messages,
+                       "--clients", clients // procs + (i < clients % procs), "--timeout", 90, name="fanout")
+              for i in range(procs)]
+    pub = run.role("ros_roles.py", "pub", "--topic", topic, "--count", messages, "--rate", 10, "--warmup")
+    for g in groups:
+        run.ready(g, timeout=120)
+    rss, threads = [server.rss_mb()], [server.threads()]
+    cpu = Cpu(server)
+    run.go(pub)
+    results = []
+    for g in groups:
+        while not re.search(r"^RESULT", g.output(), re.M) and g.alive():
+            rss.append(server.rss_mb()), threads.append(server.threads())
+            time.sleep(0.2)
+        results.append(run.result(g))
+    delivered = sum(r["delivered"] for r in results)
+    figures = {"delivered": delivered / (messages * clients),
+               "complete_clients": sum(r["complete"] for r in results),
+               "idle_rss": idle_rss, "rss": max(rss), "idle_threads": idle_threads, "threads": max(threads),
+               "server_us": cpu.us_per(delivered),
+               "connect_s": max(r["connect_seconds"] for r in results)}
+    run.stop(pub, *groups, bridge)
+    return figures
+
+
+# ---- the suite -------------------------------------------------------------------------------------------
+
+def medians(rounds):
+    keys = [k for k in rounds[0] if isinstance(rounds[0][k], (int, float))]
+    return {k: stats.median([r.get(k) for r in rounds]) for k in keys}
+
+
+class Table:
+    """Rows of: figure, bridge value, baseline name, baseline value, target; the ratio is computed."""
+
+    def __init__(self):
+        self.rows = []
+        self.notes = []
+
+    def row(self, figure, value, unit, baseline_name, baseline, target="", ok=None):
+        ratio = value / baseline if value is not None and baseline else None
+        self.rows.append((figure, fmt(value, unit), f"{baseline_name}: {fmt(baseline, unit)}" if baseline_name
+                          else "", f"{ratio:.2f}x" if ratio is not None else "", target,
+                          "" if ok is None else ("met" if ok else "**missed**")))
+
+    def markdown(self):
+        lines = ["| Figure | Bridge | Baseline (same run) | Ratio | Target | |", "|---|---:|---|---:|---|---|"]
+        lines += ["| " + " | ".join(r) + " |" for r in self.rows]
+        return "\n".join(lines)
+
+
+def fmt(value, unit):
+    if value is None:
+        return "n/a"
+    if unit == "%":
+        return f"{value * 100:.1f}%"
+    if abs(value) >= 100:
+        return f"{value:,.0f} {unit}".strip()
+    return f"{value:.3g} {unit}".strip()
+
+
+def section_throughput(run, table, rounds, count):
+    plain, ceil_in, ceil_out, into, out = [], [], [], [], []
+    for _ in range(rounds):
+        plain.append(rospy_pubsub(run, "twist", count))
+        ceil_in.append(transport_in(run, count))
+        ceil_out.append(transport_out(run, count))
+        bridge, url, server = run.bridge()
+        into.append(bridge_in(run, url, server, "twist", count))
+        out.append(bridge_out(run, url, server, "twist", count))
+        run.stop(bridge)
+    plain, ceil_in, ceil_out, into, out = map(medians, (plain, ceil_in, ceil_out, into, out))
+    table.row("client -> ROS: Twist delivered to a rospy subscriber", into["rate"], "msg/s",
+              "plain rospy pub -> sub", plain["rate"], ">= 0.9x", into["rate"] >= 0.9 * plain["rate"])
+    table.row("client -> ROS: vs websocket transport ceiling", into["rate"], "msg/s",
+              "bare Tornado+JSON server receiving", ceil_in["rate"])
+    table.row("client -> ROS: bridge CPU per message", into["server_us"], "µs",
+              "rospy publisher node", plain["pub_us"], "<= 40 µs", into["server_us"] <= 40)
+    table.row("client -> ROS: bridge CPU vs transport ceiling", into["server_us"], "µs",
+              "bare Tornado+JSON server", ceil_in["server_us"])
+    table.row("client -> ROS: messages delivered", into["delivered"], "%", "plain rospy", plain["delivered"])
+    table.row("ROS -> client: Twist delivered to a websocket client", out["rate"], "msg/s",
+              "plain rospy pub -> sub", plain["rate"])
+    table.row("ROS -> client: vs websocket transport ceiling", out["rate"], "msg/s",
+              "bare Tornado+JSON server pushing", ceil_out["rate"])
+    table.row("ROS -> client: bridge CPU per message", out["server_us"], "µs",
+              "rospy subscriber node", plain["sub_us"], "<= 40 µs", out["server_us"] <= 40)
+    table.row("ROS -> client: bridge CPU vs transport ceiling", out["server_us"], "µs",
+              "bare Tornado+JSON server", ceil_out["server_us"])
+    table.row("ROS -> client: messages delivered (publisher at full speed)", out["delivered"], "%",
+              "plain rospy", plain["delivered"])
+
+
+def section_latency(run, table, rounds):
+    plain, ceil, bridge_rtts = [], [], []
+    for _ in range(rounds):
+        plain.append(rtt(run))
+        ceil.append(transport_rtt(run))
+        bridge, url, _ = run.bridge()
+        bridge_rtts.append(rtt(run, url))
+        run.stop(bridge)
+    plain, ceil, bridge_rtts = map(medians, (plain, ceil, bridge_rtts))
+    for q in ("p50", "p99"):
+        table.row(f"round trip {q} at 100 Hz (client -> bridge -> echo node -> bridge -> client)",
+                  bridge_rtts[f"{q}_ms"], "ms", "plain rospy round trip via the same echo node", plain[f"{q}_ms"])
+    table.row("round trip p50: vs websocket transport ceiling", bridge_rtts["p50_ms"], "ms",
+              "bare Tornado echo", ceil["p50_ms"])
+    table.row("round trips answered", bridge_rtts["echoed"] / bridge_rtts["sent"], "%",
+              "plain rospy", plain["echoed"] / plain["sent"])
+
+
+def section_fanout(run, table, rounds, sizes):
+    results = {n: medians([fanout(run, n) for _ in range(rounds)]) for n in sizes}
+    base = results[sizes[0]]
+    for n, r in results.items():
+        table.row(f"fan-out, {n} clients on a 10 Hz topic: messages delivered to every client", r["delivered"],
+                  "%", "", None, "100%", r["delivered"] == 1.0)
+        table.row(f"fan-out, {n} clients: bridge RSS", r["rss"], "MB", f"idle bridge", r["idle_rss"])
+        table.row(f"fan-out, {n} clients: bridge threads", r["threads"], "", f"{sizes[0]} client(s)",
+                  base["threads"], "constant", r["threads"] <= base["threads"])
+        table.row(f"fan-out, {n} clients: bridge CPU per delivered message", r["server_us"], "µs",
+                  f"{sizes[0]} client(s)", base["server_us"])
+    if len(sizes) > 1:
+        hi, lo = results[sizes[-1]], results[sizes[0]]
+        per_client = (hi["rss"] - lo["rss"]) * 1e3 / (sizes[-1] - sizes[0])
+        table.notes.append(f"Fan-out memory: {per_client:.0f} kB of bridge RSS per extra client "
+                           f"({lo['rss']:.1f} MB with {sizes[0]}, {hi['rss']:.1f} MB with {sizes[-1]}).")
+
+
+def section_large(run, table, rounds, count):
+    for kind, label in (("image", "640x480 rgb8 sensor_msgs/Image"), ("string", "1 MB std_msgs/String")):
+        plain, into, outs = [], [], {c: [] for c in ("none", "png", "cbor")}
+        for _ in range(rounds):
+            plain.append(rospy_pubsub(run, kind, count))
+            bridge, url, server = run.bridge()
+            into.append(bridge_in(run, url, server, kind, count))
+            for c in outs:
+                outs[c].append(bridge_out(run, url, server, kind, count, c))
+            run.stop(bridge)
+        plain, into = medians(plain), medians(into)
+        outs = {c: medians(v) for c, v in outs.items()}
+        table.row(f"{label}, client -> ROS", into["rate"], "msg/s", "plain rospy pub -> sub", plain["rate"])
+        table.row(f"{label}, client -> ROS: bridge CPU per message", into["server_us"], "µs",
+                  "rospy publisher node", plain["pub_us"])
+        for c, r in outs.items():
+            table.row(f"{label}, ROS -> client ({c})", r["rate"], "msg/s", "plain rospy pub -> sub", plain["rate"])
+            table.row(f"{label}, ROS -> client ({c}): bytes on the wire per message", r["wire_bytes"], "B",
+                      "JSON (none)", outs["none"]["wire_bytes"])
+            table.row(f"{label}, ROS -> client ({c}): bridge CPU per message", r["server_us"], "µs",
+                      "JSON (none)", outs["none"]["server_us"])
+            table.row(f"{label}, ROS -> client ({c}): delivered", r["delivered"], "%", "plain rospy",
+                      plain["delivered"])
+
+
+def section_turtlesim(run):
+    script = BENCH / "turtlesim_bench.py"
+    if not script.exists():
+        return "(bench/turtlesim_bench.py is not there yet)"
+    res = subprocess.run([PY, str(script)], env=run.ros.env, capture_output=True, text=True, timeout=240)
+    if res.returncode != 0:
+        return f"(bench/turtlesim_bench.py failed, exit {res.returncode}:\n\n```\n{res.stderr[-1500:]}\n```)"
+    return res.stdout.strip()
+
+
+SECTIONS = ("throughput", "latency", "fanout", "large", "turtlesim")
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__)
+    p.add_argument("--rounds", type=int, default=3, help="runs of each measurement; the table shows medians")
+    p.add_argument("--only", nargs="+", choices=SECTIONS, default=list(SECTIONS))
+    p.add_argument("--count", type=int, default=10000, help="Twist messages per throughput run")
+    p.add_argument("--fanout", type=int, nargs="+", default=[1, 100, 1000], help="client counts")
+    p.add_argument("--no-readme", action="store_true", help="print the table only")
+    a = p.parse_args()
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    resource.setrlimit(resource.RLIMIT_NOFILE, (hard, hard))  # the bridge inherits it: 1000 clients need fds
+
+    started = time.monotonic()
+    table, turtle = Table(), ""
+    run = Run(tempfile.mkdtemp(prefix="bench-"))
+    try:
+        if "throughput" in a.only:
+            section_throughput(run, table, a.rounds, a.count)
+        if "latency" in a.only:
+            section_latency(run, table, a.rounds)
+        if "fanout" in a.only:
+            section_fanout(run, table, a.rounds, a.fanout)
+        if "large" in a.only:
+            section_large(run, table, a.rounds, 20)
+        if "turtlesim" in a.only:
+            turtle = section_turtlesim(run)
+    finally:
+        run.close()
+    elapsed = time.monotonic() - started
+    results = "\n\n".join(filter(None, [
+        table.markdown(), "\n".join(f"- {n}" for n in table.notes), turtle and "### turtlesim_node\n\n" + turtle,
+        f"Measured {time.strftime('%Y-%m-%d')} on {os.cpu_count()} CPUs, {a.rounds} rounds (medians), "
+        f"suite took {elapsed:.0f} s. Logs: {run.workdir}"]))
+    print(results)
+    if not a.no_readme and set(a.only) == set(SECTIONS):
+        template = (BENCH / "README.template.md").read_text()
+        (BENCH / "README.md").write_text(template.replace("{{results}}", results))
+        print(f"\nwrote {BENCH / 'README.md'}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,200 @@
+"""Lean rosbridge websocket clients for the benchmarks (Tornado's client; no ROS imports), one role per process.
+
+  publish    advertises a topic, then on cue sends `count` publish ops as fast as the socket takes them
+  subscribe  subscribes (optionally with compression) and counts the messages and bytes that arrive
+  rtt        round trips: publishes pings at `rate` Hz and times the echoes coming back on another topic
+  fanout     opens `clients` connections, all subscribed to one topic, and checks every one gets every message
+
+Same protocol with bench/suite.py as bench/ros_roles.py: READY, a line on stdin as the cue, `RESULT <json>`."""
+import argparse
+import asyncio
+import json
+import resource
+import time
+
+import cbor2
+from tornado.websocket import websocket_connect
+
+import payloads
+import stats
+
+MAX_FRAME = 64 << 20
+
+
+def main():
+    p = argparse.ArgumentParser()
+    p.add_argument("role", choices=["publish", "subscribe", "rtt", "fanout"])
+    p.add_argument("--url", required=True)
+    p.add_argument("--topic", default="/bench/data")
+    p.add_argument("--out", default="/bench/pong", help="rtt: the topic the echoes come back on")
+    p.add_argument("--kind", default="twist", choices=sorted(payloads.TYPES))
+    p.add_argument("--count", type=int, default=1000)
+    p.add_argument("--rate", type=float, default=100.0, help="rtt: pings per second")
+    p.add_argument("--compression", default="none", choices=["none", "png", "cbor"])
+    p.add_argument("--clients", type=int, default=1)
+    p.add_argument("--idle", type=float, default=2.0)
+    p.add_argument("--timeout", type=float, default=60.0)
+    a = p.parse_args()
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    resource.setrlimit(resource.RLIMIT_NOFILE, (hard, hard))
+    asyncio.run({"publish": publish, "subscribe": subscribe, "rtt": rtt, "fanout": fanout}[a.role](a))
+
+
+def send(ws, op):
+    return ws.write_message(json.dumps(op, separators=(",", ":")))
+
+
+def decode(frame):
+    """A frame from the bridge -> (op, msg or None, bytes on the wire). Binary frames are CBOR."""
+    if isinstance(frame, bytes):
+        op = cbor2.loads(frame)
+        return op.get("op"), op.get("msg"), len(frame)
+    op = json.loads(frame)
+    if op.get("op") in ("png", "fragment"):  # one message in one or more parts: count it once, at its last part
+        last = op.get("num", 0) == op.get("total", 1) - 1
+        return (op["op"] if last else "part"), None, len(frame.encode())
+    return op.get("op"), op.get("msg"), len(frame.encode())
+
+
+async def publish(a):
+    ws = await websocket_connect(a.url, max_message_size=MAX_FRAME)
+    await send(ws, {"op": "advertise", "topic": a.topic, "type": payloads.TYPES[a.kind]})
+    frame = payloads.publish_frame(a.kind, a.topic)
+    print("READY", flush=True)
+    await stats.cue()
+    start = time.monotonic()
+    for _ in range(a.count):
+        await ws.write_message(frame)
+    elapsed = time.monotonic() - start
+    stats.result(sent=a.count, seconds=elapsed, frame_bytes=len(frame))
+    await stats.cue()  # stay connected until the suite has counted (closing early could cut the bridge's backlog)
+    ws.close()
+    await asyncio.sleep(0.2)
+
+
+async def subscribe(a):
+    seen = stats.Arrivals()
+    statuses = []
+
+    def on_frame(frame):
+        if frame is None:
+            return
+        op, msg, size = decode(frame)
+        if op == "publish":
+            seen.add(payloads.seq_of(a.kind, msg) if a.kind != "string" else 0, size)
+        elif op in ("png", "fragment"):
+            seen.add(0, size)
+        elif op == "status":
+            statuses.append(msg or frame)
+
+    ws = await websocket_connect(a.url, max_message_size=MAX_FRAME, on_message_callback=on_frame)
+    await send(ws, {"op": "subscribe", "topic": a.topic, "type": payloads.TYPES[a.kind],
+                    "compression": a.compression, "queue_length": 0})
+    print("READY", flush=True)
+    deadline = time.monotonic() + a.timeout
+    while seen.n < a.count and time.monotonic() < deadline:
+        if seen.last is not None and time.monotonic() - seen.last > a.idle:
+            break
+        await asyncio.sleep(0.02)
+    stats.result(**seen.summary(), statuses=[str(s)[:200] for s in statuses[:3]])
+    ws.close()
+
+
+async def rtt(a):
+    sent, rtts = {}, []
+    echoed = asyncio.Event()
+
+    def on_frame(frame):
+        if frame is None:
+            return
+        op, msg, _ = decode(frame)
+        if op != "publish":
+            return
+        seq = payloads.seq_of(a.kind, msg)
+        if seq < 0:
+            echoed.set()
+        elif seq in sent:
+            rtts.append(time.monotonic() - sent.pop(seq))
+
+    ws = await websocket_connect(a.url, max_message_size=MAX_FRAME, on_message_callback=on_frame)
+    ping_type = payloads.TYPES[a.kind]
+    await send(ws, {"op": "subscribe", "topic": a.out, "type": ping_type})
+    await send(ws, {"op": "advertise", "topic": a.topic, "type": ping_type})
+    deadline = time.monotonic() + a.timeout
+    while not echoed.is_set():  # until the whole path (bridge -> echo node -> bridge) is connected
+        if time.monotonic() > deadline:
+            raise SystemExit("no echo came back")
+        await ws.write_message(payloads.publish_frame(a.kind, a.topic, -1))
+        try:
+            await asyncio.wait_for(echoed.wait(), 0.2)
+        except asyncio.TimeoutError:
+            pass
+    print("READY", flush=True)
+    period = 1.0 / a.rate
+    start = time.monotonic()
+    for i in range(a.count):
+        sent[i] = time.monotonic()
+        await ws.write_message(payloads.publish_frame(a.kind, a.topic, i))
+        await asyncio.sleep(max(0.0, start + (i + 1) * period - time.monotonic()))
+    end = time.monotonic() + 3.0
+    while sent and time.monotonic() < end:
+        await asyncio.sleep(0.01)
+    stats.result(**stats.latency_summary(rtts, a.count))
+    ws.close()
+
+
+async def fanout(a):
+    """Every client must receive every sequence number 0..count-1 (the publisher sends -1 until all are live)."""
+    received = [[] for _ in range(a.clients)]
+    warm = [False] * a.clients
+    closed = []
+
+    def handler(i):
+        def on_frame(frame):
+            if frame is None:
+                closed.append(i)
+                return
+            op, msg, _ = decode(frame)
+            if op == "publish":
+                seq = payloads.seq_of(a.kind, msg)
+                if seq < 0:
+                    warm[i] = True
+                else:
+                    received[i].append(seq)
+        return on_frame
+
+    sub = json.dumps({"op": "subscribe", "topic": a.topic, "type": payloads.TYPES[a.kind]})
+    sockets = [None] * a.clients
+    gate = asyncio.Semaphore(50)  # connect in parallel, but not all at once
+
+    async def connect(i):
+        async with gate:
+            sockets[i] = await websocket_connect(a.url, on_message_callback=handler(i), connect_timeout=30)
+            await sockets[i].write_message(sub)
+
+    started = time.monotonic()
+    await asyncio.gather(*(connect(i) for i in range(a.clients)))
+    connect_seconds = time.monotonic() - started
+    deadline = time.monotonic() + a.timeout
+    while not all(warm):
+        if time.monotonic() > deadline:
+            raise SystemExit(f"only {sum(warm)} of {a.clients} clients got the topic")
+        await asyncio.sleep(0.05)
+    print("READY", flush=True)
+    deadline = time.monotonic() + a.timeout
+    while any(len(r) < a.count for r in received) and time.monotonic() < deadline:
+        await asyncio.sleep(0.05)
+    await asyncio.sleep(0.3)  # duplicates, if any, would arrive now
+    expected = set(range(a.count))
+    stats.result(clients=a.clients, connect_seconds=connect_seconds, expected=a.count * a.clients,
+                 delivered=sum(len(expected & set(r)) for r in received),
+                 duplicates=sum(len(r) - len(set(r)) for r in received),
+                 complete=sum(set(r) >= expected for r in received), closed=len(closed))
+    await stats.cue()  # hold the connections open while the suite reads the bridge's memory
+    for ws in sockets:
+        ws.close()
+    await asyncio.sleep(0.5)
+
+
+if __name__ == "__main__":
+    main()
