@@ -30,6 +30,7 @@ TIME_TYPES = {"time", "duration"}
 ACTION_TOPICS = {"cancel", "feedback", "goal", "result", "status"}
 
 # name -> (rosapi service type, request fields in their positional order); all request fields are strings.
+# Each is answered by the Rosapi method named after its last part, e.g. /rosapi/topic_type by _topic_type.
 SERVICES = {
     "/rosapi/topics": ("rosapi/Topics", ()),
     "/rosapi/topics_for_type": ("rosapi/TopicsForType", ("type",)),

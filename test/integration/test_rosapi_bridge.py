@@ -1,0 +1,135 @@
+"""The /rosapi services through the running bridge, called by roslibpy as a client would, checked against
+the stock CLI tools; and the launch args' globs hiding topics, services and parameters."""
+import time
+
+import pytest
+import roslibpy
+import yaml
+
+from harness import start_bridge, wait_for
+from rosbridge.rosapi import SERVICES
+from test_rosapi import graph, settle  # noqa: F401  (graph is a fixture)
+
+
+def connect(port):
+    client = roslibpy.Ros(host="127.0.0.1", port=port)
+    client.run(timeout=30)
+    return client
+
+
+@pytest.fixture(scope="module")
+def bridge(ros, graph):
+    proc, port = start_bridge(ros, node_name="rosapi_bridge")
+    client = connect(port)
+    yield client
+    client.close()
+    proc.stop()
+
+
+@pytest.fixture(scope="module")
+def glob_bridge(ros, graph):
+    proc, port = start_bridge(ros, node_name="rosapi_glob_bridge", topics_glob="[/rosapi_test/*]",
+                              services_glob="['/rosapi_test/*']", params_glob="[/rosapi_test/gain]")
+    client = connect(port)
+    yield client
+    client.close()
+    proc.stop()
+
+
+def cli_list(ros, *args):
+    return sorted(ros.run(list(args)).stdout.split())
+
+
+def test_get_topics_and_types_match_rostopic(ros, bridge):
+    topics = settle(lambda: sorted(bridge.get_topics()), lambda: cli_list(ros, "rostopic", "list"))
+    assert "/rosapi_test/chatter" in topics and "/client_count" in topics
+    assert bridge.get_topic_type("/rosapi_test/chatter") == "std_msgs/String"
+    assert bridge.get_topic_type("/no/such/topic") == ""
+    assert bridge.get_topics_for_type("std_msgs/Int32") == ["/client_count"]
+
+
+def test_get_services_match_rosservice_plus_rosapi(ros, bridge):
+    services = settle(lambda: sorted(bridge.get_services()),
+                      lambda: sorted(set(cli_list(ros, "rosservice", "list")) | set(SERVICES)))
+    assert "/rosapi_test/reset" in services and "/rosapi/get_param" in services
+    assert bridge.get_service_type("/rosapi_test/reset") == "std_srvs/Empty"
+    assert bridge.get_service_type("/rosapi/topics") == "rosapi/Topics"
+    assert bridge.get_services_for_type("std_srvs/Empty") == ["/rosapi_test/reset"]
+
+
+def test_get_nodes_and_node_details_match_rosnode(ros, graph, bridge):
+    nodes = settle(lambda: sorted(bridge.get_nodes()), lambda: cli_list(ros, "rosnode", "list"))
+    assert "/rosapi_bridge" in nodes and graph in nodes
+    details = bridge.get_node_details("/rosapi_bridge")
+    assert set(SERVICES) <= set(details["services"])
+    assert "/client_count" in details["publishing"]
+    assert "/rosapi_test/cmd" in bridge.get_node_details(graph)["subscribing"]
+
+
+def test_message_and_service_details(bridge):
+    typedefs = bridge.get_message_details("geometry_msgs/Twist")["typedefs"]
+    assert [t["type"] for t in typedefs] == ["geometry_msgs/Twist", "geometry_msgs/Vector3"]
+    assert typedefs[0]["fieldnames"] == ["linear", "angular"]
+    assert typedefs[1]["examples"] == ["0.0", "0.0", "0.0"]
+    request = bridge.get_service_request_details("std_srvs/SetBool")["typedefs"]
+    assert request[0]["fieldnames"] == ["data"] and request[0]["fieldtypes"] == ["bool"]
+    response = bridge.get_service_response_details("std_srvs/SetBool")["typedefs"]
+    assert response[0]["fieldnames"] == ["success", "message"]
+    with pytest.raises(roslibpy.core.ServiceException, match="nope/Nothing"):
+        bridge.get_message_details("nope/Nothing")
+
+
+def test_details_of_this_packages_own_types(bridge):
+    pose = bridge.get_message_details("turtlesim/Pose")["typedefs"]
+    assert pose[0]["fieldnames"] == ["x", "y", "theta", "linear_velocity", "angular_velocity"]
+    spawn = bridge.get_service_request_details("turtlesim/Spawn")["typedefs"]
+    assert spawn[0]["fieldnames"] == ["x", "y", "theta", "name"]
+
+
+def test_params_get_set_delete_agree_with_rosparam(ros, bridge):
+    settle(lambda: sorted(bridge.get_params()), lambda: cli_list(ros, "rosparam", "list"))
+    assert roslibpy.Param(bridge, "/rosapi_test/gain").get() == 2.5
+    assert bridge.get_param("/rosapi_test/nested") == yaml.safe_load(
+        ros.run(["rosparam", "get", "/rosapi_test/nested"]).stdout)
+
+    param = roslibpy.Param(bridge, "/rosapi_test/from_client")
+    param.set({"speed": 1.5, "names": ["a", "b"]}, timeout=30)
+    assert yaml.safe_load(ros.run(["rosparam", "get", "/rosapi_test/from_client"]).stdout) == {
+        "speed": 1.5, "names": ["a", "b"]}
+    assert "/rosapi_test/from_client/speed" in bridge.get_params()
+    param.delete(timeout=30)
+    assert ros.run(["rosparam", "get", "/rosapi_test/from_client"], check=False).returncode != 0
+    assert param.get(timeout=30) is None  # missing: "null"
+
+
+def test_bad_param_value_is_a_service_error(bridge):
+    set_param = roslibpy.Service(bridge, "/rosapi/set_param", "rosapi/SetParam")
+    with pytest.raises(roslibpy.core.ServiceException, match="must be JSON"):
+        set_param.call(roslibpy.ServiceRequest({"name": "/rosapi_test/bad", "value": "not json"}), timeout=30)
+    assert bridge.get_topics()  # the connection still works
+
+
+def test_get_time(bridge):
+    now = bridge.get_time()
+    assert abs(now.secs + now.nsecs / 1e9 - time.time()) < 60
+
+
+def test_action_servers(bridge):
+    found = []
+    bridge.get_action_servers(found.append)
+    assert "/rosapi_test/act" in wait_for(lambda: found, 30, what="action_servers answer")[0]["action_servers"]
+
+
+def test_globs_hide_topics_services_and_params(ros, glob_bridge):
+    topics = glob_bridge.get_topics()
+    assert "/rosapi_test/chatter" in topics
+    assert all(t.startswith("/rosapi_test/") for t in topics)
+    assert glob_bridge.get_topic_type("/rosout") == ""
+    assert glob_bridge.get_services() == ["/rosapi_test/reset"]
+    assert glob_bridge.get_params() == ["/rosapi_test/gain"]
+    assert glob_bridge.get_param("/rosapi_test/gain") == 2.5
+    with pytest.raises(roslibpy.core.ServiceException, match="hidden by params_glob"):
+        glob_bridge.get_param("/rosapi_test/label")
+    with pytest.raises(roslibpy.core.ServiceException, match="hidden by params_glob"):
+        roslibpy.Param(glob_bridge, "/rosapi_test/label").set("changed", timeout=30)
+    assert ros.run(["rosparam", "get", "/rosapi_test/label"]).stdout.strip() == "turtle"
