@@ -1,0 +1,126 @@
+"""The turtlesim window on a virtual X server (Xvfb): its title and size, what it shows (SIGUSR1 snapshot
+and a grab of the real X screen) and that it goes away with the node."""
+import os
+import re
+import signal
+import time
+from pathlib import Path
+
+import pytest
+from PIL import Image, ImageGrab
+
+from harness import ARTIFACTS, wait_for
+
+BACKGROUND = (69, 86, 255)
+PEN = (179, 184, 255)
+
+
+def free_display():
+    for number in range(90, 300):
+        if not Path(f"/tmp/.X11-unix/X{number}").exists() and not Path(f"/tmp/.X{number}-lock").exists():
+            return f":{number}"
+    raise RuntimeError("no free X display number")
+
+
+@pytest.fixture(scope="module")
+def display(ros):
+    name = free_display()
+    xvfb = ros.spawn(["Xvfb", name, "-screen", "0", "1024x768x24", "-nolisten", "tcp"], "xvfb")
+    wait_for(Path(f"/tmp/.X11-unix/X{name[1:]}").exists, 20, what="Xvfb")
+    yield name
+    xvfb.stop()
+
+
+@pytest.fixture
+def windowed(start_turtlesim, display, tmp_path):
+    snapshot = tmp_path / "snapshot.png"
+    proc = start_turtlesim(env={"DISPLAY": display, "TURTLESIM_SNAPSHOT": str(snapshot)})
+    geometry = wait_for(lambda: window_geometry(display), 20, what="the TurtleSim window")
+    return proc, snapshot, geometry
+
+
+def window_geometry(display):
+    """(x, y, width, height) of the window titled TurtleSim, or None."""
+    res = os.popen(f"DISPLAY={display} xwininfo -name TurtleSim 2>/dev/null").read()
+    values = dict(re.findall(r"^\s*(Absolute upper-left X|Absolute upper-left Y|Width|Height):\s+(-?\d+)",
+                             res, re.M))
+    if len(values) < 4:
+        return None
+    return tuple(int(values[k]) for k in ("Absolute upper-left X", "Absolute upper-left Y", "Width", "Height"))
+
+
+def take_snapshot(proc, path):
+    if path.exists():
+        path.unlink()
+    proc.signal(signal.SIGUSR1)
+    return wait_for(lambda: path.exists() and _load(path), 10, what="the snapshot PNG")
+
+
+def _load(path):
+    try:
+        with Image.open(path) as image:
+            return image.convert("RGB")
+    except OSError:  # still being written
+        return None
+
+
+def drive_in_an_arc(rospy):
+    from geometry_msgs.msg import Twist
+    from turtlesim.msg import Pose
+    publisher = rospy.Publisher("/turtle1/cmd_vel", Twist, queue_size=1)
+    wait_for(lambda: publisher.get_num_connections() > 0, 10, what="the cmd_vel connection")
+    twist = Twist()
+    twist.linear.x, twist.angular.z = 2.0, 1.0
+    publisher.publish(twist)
+    wait_for(lambda: rospy.wait_for_message("/turtle1/pose", Pose, 10).linear_velocity > 0, 10, what="motion")
+    wait_for(lambda: rospy.wait_for_message("/turtle1/pose", Pose, 10).linear_velocity == 0, 10, what="rest")
+    publisher.unregister()
+    return rospy.wait_for_message("/turtle1/pose", Pose, 10)
+
+
+def count(image, color):
+    return dict((c, n) for n, c in image.getcolors(500 * 500)).get(color, 0)
+
+
+def test_the_window_is_titled_turtlesim_and_500_by_500(windowed):
+    _, _, geometry = windowed
+    assert geometry[2:] == (500, 500)
+
+
+def test_the_window_shows_the_trail_and_the_turtles(windowed, display, node):
+    from turtlesim.srv import Spawn
+    proc, snapshot_path, (left, top, _, _) = windowed
+    node.ServiceProxy("/spawn", Spawn)(2.0, 2.0, 0.0, "")
+    pose = drive_in_an_arc(node)
+
+    snapshot = take_snapshot(proc, snapshot_path)
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    snapshot.save(ARTIFACTS / "turtlesim_window_snapshot.png")
+    assert snapshot.size == (500, 500)
+    assert count(snapshot, BACKGROUND) > 200_000
+    assert count(snapshot, PEN) > 100  # about 2 m of a 3 px trail, partly under the turtle
+    # The turtle is drawn on the pose, and only there: neither the background nor the trail colour.
+    px, py = round(pose.x * 45), round((11.088889122009277 - pose.y) * 45)
+    around = snapshot.crop((px - 7, py - 7, px + 8, py + 8))  # inside the shell
+    assert count(around, BACKGROUND) + count(around, PEN) == 0
+    assert snapshot.getpixel((round(2 * 45), round((11.088889 - 2) * 45))) not in (BACKGROUND, PEN)  # turtle2
+
+    def screen_matches():
+        grab = ImageGrab.grab(xdisplay=display).crop((left, top, left + 500, top + 500)).convert("RGB")
+        return grab if list(grab.getdata()) == list(snapshot.getdata()) else None
+
+    grab = wait_for(screen_matches, 10, what="the X screen to show the snapshot")
+    grab.save(ARTIFACTS / "turtlesim_window_screen.png")
+
+
+def test_rosnode_kill_closes_the_window_and_exits(ros, windowed, display):
+    proc, _, _ = windowed
+    ros.run(["rosnode", "kill", "/turtlesim"])
+    wait_for(lambda: not proc.alive(), 15, what="turtlesim_node to exit")
+    assert window_geometry(display) is None
+
+
+def test_with_a_window_only_the_startup_lines_are_logged(windowed):
+    proc, _, _ = windowed
+    time.sleep(1)
+    assert len([line for line in proc.output().splitlines() if line.startswith("[")]) == 2
