@@ -1,0 +1,121 @@
+#!/usr/bin/python3
+"""turtlesim_node under load: pose rate per turtle and the node's CPU use, with 1 and with 50 turtles all
+driving in circles (so every tick also draws trail), headless and with a window on Xvfb.
+
+Starts its own roscore on a free port. Prints a markdown table. Target: 62.5 Hz +-2 % per turtle.
+Run from the repository with the workspace sourced:
+    source .build/ws/devel/setup.bash && /usr/bin/python3 bench/turtlesim_bench.py [--seconds 10]"""
+import argparse
+import os
+import sys
+import threading
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO / "test"))
+from harness import RosMaster, make_workdir, wait_for  # noqa: E402  (the test harness starts the processes)
+
+TARGET_HZ = 62.5
+CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
+
+
+def cpu_seconds(pid):
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / CLOCK_TICKS  # utime + stime
+
+
+def free_display():
+    number = next(n for n in range(90, 300) if not Path(f"/tmp/.X11-unix/X{n}").exists()
+                  and not Path(f"/tmp/.X{n}-lock").exists())
+    return f":{number}"
+
+
+def measure(ros, rospy, turtles, display, seconds):
+    from geometry_msgs.msg import Twist
+    from turtlesim.msg import Pose
+    from turtlesim.srv import Spawn
+
+    env = {"DISPLAY": display} if display else {"DISPLAY": ""}
+    node = ros.spawn(["rosrun", "turtlesim", "turtlesim_node"], f"turtlesim-{turtles}-{bool(display)}", env=env)
+    try:
+        node.wait_output("Spawning turtle [turtle1]", 30)
+        rospy.wait_for_service("/spawn", 30)
+        spawn = rospy.ServiceProxy("/spawn", Spawn)
+        names = ["turtle1"] + [spawn(1.0 + (i % 9), 1.0 + (i // 9) * 1.5, 0.0, "").name
+                               for i in range(turtles - 1)]
+        counts = dict.fromkeys(names, 0)
+        lock = threading.Lock()
+
+        def count(_pose, name):
+            with lock:
+                counts[name] += 1
+
+        subscribers = [rospy.Subscriber(f"/{n}/pose", Pose, count, callback_args=n) for n in names]
+        drivers = [rospy.Publisher(f"/{n}/cmd_vel", Twist, queue_size=1) for n in names]
+        wait_for(lambda: all(s.get_num_connections() for s in subscribers + drivers), 30, what="connections")
+        twist = Twist()
+        twist.linear.x, twist.angular.z = 1.0, 0.8
+
+        def drive():
+            for publisher in drivers:
+                publisher.publish(twist)
+
+        for _ in range(4):  # warm up
+            drive()
+            time.sleep(0.5)
+        with lock:
+            counts = dict.fromkeys(names, 0)
+        start, cpu_start = time.monotonic(), cpu_seconds(node.pid)
+        while time.monotonic() - start < seconds:
+            drive()
+            time.sleep(0.5)
+        with lock:
+            final = dict(counts)
+        elapsed = time.monotonic() - start
+        cpu = (cpu_seconds(node.pid) - cpu_start) / elapsed * 100
+        for s in subscribers + drivers:
+            s.unregister()
+        rates = [final[n] / elapsed for n in names]
+        return min(rates), sum(rates) / len(rates), max(rates), cpu
+    finally:
+        ros.run(["rosnode", "kill", "/turtlesim"], check=False)
+        try:
+            wait_for(lambda: not node.alive(), 10)
+        except AssertionError:
+            pass
+        node.stop()
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--seconds", type=float, default=10.0, help="measuring time per case")
+    parser.add_argument("--turtles", type=int, nargs="+", default=[1, 50])
+    args = parser.parse_args()
+
+    ros = RosMaster(make_workdir("turtlesim-bench-")).start()
+    os.environ.update({k: ros.env[k] for k in ("ROS_MASTER_URI", "ROS_IP", "ROS_HOME", "ROS_LOG_DIR")})
+    import rospy
+    rospy.init_node("turtlesim_bench", anonymous=True, disable_signals=True)
+    display = free_display()
+    xvfb = ros.spawn(["Xvfb", display, "-screen", "0", "1024x768x24", "-nolisten", "tcp"], "xvfb")
+    try:
+        wait_for(Path(f"/tmp/.X11-unix/X{display[1:]}").exists, 20, what="Xvfb")
+        print(f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} at the start\n")
+        print("| turtles | view | pose rate per turtle, Hz (min / mean / max) | within 62.5 Hz +-2 % | "
+              "node CPU, % of one core |")
+        print("|---|---|---|---|---|")
+        for turtles in args.turtles:
+            for view in (None, display):
+                low, mean, high, cpu = measure(ros, rospy, turtles, view, args.seconds)
+                ok = "yes" if abs(low - TARGET_HZ) <= 0.02 * TARGET_HZ and high <= TARGET_HZ * 1.02 else "NO"
+                print(f"| {turtles} | {'Xvfb window' if view else 'headless'} | "
+                      f"{low:.2f} / {mean:.2f} / {high:.2f} | {ok} | {cpu:.0f} |", flush=True)
+    finally:
+        xvfb.stop()
+        rospy.signal_shutdown("done")
+        ros.stop()
+
+
+if __name__ == "__main__":
+    main()
