@@ -153,3 +153,10 @@ def start_bridge(ros, node_name="rosbridge_websocket", timeout=30.0, **launch_ar
         return master.getParam(param) if master.hasParam(param) else None
 
     return proc, wait_for(port, timeout, what=f"{param} (bridge log: {proc.log_path})")
+
+
+def node_pid(ros, node_name):
+    """The process id of a running ROS node, asked from the node itself (its XML-RPC getPid)."""
+    import xmlrpc.client
+    uri = ros.master().lookupNode(node_name)
+    return xmlrpc.client.ServerProxy(uri).getPid("/harness")[2]
