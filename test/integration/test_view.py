@@ -1,5 +1,7 @@
 """The turtlesim window on a virtual X server (Xvfb): its title and size, what it shows (SIGUSR1 snapshot
 and a grab of the real X screen) and that it goes away with the node."""
+import ctypes
+import ctypes.util
 import os
 import re
 import signal
@@ -47,6 +49,35 @@ def window_geometry(display):
     if len(values) < 4:
         return None
     return tuple(int(values[k]) for k in ("Absolute upper-left X", "Absolute upper-left Y", "Width", "Height"))
+
+
+class ClientMessage(ctypes.Structure):
+    _fields_ = [("type", ctypes.c_int), ("serial", ctypes.c_ulong), ("send_event", ctypes.c_int),
+                ("display", ctypes.c_void_p), ("window", ctypes.c_ulong), ("message_type", ctypes.c_ulong),
+                ("format", ctypes.c_int), ("data", ctypes.c_long * 5), ("padding", ctypes.c_long * 12)]
+
+
+def close_window(display, title):
+    """What a window manager does when the user clicks the close button: a WM_DELETE_WINDOW message."""
+    window_id = int(re.search(r"Window id: (0x[0-9a-f]+)",
+                              os.popen(f"DISPLAY={display} xwininfo -name {title}").read()).group(1), 16)
+    xlib = ctypes.CDLL(ctypes.util.find_library("X11"))
+    xlib.XOpenDisplay.restype = ctypes.c_void_p
+    xlib.XInternAtom.restype = ctypes.c_ulong
+    xlib.XInternAtom.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_int]
+    xlib.XSendEvent.argtypes = [ctypes.c_void_p, ctypes.c_ulong, ctypes.c_int, ctypes.c_long,
+                                ctypes.POINTER(ClientMessage)]
+    xlib.XFlush.argtypes = xlib.XCloseDisplay.argtypes = [ctypes.c_void_p]
+    connection = xlib.XOpenDisplay(display.encode())
+    assert connection, f"cannot open display {display}"
+    try:
+        event = ClientMessage(type=33, window=window_id, format=32,  # 33: ClientMessage
+                              message_type=xlib.XInternAtom(connection, b"WM_PROTOCOLS", 0))
+        event.data[0] = xlib.XInternAtom(connection, b"WM_DELETE_WINDOW", 0)
+        assert xlib.XSendEvent(connection, window_id, 0, 0, ctypes.byref(event))
+        xlib.XFlush(connection)
+    finally:
+        xlib.XCloseDisplay(connection)
 
 
 def take_snapshot(proc, path):
@@ -118,6 +149,14 @@ def test_rosnode_kill_closes_the_window_and_exits(ros, windowed, display):
     ros.run(["rosnode", "kill", "/turtlesim"])
     wait_for(lambda: not proc.alive(), 15, what="turtlesim_node to exit")
     assert window_geometry(display) is None
+
+
+def test_closing_the_window_ends_the_node(ros, windowed, display):
+    proc, _, _ = windowed
+    close_window(display, "TurtleSim")
+    wait_for(lambda: not proc.alive(), 15, what="turtlesim_node to exit")
+    wait_for(lambda: "/turtlesim" not in ros.run(["rosnode", "list"]).stdout.split(), 10,
+             what="/turtlesim to unregister")
 
 
 def test_with_a_window_only_the_startup_lines_are_logged(windowed):
