@@ -101,8 +101,8 @@ class TurtlesimNode:
     def on_cmd_vel(self, twist, name):
         try:
             self.locked(self.world.command, name, twist.linear.x, twist.linear.y, twist.angular.z)
-        except TurtlesimError:
-            pass  # a message that was on its way when the turtle was killed
+        except TurtlesimError as error:  # (a topic cannot answer: say it in the log, but not at 62.5 Hz)
+            rospy.logwarn_throttle(5.0, f"Ignored a {name}/cmd_vel message: {error}")
 
     def _clear(self, _request):
         rospy.loginfo("Clearing turtlesim.")
@@ -136,8 +136,17 @@ class TurtlesimNode:
             self._interfaces[name] = TurtleInterface(self, name)
 
     def _background(self):
-        return tuple(int(rospy.get_param(param, default))
+        return tuple(self._color_param(param, default)
                      for param, default in zip(BACKGROUND_PARAMS, DEFAULT_BACKGROUND))
+
+    @staticmethod
+    def _color_param(param, default):
+        value = rospy.get_param(param, default)
+        if isinstance(value, int) and not isinstance(value, bool) and 0 <= value <= 255:
+            return value
+        rospy.logwarn("Parameter %s must be an integer from 0 to 255, not %r: using %d",
+                      rospy.resolve_name(param), value, default)
+        return default
 
     # ---- the simulation loop -------------------------------------------------------------------------
 

@@ -75,6 +75,7 @@ class World:
 
     def spawn(self, x, y, theta, name=""):
         """Adds a turtle at world (x, y) (clamped only at its first tick); returns its name."""
+        _require_finite(x=x, y=y, theta=theta)
         if not name:
             name = self._next_free_name()
         elif name in self._turtles:
@@ -92,6 +93,7 @@ class World:
 
     def command(self, name, vx, vy, wz):
         """A cmd_vel Twist: takes effect at the next tick, and lasts COMMAND_TIMEOUT from then."""
+        _require_finite(**{"linear.x": vx, "linear.y": vy, "angular.z": wz})
         self._turtle(name).pending_command = (vx, vy, wz)
 
     def set_pen(self, name, r, g, b, width, off):
@@ -104,12 +106,14 @@ class World:
 
     def teleport_absolute(self, name, x, y, theta):
         """Queued for the next tick. x is not clamped there, world y only to <= HEIGHT (as the reference)."""
+        _require_finite(x=x, y=y, theta=theta)
         def jump(turtle):
             turtle.x, turtle.qy, turtle.orient = x, max(0.0, HEIGHT - y), theta
         self._turtle(name).teleports.append(jump)
 
     def teleport_relative(self, name, linear, angular):
         """Queued for the next tick: turn by angular, then move linear along the new heading."""
+        _require_finite(linear=linear, angular=angular)
         def jump(turtle):
             turtle.orient += angular
             turtle.x += math.cos(turtle.orient) * linear
@@ -238,3 +242,11 @@ class World:
     def _fail(self, text):
         self._log("error", text)
         raise TurtlesimError(text)
+
+
+def _require_finite(**values):
+    """Infinity or NaN would poison the pose for good; the reference has no answer for them either."""
+    bad = [name for name, value in values.items() if not math.isfinite(value)]
+    if bad:
+        raise TurtlesimError(f"{', '.join(bad)} must be a finite number, not "
+                             f"{', '.join(str(values[name]) for name in bad)}")

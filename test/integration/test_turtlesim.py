@@ -89,6 +89,13 @@ def test_a_preset_background_parameter_is_kept_and_used(ros, start_turtlesim, no
     wait_for(lambda: color_of(node) == (200, 10, 255), 10, what="the new background")
 
 
+def test_a_bad_background_parameter_is_reported_and_the_default_used(ros, start_turtlesim, node):
+    proc = start_turtlesim(params={"background_g": "green"})
+    assert color_of(node) == (69, 86, 255)
+    assert ("WARN", "Parameter /turtlesim/background_g must be an integer from 0 to 255, not 'green': "
+                    "using 86") in log_lines(proc)
+
+
 def test_driving_with_rostopic_pub_moves_the_turtle_and_it_stops(ros, turtlesim, node):
     from turtlesim.msg import Pose
     poses = []
@@ -165,6 +172,8 @@ def test_bad_requests_fail_clearly_and_the_node_carries_on(ros, turtlesim, node)
     assert res.returncode != 0 and "Tried to kill turtle [nobody], which does not exist" in res.stderr
     res = ros.run(["rosservice", "call", "/spawn", "1", "1", "0", "no spaces"], check=False)
     assert res.returncode != 0 and "not a legal ROS name" in res.stderr
+    res = ros.run(["rosservice", "call", "/spawn", ".nan", "1", "0", ""], check=False)
+    assert res.returncode != 0 and "x must be a finite number, not nan" in res.stderr
     assert ("ERROR", "A turtled named [turtle1] already exists") in log_lines(turtlesim)
     assert ("ERROR", "Tried to kill turtle [nobody], which does not exist") in log_lines(turtlesim)
     assert_alive_and_publishing(turtlesim, node)

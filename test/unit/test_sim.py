@@ -282,3 +282,22 @@ def test_version_changes_only_when_the_picture_may_change(sim):
     assert sim.world.version == before
     drive(sim, 1.0, 1)
     assert sim.world.version > before
+
+
+@pytest.mark.parametrize("call, args", [
+    ("spawn", (float("nan"), 1.0, 0.0)), ("command", ("turtle1", float("inf"), 0.0, 0.0)),
+    ("teleport_absolute", ("turtle1", 1.0, float("-inf"), 0.0)),
+    ("teleport_relative", ("turtle1", float("nan"), 0.0))])
+def test_non_finite_numbers_are_refused_and_change_nothing(sim, call, args):
+    before = sim.world.views()
+    with pytest.raises(TurtlesimError, match="must be a finite number"):
+        getattr(sim.world, call)(*args)
+    sim.tick()
+    assert sim.world.views() == before and sim.world.names() == ["turtle1"]
+
+
+def test_huge_numbers_end_at_the_walls(sim):
+    sim.world.teleport_relative("turtle1", 3e38, 0.5)
+    sim.world.command("turtle1", -1e308, 1e308, 1e308)
+    pose = sim.pose()
+    assert 0 <= pose.x <= WIDTH and 0 <= pose.y <= HEIGHT
