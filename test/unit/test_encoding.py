@@ -1,0 +1,157 @@
+"""Wire encodings (rosbridge.encoding): CBOR with RFC 8746 typed arrays, JSON packed into PNG, fragments."""
+import base64
+import io
+import json
+import math
+import struct
+
+import cbor2
+import genpy
+import pytest
+import geometry_msgs.msg
+import sensor_msgs.msg
+from PIL import Image
+
+from test_convert import AllTypes, deserialized, serialized
+from rosbridge.convert import dumps, from_json, parse_slot_type
+from rosbridge.encoding import cbor_frame, fragments, png_frame, png_unframe, to_cbor_value
+
+# element type -> (size in bytes, signed, float, struct code)
+NUMERIC = {"int8": (1, True, False, "b"), "uint16": (2, False, False, "H"), "int16": (2, True, False, "h"),
+           "uint32": (4, False, False, "I"), "int32": (4, True, False, "i"), "uint64": (8, False, False, "Q"),
+           "int64": (8, True, False, "q"), "float32": (4, True, True, "f"), "float64": (8, True, True, "d")}
+
+
+def rfc8746_tag(size, signed, is_float):
+    """The tag of a little-endian typed array, from the bit layout of RFC 8746 section 2.1: 0b010_f_s_e_ll."""
+    if is_float:
+        return 0b010_1_0_1_00 | {2: 0, 4: 1, 8: 2, 16: 3}[size]
+    little_endian = size > 1  # one-byte arrays have no byte order (e = 0)
+    return 0b010_0_0_0_00 | signed << 3 | little_endian << 2 | {1: 0, 2: 1, 4: 2, 8: 3}[size]
+
+
+def tag_codes():
+    return {rfc8746_tag(*NUMERIC[base][:3]): NUMERIC[base][3] for base in NUMERIC}
+
+
+def typed_arrays_as_lists(value):
+    """Decoded CBOR with each typed array replaced by the list of its numbers (walked here rather than with a
+    tag_hook, whose signature differs between cbor2 versions)."""
+    if isinstance(value, cbor2.CBORTag):
+        code = tag_codes()[value.tag]
+        return list(struct.unpack(f"<{len(value.value) // struct.calcsize(code)}{code}", value.value))
+    if isinstance(value, dict):
+        return {key: typed_arrays_as_lists(item) for key, item in value.items()}
+    if isinstance(value, list):
+        return [typed_arrays_as_lists(item) for item in value]
+    return value
+
+
+def cbor_decoded(msg):
+    return typed_arrays_as_lists(cbor2.loads(cbor_frame(to_cbor_value(msg))))
+
+
+def sample():
+    return deserialized(AllTypes(
+        b=True, i8=-5, u64=2**64 - 1, f32=0.5, f64=-2.5, s="ü", t=genpy.Time(5, 6), d=genpy.Duration(-7, 8),
+        bools=[True, False], i8s=[-128, 127], u16s=[1, 2, 65535], i16s=[-32768], u32s=[2**32 - 1], i32s=[-2**31, 5],
+        u64s=[2**64 - 1], i64s=[-2**63], f32s=[0.25, -1e30], f64s=[1e-300, 2.0], strings=["x", ""],
+        times=[genpy.Time(1, 1)], durations=[genpy.Duration(1), genpy.Duration(-2)], bytes=bytes(range(256)),
+        chars=b"wxyz", fixed_bytes=b"\x00\x01", signed_bytes=[-1, 1], points=[geometry_msgs.msg.Point(1, 2, 3)]))
+
+
+def test_numeric_arrays_are_little_endian_typed_arrays_with_rfc8746_tags():
+    msg = sample()
+    raw = cbor2.loads(cbor_frame(to_cbor_value(msg)))
+    for name, slot_type in zip(AllTypes.__slots__, AllTypes._slot_types):
+        base, is_array, _ = parse_slot_type(slot_type)
+        if is_array and base in NUMERIC:
+            size, signed, is_float, code = NUMERIC[base]
+            tag = raw[name]
+            assert isinstance(tag, cbor2.CBORTag) and tag.tag == rfc8746_tag(size, signed, is_float), name
+            values = list(struct.unpack(f"<{len(getattr(msg, name))}{code}", tag.value))
+            expected = [struct.unpack("<f", struct.pack("<f", v))[0] for v in getattr(msg, name)] \
+                if base == "float32" else list(getattr(msg, name))
+            assert values == expected, name
+
+
+def test_rfc8746_tag_numbers():
+    assert tag_codes() == {72: "b", 69: "H", 77: "h", 70: "I", 78: "i", 71: "Q", 79: "q", 85: "f", 86: "d"}
+
+
+def test_cbor_byte_arrays_times_and_the_rest():
+    value = cbor_decoded(sample())
+    assert value["bytes"] == bytes(range(256)) and value["chars"] == b"wxyz" and value["fixed_bytes"] == b"\x00\x01"
+    assert value["t"] == {"secs": 5, "nsecs": 6} and value["d"] == {"secs": -7, "nsecs": 8}
+    assert value["durations"] == [{"secs": 1, "nsecs": 0}, {"secs": -2, "nsecs": 0}]
+    assert value["bools"] == [True, False] and value["strings"] == ["x", ""] and value["s"] == "ü"
+    assert value["u64"] == 2**64 - 1 and value["b"] is True
+    assert value["points"] == [{"x": 1.0, "y": 2.0, "z": 3.0}]
+    assert value["header"] == {"seq": 0, "stamp": {"secs": 0, "nsecs": 0}, "frame_id": ""}
+
+
+def test_cbor_keeps_nan_and_infinity():
+    value = cbor_decoded(AllTypes(f32=math.nan, f64=-math.inf, f64s=[math.inf, math.nan]))
+    assert math.isnan(value["f32"]) and value["f64"] == -math.inf
+    assert value["f64s"][0] == math.inf and math.isnan(value["f64s"][1])
+
+
+def test_cbor_value_decodes_back_to_the_same_message():
+    msg = sample()
+    value = cbor_decoded(msg)
+    for name in ("bytes", "chars", "fixed_bytes"):  # from_json takes byte arrays as lists of ints
+        value[name] = list(value[name])
+    assert serialized(from_json(AllTypes, value)) == serialized(msg)
+
+
+def test_cbor_image_data_is_one_byte_string():
+    image = sensor_msgs.msg.Image(height=480, width=640, encoding="rgb8", step=1920, data=bytes(640 * 480 * 3))
+    frame = cbor_frame({"op": "publish", "topic": "/camera", "msg": to_cbor_value(image)})
+    assert len(frame) < 640 * 480 * 3 + 200
+    decoded = cbor2.loads(frame)
+    assert decoded["op"] == "publish" and decoded["msg"]["data"] == image.data and decoded["msg"]["width"] == 640
+
+
+TEXTS = ["", "1", "{}", "[1]", '"ab"', dumps({"op": "publish", "topic": "/t", "msg": {"data": "x" * 1000}}),
+         dumps({"s": "héllo ☃ 😀", "n": [1, 2.5, None]})]
+
+
+@pytest.mark.parametrize("text", TEXTS)
+def test_png_round_trip(text):
+    assert json.loads(png_unframe(png_frame(text)) or "null") == json.loads(text or "null")
+
+
+@pytest.mark.parametrize("text", TEXTS[1:])
+def test_png_as_roslibjs_reads_it(text):
+    """roslibjs draws the image on a canvas and builds the text from the R, G, B bytes of each pixel, one
+    String.fromCharCode per byte, then JSON.parses it (trailing newlines are whitespace to JSON)."""
+    with Image.open(io.BytesIO(base64.b64decode(png_frame(text)))) as image:
+        assert image.format == "PNG" and image.mode == "RGB"
+        width, height = image.size
+        rgba = image.convert("RGBA").tobytes()
+    text_from_canvas = "".join(chr(rgba[i]) + chr(rgba[i + 1]) + chr(rgba[i + 2]) for i in range(0, len(rgba), 4))
+    assert json.loads(text_from_canvas) == json.loads(text)
+    assert set(text_from_canvas[len(text_from_canvas.rstrip("\n")):]) <= {"\n"}
+    assert abs(width - height) <= max(2, width // 10)  # about square, as the reference makes them
+
+
+def test_png_escapes_non_ascii_so_byte_wise_decoding_works():
+    text = dumps({"s": "ü😀"})
+    assert png_unframe(png_frame(text)).isascii()
+
+
+def test_fragments():
+    text = dumps({"op": "publish", "topic": "/t", "msg": {"data": "abcdefghij" * 10}})
+    parts = fragments(text, 7, "publish:/t:1")
+    assert [part["num"] for part in parts] == list(range(len(parts))) and len(parts) == math.ceil(len(text) / 7)
+    assert all(part["op"] == "fragment" and part["id"] == "publish:/t:1" and part["total"] == len(parts)
+               for part in parts)
+    assert all(len(part["data"]) == 7 for part in parts[:-1]) and 1 <= len(parts[-1]["data"]) <= 7
+    assert "".join(part["data"] for part in parts) == text
+
+
+def test_fragments_of_short_text_and_bad_size():
+    assert fragments("abc", 10, 5) == [{"op": "fragment", "id": 5, "data": "abc", "num": 0, "total": 1}]
+    assert fragments("", 10, "x") == [{"op": "fragment", "id": "x", "data": "", "num": 0, "total": 1}]
+    with pytest.raises(ValueError):
+        fragments("abc", 0, "x")
