@@ -17,6 +17,7 @@ import hmac
 import itertools
 import json
 import logging
+import math
 
 from rosbridge import encoding
 from rosbridge import globs as globs_module
@@ -220,7 +221,7 @@ class Session:
             return
         try:
             request = json.loads(text)
-        except ValueError as error:
+        except (ValueError, RecursionError) as error:  # RecursionError: nested deeper than Python can parse
             self.status("error", f"message is not valid JSON ({error}): {text[:60]!r}")
             return
         self.handle_request(request, depth)
@@ -231,7 +232,8 @@ class Session:
 
     def handle_request(self, request, depth=0):
         request_id = request.get("id") if isinstance(request, dict) else None
-        if not isinstance(request_id, ID[0]) or isinstance(request_id, bool):
+        if not isinstance(request_id, ID[0]) or isinstance(request_id, bool) or (
+                isinstance(request_id, float) and not math.isfinite(request_id)):  # NaN/Infinity: not JSON
             request_id = None
         op = request.get("op") if isinstance(request, dict) else None
         try:
@@ -283,9 +285,9 @@ class Session:
         self._check_topic(topic)
         compression = _compression(req)
         throttle_rate = req.get("throttle_rate") or 0
-        queue_length = req.get("queue_length") or 0
-        if throttle_rate < 0 or queue_length < 0:
-            raise RequestError("subscribe: throttle_rate and queue_length must not be negative")
+        queue_length = min(req.get("queue_length") or 0, self.config.max_queue)  # a deque needs a C-sized maxlen
+        if not 0 <= throttle_rate < math.inf or queue_length < 0:  # NaN/Infinity would spin or stall the timer
+            raise RequestError("subscribe: throttle_rate must be finite and queue_length must not be negative")
         fragment_size = _positive(req, "fragment_size", None)
         self.backend.subscribe(self, topic, req.get("type"))
         subscription = self.subscriptions.get(topic) or self.subscriptions.setdefault(topic, Subscription())
@@ -317,7 +319,7 @@ class Session:
         compression = _compression(req)
         fragment_size = _positive(req, "fragment_size", None)
         timeout = req.get("timeout")
-        if timeout is not None and timeout <= 0:
+        if timeout is not None and not timeout > 0:  # also NaN
             raise RequestError("call_service: timeout must be positive (seconds)")
 
         def reply(ok, values):
