@@ -5,6 +5,7 @@ import json
 import os
 import re
 import resource
+import signal
 import subprocess
 import sys
 import tempfile
@@ -29,6 +30,8 @@ class Run:
         self.ros = harness.RosMaster(self.workdir).start()
         self.ros.env["PYTHONPATH"] = f"{BENCH}:{self.ros.env.get('PYTHONPATH', '')}"
         self.topics = 0
+        self.spawned = 0
+        self.nodes = {}  # bridge launch Proc -> pid of its server node
 
     def topic(self, stem):
         """A fresh topic name per measurement, so no publisher or latched message of an earlier one interferes."""
@@ -37,8 +40,9 @@ class Run:
 
     def role(self, script, *args, name=None):
         """Starts one bench role (ros_roles.py / ws_roles.py / transport_server.py); stdin is its cue."""
-        return self.ros.spawn([PY, str(BENCH / script), *map(str, args)], name or script.split(".")[0],
-                              stdin=subprocess.PIPE)
+        self.spawned += 1  # (log files are named by this count: harness's own count shrinks as we stop procs)
+        return self.ros.spawn([PY, str(BENCH / script), *map(str, args)],
+                              f"{name or script.split('.')[0]}-{self.spawned}", stdin=subprocess.PIPE)
 
     @staticmethod
     def ready(proc, timeout=30):
@@ -65,11 +69,15 @@ class Run:
             p.stop()
             if p in self.ros.procs:
                 self.ros.procs.remove(p)
+            node = self.nodes.pop(p, None)
+            if node and b"rosbridge_websocket" in read_or_empty(f"/proc/{node}/cmdline"):
+                os.kill(node, signal.SIGKILL)  # roslaunch gave up on it (nodes run in sessions of their own)
 
     def bridge(self, **launch_args):
         """A fresh bridge (the launch file, as a user starts it): (Proc, websocket URL, ProcStat of the server)."""
         proc, port = harness.start_bridge(self.ros, **launch_args)
-        return proc, f"ws://127.0.0.1:{port}", stats.ProcStat(bridge_pid(proc.pid))
+        self.nodes[proc] = harness.node_pid(self.ros, "/rosbridge_websocket")
+        return proc, f"ws://127.0.0.1:{port}", stats.ProcStat(self.nodes[proc])
 
     def transport(self, *args):
         port = harness.free_port()
@@ -78,36 +86,15 @@ class Run:
         return proc, f"ws://127.0.0.1:{port}/", stats.ProcStat(proc.pid)
 
     def close(self):
+        self.stop(*list(self.nodes))
         self.ros.stop()
 
 
-def bridge_pid(launch_pid):
-    """The pid of the websocket server node that roslaunch started (the process whose CPU and memory count)."""
-    def find():
-        for entry in os.listdir("/proc"):
-            if not entry.isdigit():
-                continue
-            try:
-                cmd = Path(f"/proc/{entry}/cmdline").read_bytes().split(b"\0")
-                stat = Path(f"/proc/{entry}/stat").read_text()
-            except OSError:
-                continue
-            if any(c.endswith(b"rosbridge_websocket") for c in cmd[:3]) and descends(stat, launch_pid):
-                return int(entry)
-        return None
-    return harness.wait_for(find, 20, what="the rosbridge_websocket process")
-
-
-def descends(stat, ancestor):
-    ppid = int(stat.rsplit(")", 1)[1].split()[1])
-    while ppid > 1:
-        if ppid == ancestor:
-            return True
-        try:
-            ppid = int(Path(f"/proc/{ppid}/stat").read_text().rsplit(")", 1)[1].split()[1])
-        except OSError:
-            return False
-    return False
+def read_or_empty(path):
+    try:
+        return Path(path).read_bytes()
+    except OSError:
+        return b""
 
 
 class Cpu:
@@ -191,7 +178,7 @@ def transport_out(run, count):
     server, url, stat = run.transport("--count", count)
     client = run.role("ws_roles.py", "subscribe", "--url", url, "--count", count)
     run.ready(client)
-    time.sleep(0.3)  # the subscribe frame reaches the server
+    server.wait_output("SUBSCRIBED")
     cpu = Cpu(stat)
     run.go(server)
     got = run.result(client)
@@ -410,8 +397,10 @@ def main():
     a = p.parse_args()
     soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
     resource.setrlimit(resource.RLIMIT_NOFILE, (hard, hard))  # the bridge inherits it: 1000 clients need fds
+    for sig in (signal.SIGINT, signal.SIGTERM):  # (even when started in the background) stop everything
+        signal.signal(sig, lambda *_: sys.exit("bench: stopped by signal"))
 
-    started = time.monotonic()
+    started, load_before = time.monotonic(), os.getloadavg()[0]
     table, turtle = Table(), ""
     run = Run(tempfile.mkdtemp(prefix="bench-"))
     try:
@@ -430,7 +419,9 @@ def main():
     results = "\n\n".join(filter(None, [
         table.markdown(), "\n".join(f"- {n}" for n in table.notes), turtle and "### turtlesim_node\n\n" + turtle,
         f"Measured {time.strftime('%Y-%m-%d')} on {os.cpu_count()} CPUs, {a.rounds} rounds (medians), "
-        f"suite took {elapsed:.0f} s. Logs: {run.workdir}"]))
+        f"suite took {elapsed:.0f} s; load average {load_before:.1f} before, {os.getloadavg()[0]:.1f} after "
+        f"(other work on the machine slows the baselines and the bridge alike; the ratios are what to compare). "
+        f"Logs: {run.workdir}"]))
     print(results)
     if not a.no_readme and set(a.only) == set(SECTIONS):
         template = (BENCH / "README.template.md").read_text()

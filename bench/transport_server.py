@@ -31,6 +31,7 @@ class Bench(tornado.websocket.WebSocketHandler):
                 self.write_message(frame)
         elif op.get("op") == "subscribe":
             Bench.subscribers.add(self)
+            print("SUBSCRIBED", flush=True)
 
     def on_close(self):
         Bench.subscribers.discard(self)
