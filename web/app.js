@@ -96,6 +96,7 @@ function onState(state, detail) {
 function onOpen(connected) {
   ros = connected;
   ros.on('status', status => status.level === 'error' && feedback(`Bridge: ${status.msg}`, 'error'));
+  commandTopic();
   refreshTopics();
   discoveryTimer = setInterval(refreshTopics, DISCOVERY_MS);
 }
@@ -171,15 +172,22 @@ function showTarget() {
 
 // ---- publishing Twists -------------------------------------------------------------------------
 
-// Never queued while disconnected: a stale command must not move the turtle after a reconnect.
-function publishTwist(linear, angular) {
-  if (!ros) return false;
+// The cmd_vel publisher of the driven turtle, advertised ahead of the first command (on connect and on
+// a change of turtle) so that turtlesim is already subscribed when the first Twist goes out.
+function commandTopic() {
   const name = `/${target()}/cmd_vel`;
   if (cmdVel?.name !== name) {
     cmdVel?.topic.unadvertise();
     cmdVel = { name, topic: new ROSLIB.Topic({ ros, name, messageType: 'geometry_msgs/Twist', queue_size: 1 }) };
+    cmdVel.topic.advertise();
   }
-  cmdVel.topic.publish(new ROSLIB.Message({
+  return cmdVel.topic;
+}
+
+// Never queued while disconnected: a stale command must not move the turtle after a reconnect.
+function publishTwist(linear, angular) {
+  if (!ros) return false;
+  commandTopic().publish(new ROSLIB.Message({
     linear: { x: linear, y: 0, z: 0 },
     angular: { x: 0, y: 0, z: angular },
   }));
@@ -218,6 +226,7 @@ const driver = new Driver({
 $('target').addEventListener('change', () => {
   driver.stop();
   showTarget();
+  if (ros) commandTopic();
 });
 
 // ---- services ----------------------------------------------------------------------------------

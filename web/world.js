@@ -34,8 +34,7 @@ export class WorldView {
   }
 
   resize(entry) {
-    const box = entry.devicePixelContentBoxSize?.[0];
-    const size = Math.max(1, Math.round(box ? box.inlineSize : entry.contentRect.width * devicePixelRatio));
+    const size = Math.max(1, Math.round(entry.contentRect.width * devicePixelRatio));
     if (size === this.canvas.width) return;
     this.canvas.width = this.canvas.height = this.trail.width = this.trail.height = size;
     this.redrawTrail();
