@@ -22,10 +22,10 @@ Every refusal is a ConversionError whose message starts with the path of the fie
 import base64
 import binascii
 import json
+import keyword
 import math
 import re
 import struct
-from operator import attrgetter
 
 import genpy
 
@@ -98,22 +98,23 @@ _JSON_ENCODER = json.JSONEncoder(separators=(",", ":"), allow_nan=False, ensure_
 # ---------------------------------------------------------------------------------------------------------
 # ROS -> Python values
 
-def _values_getter(names):
-    """A function msg -> tuple of the named attributes."""
-    if len(names) == 1:
-        get_one = attrgetter(names[0])
-        return lambda msg: (get_one(msg),)
-    return attrgetter(*names) if names else (lambda msg: ())
-
-
 def _record_encoder(fields):
-    names = tuple(name for name, _ in fields)
-    converters = tuple(converter for _, converter in fields)
-    values = _values_getter(names)
-    if not any(converters):
-        return lambda msg: dict(zip(names, values(msg)))
-    return lambda msg: {name: value if convert is None else convert(value)
-                        for name, convert, value in zip(names, converters, values(msg))}
+    """A function msg -> dict for the (name, converter) fields; converter None means the value as it is.
+
+    It is generated from source once per class (as dataclasses does): a plain dict display runs about four
+    times faster than a generic loop over the fields, and it runs for every message the bridge sends."""
+    namespace = {}
+    items = []
+    for index, (name, converter) in enumerate(fields):
+        if not name.isidentifier() or keyword.iskeyword(name):
+            raise ValueError(f"unsupported field name {name!r}")
+        value = f"msg.{name}"
+        if converter is not None:
+            namespace[f"convert{index}"] = converter
+            value = f"convert{index}({value})"
+        items.append(f"{name!r}: {value}")
+    exec(f"def encode(msg):\n    return {{{', '.join(items)}}}\n", namespace)
+    return namespace["encode"]
 
 
 def encoder_factory(leaf_encoder):

@@ -116,12 +116,12 @@ TEXTS = ["", "1", "{}", "[1]", '"ab"', dumps({"op": "publish", "topic": "/t", "m
          dumps({"s": "héllo ☃ 😀", "n": [1, 2.5, None]})]
 
 
-@pytest.mark.parametrize("text", TEXTS)
+@pytest.mark.parametrize("text", TEXTS, ids=lambda text: f"{len(text)}-chars")
 def test_png_round_trip(text):
     assert json.loads(png_unframe(png_frame(text)) or "null") == json.loads(text or "null")
 
 
-@pytest.mark.parametrize("text", TEXTS[1:])
+@pytest.mark.parametrize("text", TEXTS[1:], ids=lambda text: f"{len(text)}-chars")
 def test_png_as_roslibjs_reads_it(text):
     """roslibjs draws the image on a canvas and builds the text from the R, G, B bytes of each pixel, one
     String.fromCharCode per byte, then JSON.parses it (trailing newlines are whitespace to JSON)."""

@@ -1,0 +1,48 @@
+"""Micro-benchmark of the ROS <-> JSON conversion (rosbridge.convert) and the CBOR encoding, in microseconds
+per call (best of several repeats, so a busy machine disturbs it less). No roscore needed:
+
+    export PATH=/usr/bin:$PATH; source .build/ws/devel/setup.bash; python3 bench/convert_bench.py
+"""
+import json
+import timeit
+
+import geometry_msgs.msg
+import sensor_msgs.msg
+
+from rosbridge.convert import dumps, from_json, to_json
+from rosbridge.encoding import cbor_frame, to_cbor_value
+
+
+def best_microseconds(function, repeats=5):
+    timer = timeit.Timer(function)
+    number, _ = timer.autorange()  # enough calls for about 0.2 s
+    return min(timer.repeat(repeats, number)) / number * 1e6
+
+
+def samples():
+    twist = geometry_msgs.msg.Twist()
+    twist.linear.x, twist.angular.z = 1.5, -0.25
+    image = sensor_msgs.msg.Image(height=480, width=640, encoding="rgb8", step=640 * 3,
+                                  data=bytes(range(256)) * (640 * 480 * 3 // 256))
+    image.header.frame_id = "camera"
+    return {"geometry_msgs/Twist": twist, "sensor_msgs/Image 640x480 rgb8": image}
+
+
+def main():
+    print(f"{'message':34} {'operation':28} {'us/call':>10}")
+    for name, msg in samples().items():
+        value = to_json(msg)
+        parsed = json.loads(dumps(value))
+        cases = {
+            "to_json": lambda: to_json(msg),
+            "from_json": lambda: from_json(type(msg), parsed),
+            "dumps(to_json)": lambda: dumps(to_json(msg)),
+            "from_json(json.loads(text))": lambda text=dumps(value): from_json(type(msg), json.loads(text)),
+            "cbor_frame(to_cbor_value)": lambda: cbor_frame(to_cbor_value(msg)),
+        }
+        for operation, function in cases.items():
+            print(f"{name:34} {operation:28} {best_microseconds(function):10.2f}")
+
+
+if __name__ == "__main__":
+    main()
