@@ -25,6 +25,7 @@ import json
 import keyword
 import math
 import re
+import reprlib
 import struct
 
 import genpy
@@ -78,13 +79,13 @@ def format_path(path):
     return text
 
 
+_SHORT = reprlib.Repr()
+_SHORT.maxstring, _SHORT.maxother, _SHORT.maxlist, _SHORT.maxdict, _SHORT.maxlevel = 60, 60, 5, 3, 2
+
+
 def _describe(value):
-    if value is None:
-        return "null"
-    text = repr(value)
-    if len(text) > 60:
-        text = text[:57] + "..."
-    return f"{type(value).__name__} {text}"
+    """A short description of a JSON value for an error message (bounded cost, even for huge values)."""
+    return "null" if value is None else f"{type(value).__name__} {_SHORT.repr(value)}"
 
 
 def dumps(obj):
@@ -151,8 +152,7 @@ def time_to_json(value):
 
 
 def _base64(value):
-    return base64.b64encode(value).decode("ascii") if isinstance(value, bytes) else \
-        base64.b64encode(bytes(value)).decode("ascii")
+    return base64.b64encode(value if isinstance(value, bytes) else bytes(value)).decode("ascii")
 
 
 def json_leaf_encoder(base, is_array):
@@ -401,5 +401,5 @@ def request_from_args(request_class, args, now=None):
                                   f"got {len(args)}")
         args = dict(zip(names, args))
     elif type(args) is not dict:
-        raise ConversionError(f"args: expected an object or a list, got {_describe(args)}")
+        raise ConversionError(f"expected an object or a list, got {_describe(args)}", ("args",))
     return from_json(request_class, args, now)
