@@ -106,6 +106,7 @@ function onLost() {
   cmdVel = null;
   poseTopics = new Map();  // their subscriptions died with the socket
   clearInterval(discoveryTimer);
+  view.breakTrails();
   driver.stop();  // nothing can be sent now; the turtle stops 1 s after its last command
 }
 
@@ -140,7 +141,9 @@ function trackTurtles(names) {
     if (names.includes(name)) continue;
     topic.unsubscribe();
     poseTopics.delete(name);
-    view.remove(name);
+  }
+  for (const name of view.names) {
+    if (!names.includes(name)) view.remove(name);
   }
   for (const name of names) {
     if (poseTopics.has(name)) continue;
@@ -158,7 +161,7 @@ function showTargets(names) {
   if ([...select.options].map(o => o.value).join() === wanted.join()) return;
   select.replaceChildren(...wanted.map(name => new Option(name, name)));
   select.value = wanted.includes(current) ? current : wanted[0];
-  showTarget();
+  if (select.value !== current) switchTarget();
 }
 
 function target() {
@@ -187,7 +190,7 @@ function commandTopic() {
 // Never queued while disconnected: a stale command must not move the turtle after a reconnect.
 function publishTwist(linear, angular) {
   if (!ros) return false;
-  commandTopic().publish(new ROSLIB.Message({
+  (cmdVel?.topic ?? commandTopic()).publish(new ROSLIB.Message({
     linear: { x: linear, y: 0, z: 0 },
     angular: { x: 0, y: 0, z: angular },
   }));
@@ -223,11 +226,14 @@ const driver = new Driver({
   joystick: $('joystick'),
 });
 
-$('target').addEventListener('change', () => {
+// The driven turtle is stopped first: its zero Twist still goes to the publisher of the old name.
+function switchTarget() {
   driver.stop();
   showTarget();
   if (ros) commandTopic();
-});
+}
+
+$('target').addEventListener('change', switchTarget);
 
 // ---- services ----------------------------------------------------------------------------------
 

@@ -16,7 +16,7 @@ export class WorldView {
     this.ctx = canvas.getContext('2d');
     this.trail = document.createElement('canvas');
     this.trailCtx = this.trail.getContext('2d');
-    this.turtles = new Map();  // name -> {pose, colour}
+    this.turtles = new Map();  // name -> {pose, colour, joined: the next pose continues its trail}
     this.segments = [];  // [x0, y0, x1, y1] in metres, flat
     this.dirty = false;
     new ResizeObserver(entries => this.resize(entries[0])).observe(canvas);
@@ -43,17 +43,28 @@ export class WorldView {
   setPose(name, pose) {
     const turtle = this.turtles.get(name);
     if (!turtle) {
-      this.turtles.set(name, { pose, colour: colourFor(name, this.turtles.size) });
+      this.turtles.set(name, { pose, colour: colourFor(name, this.turtles.size), joined: true });
     } else {
       const last = turtle.pose;
-      if (last && (last.x !== pose.x || last.y !== pose.y)) this.addSegment(last.x, last.y, pose.x, pose.y);
+      if (turtle.joined && (last.x !== pose.x || last.y !== pose.y)) this.addSegment(last.x, last.y, pose.x, pose.y);
       turtle.pose = pose;
+      turtle.joined = true;
     }
     this.invalidate();
   }
 
+  get names() {
+    return [...this.turtles.keys()];
+  }
+
   remove(name) {
     if (this.turtles.delete(name)) this.invalidate();
+  }
+
+  // While we cannot see the turtles (no connection) we do not know the path they take: their trails
+  // resume from wherever they are next seen, instead of a made-up straight line.
+  breakTrails() {
+    for (const turtle of this.turtles.values()) turtle.joined = false;
   }
 
   // Like turtlesim's clear(): fills the trail image with the background; turtles stay.
