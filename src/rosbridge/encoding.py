@@ -79,10 +79,23 @@ def png_frame(text):
     return base64.b64encode(buffer.getvalue()).decode("ascii")
 
 
-def png_unframe(data):
-    """The JSON text held in a png op's `data` (with the padding removed), as a client reads it."""
-    with Image.open(io.BytesIO(base64.b64decode(data))) as image:
-        return image.convert("RGB").tobytes().rstrip(b"\n").decode("utf-8")
+PNG_MAX_BYTES = 64 * 2**20
+
+
+def png_unframe(data, max_bytes=PNG_MAX_BYTES):
+    """The JSON text held in a png op's `data` (with the padding removed). Refuses, with ValueError, anything
+    that is not such an image, or one that would unpack to more than max_bytes."""
+    try:
+        with Image.open(io.BytesIO(base64.b64decode(data, validate=True))) as image:
+            width, height = image.size  # known from the header, before any pixel is unpacked
+            if width * height * 3 > max_bytes:
+                raise ValueError(f"the image would unpack to {width * height * 3} bytes, more than {max_bytes}")
+            pixels = image.convert("RGB").tobytes()
+        return pixels.rstrip(b"\n").decode("utf-8")
+    except ValueError:
+        raise
+    except Exception as error:  # PIL reports broken images as OSError, SyntaxError, EOFError, zlib.error...
+        raise ValueError(f"not a readable PNG image ({type(error).__name__}: {error})") from None
 
 
 def fragments(text, size, id):

@@ -8,6 +8,7 @@ import struct
 import cbor2
 import genpy
 import pytest
+from hypothesis import given, settings, strategies as st
 import geometry_msgs.msg
 import sensor_msgs.msg
 from PIL import Image
@@ -155,3 +156,31 @@ def test_fragments_of_short_text_and_bad_size():
     assert fragments("", 10, "x") == [{"op": "fragment", "id": "x", "data": "", "num": 0, "total": 1}]
     with pytest.raises(ValueError):
         fragments("abc", 0, "x")
+
+
+def test_png_unframe_refuses_images_that_unpack_too_big():
+    big = Image.new("RGB", (2000, 2000))
+    buffer = io.BytesIO()
+    big.save(buffer, format="PNG")  # compresses to a few kB
+    with pytest.raises(ValueError, match="would unpack to 12000000 bytes"):
+        png_unframe(base64.b64encode(buffer.getvalue()).decode(), max_bytes=10**6)
+
+
+GOOD_PNG = base64.b64decode(png_frame('{"a":1}' * 50))
+
+
+def spoiled_png(cut, noise):
+    return base64.b64encode(GOOD_PNG[:cut] + noise + GOOD_PNG[cut + len(noise):]).decode()
+
+
+@settings(deadline=None, max_examples=300)
+@given(junk=st.binary(max_size=200).map(lambda raw: base64.b64encode(raw).decode())
+       | st.text(max_size=50)
+       | st.integers(0, len(GOOD_PNG)).map(lambda cut: base64.b64encode(GOOD_PNG[:cut]).decode())
+       | st.builds(spoiled_png, st.integers(0, len(GOOD_PNG)), st.binary(min_size=1, max_size=40)))
+def test_png_unframe_of_junk_raises_only_value_error(junk):
+    """(PIL itself raises OSError, SyntaxError and more for broken images.)"""
+    try:
+        png_unframe(junk)
+    except ValueError:
+        pass
