@@ -1,0 +1,242 @@
+"""The bridge when things go wrong around it: a client that stops reading during a flood, a client that dies
+in the middle of a frame, the bridge itself killed and restarted under a reconnecting roslibpy client,
+turtlesim_node killed and restarted while a client drives it, and roscore restarted. Loopback only."""
+import base64
+import os
+import signal
+import socket
+import struct
+import threading
+import time
+
+import pytest
+import roslibpy
+
+from bridge_client import WsClient, ping
+from harness import RosMaster, free_port, node_pid, start_bridge, wait_for
+
+
+@pytest.fixture(autouse=True, scope="module")
+def quick_reconnects():
+    """roslibpy retries after 1 s, then backs off exponentially up to an hour: cap it for restarts."""
+    factory = roslibpy.comm.RosBridgeClientFactory
+    before = factory.maxDelay
+    factory.set_max_delay(2.0)
+    yield
+    factory.set_max_delay(before)
+
+
+def rss_mb(pid):
+    with open(f"/proc/{pid}/statm") as f:
+        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 1e6
+
+
+def bridge_topics(ros, node_name):
+    """The topics the bridge node is registered on with the master (as publisher or subscriber)."""
+    pubs, subs, _ = ros.master().getSystemState()
+    return {topic for topic, nodes in [*pubs, *subs] if node_name in nodes}
+
+
+class RawWebSocket:
+    """A websocket client written on a bare socket, so a test can stop reading or stop mid-frame."""
+
+    def __init__(self, port, recv_buffer=None):
+        self.sock = socket.create_connection(("127.0.0.1", port), timeout=10)
+        if recv_buffer:
+            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, recv_buffer)
+        key = base64.b64encode(os.urandom(16)).decode()
+        self.sock.sendall((f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n"
+                           f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n\r\n")
+                          .encode())
+        reply = b""
+        while b"\r\n\r\n" not in reply:
+            chunk = self.sock.recv(1)  # byte by byte: nothing after the handshake is consumed
+            assert chunk, "server closed during the handshake"
+            reply += chunk
+        assert reply.startswith(b"HTTP/1.1 101"), reply
+
+    @staticmethod
+    def header(length, opcode=0x1):
+        """FIN + opcode, then the masked payload length (clients must mask)."""
+        if length < 126:
+            return struct.pack("!BB", 0x80 | opcode, 0x80 | length)
+        if length < 1 << 16:
+            return struct.pack("!BBH", 0x80 | opcode, 0x80 | 126, length)
+        return struct.pack("!BBQ", 0x80 | opcode, 0x80 | 127, length)
+
+    def send_text(self, text, cut_after=None):
+        """Sends one text frame (mask of zeros: the payload is sent as is); with cut_after, only the header
+        and that many payload bytes are sent."""
+        data = text.encode()
+        frame = self.header(len(data)) + b"\0\0\0\0" + data
+        self.sock.sendall(frame if cut_after is None else frame[:len(frame) - len(data) + cut_after])
+
+    def close(self, reset=False):
+        if reset:  # RST instead of FIN, as when the client machine drops off
+            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+        self.sock.close()
+
+
+def publish_in_thread(publisher, make_msg, rate, count=None, stop=None):
+    """Publishes make_msg(i) at `rate` Hz from a thread, `count` times or until `stop` is set."""
+    def run():
+        period, start, i = 1.0 / rate, time.monotonic(), 0
+        while (count is None or i < count) and not (stop and stop.is_set()):
+            publisher.publish(make_msg(i))
+            i += 1
+            time.sleep(max(0.0, start + i * period - time.monotonic()))
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    return thread
+
+
+def test_a_client_that_stops_reading_does_not_grow_the_bridge_or_starve_others(ros, node):
+    from std_msgs.msg import String
+    proc, port = start_bridge(ros, node_name="bridge_stuck")
+    try:
+        pid = node_pid(ros, "/bridge_stuck")
+        pub = node.Publisher("/faults/flood", String, queue_size=1000)
+        stuck = RawWebSocket(port, recv_buffer=4096)
+        stuck.send_text('{"op":"subscribe","topic":"/faults/flood","type":"std_msgs/String"}')
+        got = []
+        reader = roslibpy.Ros(host="127.0.0.1", port=port)
+        reader.run(timeout=20)
+        topic = roslibpy.Topic(reader, "/faults/flood", "std_msgs/String")
+        topic.subscribe(lambda m: got.append(int(m["data"].split(":", 1)[0])))
+        wait_for(lambda: pub.get_num_connections() >= 1, 20, what="the bridge subscribing to the flood")
+
+        count, filler = 10_000, "x" * 10_000  # 10 s at 1 kHz of 10 kB messages: 100 MB if nothing were dropped
+        flood = publish_in_thread(pub, lambda i: String(f"{i}:{filler}"), rate=1000, count=count)
+        time.sleep(3)
+        early = rss_mb(pid)
+        flood.join(60)
+        wait_for(lambda: got and got[-1] == count - 1, 60, what="the reading client to get the last message")
+        grown = rss_mb(pid) - early
+        topic.unsubscribe()
+        reader.close()
+        stuck.close()
+        pub.unregister()
+
+        assert grown < 40, f"bridge RSS grew {grown:.0f} MB while a client did not read"
+        seconds = {seq // 1000 for seq in got}  # the flood's seconds the reading client got messages from
+        assert len(seconds) >= count // 1000 // 2, f"the reading client only got messages of seconds {seconds}"
+        assert proc.alive()
+    finally:
+        proc.stop()
+
+
+@pytest.mark.parametrize("reset", [False, True], ids=["fin", "rst"])
+def test_a_client_dying_mid_frame_is_cleaned_up(ros, reset):
+    node_name = f"bridge_midframe_{'rst' if reset else 'fin'}"
+    proc, port = start_bridge(ros, node_name=node_name)
+    try:
+        dying = RawWebSocket(port)
+        dying.send_text('{"op":"subscribe","topic":"/faults/midframe","type":"std_msgs/String"}')
+        wait_for(lambda: "/faults/midframe" in bridge_topics(ros, f"/{node_name}"), 20,
+                 what="the bridge subscribing for the client")
+        dying.send_text('{"op":"publish","topic":"/faults/midframe","msg":{"data":"' + "y" * 50_000 + '"}}',
+                        cut_after=1000)
+        dying.close(reset=reset)
+
+        wait_for(lambda: "/faults/midframe" not in bridge_topics(ros, f"/{node_name}"), 20,
+                 what="the bridge dropping the dead client's subscription")
+        client = WsClient(f"ws://127.0.0.1:{port}/")
+        assert ping(client)
+        client.close()
+        assert proc.alive()
+    finally:
+        proc.stop()
+
+
+def test_bridge_killed_and_restarted_under_a_reconnecting_client(ros, node):
+    from std_msgs.msg import Int32
+    port = free_port()
+    proc, _ = start_bridge(ros, node_name="bridge_restart", port=port)
+    ticks = node.Publisher("/faults/ticks", Int32, queue_size=10)
+    got_cmds = []
+    sub = node.Subscriber("/faults/cmds", Int32, lambda m: got_cmds.append(m.data))
+    stop = threading.Event()
+    publish_in_thread(ticks, Int32, rate=10, stop=stop)
+    client = roslibpy.Ros(host="127.0.0.1", port=port)
+    try:
+        client.run(timeout=20)
+        got = []
+        roslibpy.Topic(client, "/faults/ticks", "std_msgs/Int32").subscribe(lambda m: got.append(m["data"]))
+        cmds = roslibpy.Topic(client, "/faults/cmds", "std_msgs/Int32")
+        wait_for(lambda: got, 20, what="ticks before the restart")
+        wait_for(lambda: cmds.publish(roslibpy.Message({"data": 1})) or 1 in got_cmds, 20, interval=0.2,
+                 what="a command before the restart")
+
+        os.kill(node_pid(ros, "/bridge_restart"), signal.SIGKILL)  # (roslaunch runs it in a session of its own)
+        proc.stop()
+        wait_for(lambda: not client.is_connected, 20, what="the client to notice")
+        before = len(got)
+        proc, _ = start_bridge(ros, node_name="bridge_restart", port=port)
+
+        wait_for(lambda: len(got) > before + 3, 60, what="ticks again after the restart")
+        wait_for(lambda: cmds.publish(roslibpy.Message({"data": 2})) or 2 in got_cmds, 60, interval=0.2,
+                 what="commands reaching ROS again after the restart")
+    finally:
+        stop.set()
+        client.close()
+        proc.stop()
+        ticks.unregister()
+        sub.unregister()
+
+
+def test_turtlesim_killed_and_restarted_while_a_client_drives(ros, node):
+    proc, port = start_bridge(ros, node_name="bridge_turtle_restart")
+    turtle = ros.spawn(["rosrun", "turtlesim", "turtlesim_node", "__name:=turtlesim_faults"], "turtlesim_faults")
+    client = roslibpy.Ros(host="127.0.0.1", port=port)
+    try:
+        client.run(timeout=20)
+        poses = []
+        roslibpy.Topic(client, "/turtle1/pose", "turtlesim/Pose").subscribe(poses.append)
+        cmd = roslibpy.Topic(client, "/turtle1/cmd_vel", "geometry_msgs/Twist")
+        forward = roslibpy.Message({"linear": {"x": 1.0, "y": 0, "z": 0}, "angular": {"x": 0, "y": 0, "z": 0}})
+
+        def driving():
+            cmd.publish(forward)
+            return poses and poses[-1]["linear_velocity"] == pytest.approx(1.0)
+
+        wait_for(driving, 30, interval=0.1, what="the turtle driving")
+        os.kill(node_pid(ros, "/turtlesim_faults"), signal.SIGKILL)
+        turtle.stop()
+        turtle = ros.spawn(["rosrun", "turtlesim", "turtlesim_node", "__name:=turtlesim_faults"],
+                           "turtlesim_faults")
+        turtle.wait_output("Spawning turtle [turtle1]", timeout=30)
+        wait_for(lambda: poses[-1]["x"] == pytest.approx(5.544445, abs=1e-3), 30,
+                 what="poses from the new turtlesim (back at the centre)")
+        wait_for(driving, 30, interval=0.1, what="the new turtle driving")
+    finally:
+        client.close()
+        turtle.stop()
+        proc.stop()
+
+
+def test_roscore_restarted_under_the_bridge(tmp_path):
+    """A master of its own: restarting the session's master would disturb the other tests."""
+    master = RosMaster(tmp_path).start()
+    try:
+        proc, port = start_bridge(master, node_name="bridge_master_restart")
+        client = WsClient(f"ws://127.0.0.1:{port}/")
+        master.core.stop()
+        master.procs.remove(master.core)
+        # the master is gone: a ROS request is answered with an error, and the connection goes on working
+        reply = client.request({"op": "call_service", "service": "/rosapi/topics", "id": "down"}, timeout=30)
+        assert reply["op"] in ("service_response", "status") and reply.get("result") is not True, reply
+        assert ping(client)
+
+        master.start()  # same port
+        talker = master.spawn(["rostopic", "pub", "-r", "10", "/faults/after", "std_msgs/String", "data: back"],
+                              "talker")
+        client.send({"op": "subscribe", "topic": "/faults/after", "type": "std_msgs/String"})
+        msg = client.recv_op("publish", timeout=30, topic="/faults/after")
+        assert msg["msg"] == {"data": "back"}
+        reply = client.request({"op": "call_service", "service": "/rosapi/topics", "id": "up"}, timeout=30)
+        assert reply["result"] is True and "/faults/after" in reply["values"]["topics"], reply
+        client.close()
+        talker.stop()
+        assert proc.alive()
+    finally:
+        master.stop()
