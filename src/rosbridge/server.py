@@ -185,7 +185,9 @@ def main():
     rospy.loginfo("Rosbridge WebSocket server started at %s://%s:%d (page: %s)", scheme, address or "0.0.0.0",
                   port, web_root or "off")
 
-    rospy.on_shutdown(lambda: loop.add_callback(loop.stop))
+    # The kernel may deliver SIGINT to one of rospy's threads, which leaves the loop asleep in epoll: wake it
+    # twice a second so that Python runs rospy's signal handler, and stop once rospy is shutting down.
+    tornado.ioloop.PeriodicCallback(lambda: rospy.is_shutdown() and loop.stop(), 500).start()
     try:
         loop.start()
     except KeyboardInterrupt:

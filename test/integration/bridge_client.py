@@ -1,0 +1,91 @@
+"""A plain websocket client for the bridge tests (Tornado's client on a private asyncio loop), so a test can
+send any frame, including broken ones, and read exactly what the server answers."""
+import asyncio
+import json
+
+import cbor2
+from tornado.httpclient import HTTPRequest
+from tornado.websocket import websocket_connect
+
+
+class WsClient:
+    def __init__(self, url, headers=None, timeout=10.0, **request_kwargs):
+        self.loop = asyncio.new_event_loop()
+        request = HTTPRequest(url, headers=headers or {}, connect_timeout=timeout, request_timeout=timeout,
+                              **request_kwargs)
+        self.conn = self._run(lambda: websocket_connect(request, max_message_size=256 * 1024 * 1024), timeout)
+
+    def _run(self, start, timeout):
+        """Runs start() (which returns an awaitable) inside this client's loop, up to timeout seconds."""
+        async def run():
+            return await asyncio.wait_for(start(), timeout)
+        return self.loop.run_until_complete(run())
+
+    def send(self, frame):
+        """Sends a dict as JSON text, a str as text, bytes as a binary frame."""
+        if isinstance(frame, dict):
+            frame = json.dumps(frame)
+        self._run(lambda: self.conn.write_message(frame, binary=isinstance(frame, bytes)), 30)
+
+    def recv_raw(self, timeout=10.0):
+        """The next frame (str or bytes); None when the server closed the connection."""
+        return self._run(self.conn.read_message, timeout)
+
+    def recv(self, timeout=10.0):
+        """The next frame decoded: JSON text -> object, binary -> CBOR-decoded object."""
+        frame = self.recv_raw(timeout)
+        if frame is None:
+            return None
+        return cbor2.loads(frame) if isinstance(frame, bytes) else json.loads(frame)
+
+    def recv_until(self, predicate, timeout=10.0, limit=1000):
+        """Reads frames until one satisfies predicate; returns it (AssertionError if the socket closes)."""
+        for _ in range(limit):
+            frame = self.recv(timeout)
+            assert frame is not None, "connection closed while waiting"
+            if predicate(frame):
+                return frame
+        raise AssertionError(f"no matching frame within {limit} frames")
+
+    def recv_op(self, op, timeout=10.0, **fields):
+        return self.recv_until(lambda f: f.get("op") == op and all(f.get(k) == v for k, v in fields.items()),
+                               timeout)
+
+    def request(self, frame, timeout=10.0):
+        """Sends a frame and returns the first status or service_response that answers its id."""
+        self.send(frame)
+        return self.recv_until(lambda f: f.get("op") in ("status", "service_response")
+                               and f.get("id") == frame.get("id"), timeout)
+
+    def is_closed(self, timeout=10.0):
+        try:
+            while True:
+                if self.recv_raw(timeout) is None:
+                    return True
+        except asyncio.TimeoutError:
+            return False
+
+    @property
+    def close_code(self):
+        return self.conn.close_code
+
+    def close(self):
+        self.conn.close()
+        try:
+            self._run(self.conn.read_message, 5)
+        except Exception:
+            pass
+        self.loop.close()
+
+    def abort(self):
+        """Drops the TCP connection without a websocket close handshake (a crashed client)."""
+        self.conn.stream.close()
+        self.loop.close()
+
+
+def ping(client):
+    """Proves the connection still works: a set_level round trip through the server (an error status
+    comes back for the unknown level)."""
+    reply = client.request({"op": "set_level", "level": "bogus", "id": "ping"})
+    assert reply["op"] == "status" and reply["level"] == "error" and "bogus" in reply["msg"], reply
+    return True

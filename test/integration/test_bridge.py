@@ -1,0 +1,189 @@
+"""The bridge end to end with a real client library (roslibpy) and real ROS nodes: turtlesim_node, rospy
+publishers/subscribers/services in the test process, and the rosservice CLI."""
+import math
+import threading
+
+import pytest
+import roslibpy
+
+from harness import start_bridge, wait_for
+
+
+@pytest.fixture(scope="module")
+def bridge(ros):
+    proc, port = start_bridge(ros)
+    yield port
+    proc.stop()
+
+
+@pytest.fixture(scope="module")
+def turtlesim(ros):
+    proc = ros.spawn(["rosrun", "turtlesim", "turtlesim_node"], "turtlesim_node")
+    wait_for(lambda: "/turtle1/pose" in dict(ros.master().getTopicTypes()), 30, what="/turtle1/pose")
+    yield proc
+    proc.stop()
+
+
+@pytest.fixture
+def client(bridge):
+    ros = roslibpy.Ros(host="127.0.0.1", port=bridge)
+    ros.run(timeout=20)
+    yield ros
+    ros.close()
+
+
+def call(client, name, args=None, service_type=None):
+    """A blocking call_service; returns the values, raises roslibpy's error for result:false."""
+    return roslibpy.Service(client, name, service_type).call(roslibpy.ServiceRequest(args or {}), timeout=20)
+
+
+def test_publish_twist_moves_the_turtle(client, turtlesim, node):
+    from turtlesim.msg import Pose
+    start = node.wait_for_message("/turtle1/pose", Pose, timeout=20)
+    cmd = roslibpy.Topic(client, "/turtle1/cmd_vel", "geometry_msgs/Twist")
+    twist = roslibpy.Message({"linear": {"x": 2.0, "y": 0.0, "z": 0.0}, "angular": {"x": 0, "y": 0, "z": 0}})
+
+    def moved():
+        cmd.publish(twist)
+        pose = node.wait_for_message("/turtle1/pose", Pose, timeout=20)
+        return math.hypot(pose.x - start.x, pose.y - start.y) > 0.3
+
+    wait_for(moved, 30, interval=0.1, what="the turtle to move")
+
+
+def test_subscribe_to_pose(client, turtlesim):
+    poses = []
+    topic = roslibpy.Topic(client, "/turtle1/pose", "turtlesim/Pose")
+    topic.subscribe(poses.append)
+    wait_for(lambda: len(poses) >= 3, 20, what="three poses")
+    topic.unsubscribe()
+    assert set(poses[0]) == {"x", "y", "theta", "linear_velocity", "angular_velocity"}
+    assert 0 <= poses[0]["x"] <= 12
+
+
+def test_subscribe_without_type_infers_it(client, turtlesim):
+    poses = []
+    roslibpy.Topic(client, "/turtle1/pose", None).subscribe(poses.append)
+    wait_for(lambda: poses, 20, what="a pose")
+    assert "theta" in poses[0]
+
+
+def test_call_spawn_and_clear(client, turtlesim, ros):
+    reply = call(client, "/spawn", {"x": 3.0, "y": 4.0, "theta": 0.5, "name": "bridged"})
+    assert reply == {"name": "bridged"}
+    wait_for(lambda: "/bridged/pose" in dict(ros.master().getTopicTypes()), 20, what="/bridged/pose")
+    assert call(client, "/clear") == {}
+    assert call(client, "/kill", {"name": "bridged"}) == {}
+
+
+def test_missing_service_fails_with_its_name(client):
+    with pytest.raises(Exception, match="Service /no_such_service does not exist"):
+        call(client, "/no_such_service")
+
+
+def test_service_error_text_reaches_the_client(client, turtlesim):
+    with pytest.raises(Exception, match="(?i)kill"):
+        call(client, "/kill", {"name": "nobody_has_this_name"})
+
+
+def test_publish_reaches_a_rospy_subscriber(client, node):
+    from std_msgs.msg import String
+    got = []
+    sub = node.Subscriber("/bridge_test/chatter", String, lambda m: got.append(m.data))
+    topic = roslibpy.Topic(client, "/bridge_test/chatter", "std_msgs/String")
+
+    def received():
+        topic.publish(roslibpy.Message({"data": "hello ros"}))
+        return got
+
+    assert wait_for(received, 20, interval=0.2, what="the message in rospy")[0] == "hello ros"
+    sub.unregister()
+
+
+def test_header_stamp_is_filled_when_missing(client, node):
+    from geometry_msgs.msg import PointStamped
+    got = []
+    sub = node.Subscriber("/bridge_test/point", PointStamped, got.append)
+    topic = roslibpy.Topic(client, "/bridge_test/point", "geometry_msgs/PointStamped")
+
+    def received():
+        topic.publish(roslibpy.Message({"header": {"frame_id": "map"}, "point": {"x": 1, "y": 2, "z": 3}}))
+        return got
+
+    msg = wait_for(received, 20, interval=0.2, what="the point")[0]
+    sub.unregister()
+    assert msg.header.frame_id == "map" and msg.point.y == 2.0
+    assert abs(msg.header.stamp.to_sec() - node.Time.now().to_sec()) < 60
+
+
+def test_client_advertised_service_answers_rosservice(client, ros):
+    service = roslibpy.Service(client, "/bridge_test/flip", "std_srvs/SetBool")
+    requests = []
+
+    def handler(request, response):
+        requests.append(request)
+        response.update(success=not request["data"], message="flipped")
+        return True
+
+    service.advertise(handler)
+    wait_for(lambda: "/bridge_test/flip" in ros.run(["rosservice", "list"]).stdout, 20, what="the service")
+    out = ros.run(["rosservice", "call", "/bridge_test/flip", "data: true"]).stdout
+    assert "success: False" in out and "flipped" in out
+    assert requests == [{"data": True}]
+    service.unadvertise()
+    wait_for(lambda: "/bridge_test/flip" not in ros.run(["rosservice", "list"]).stdout, 20, what="unadvertised")
+
+
+def test_rosapi_is_answered_inside_the_bridge(client, turtlesim):
+    reply = call(client, "/rosapi/topics")
+    assert "/turtle1/pose" in reply["topics"]
+    assert reply["types"][reply["topics"].index("/turtle1/pose")] == "turtlesim/Pose"
+
+
+def test_client_count_counts_connections(bridge, client):
+    counts = []
+    roslibpy.Topic(client, "/client_count", "std_msgs/Int32").subscribe(lambda m: counts.append(m["data"]))
+    wait_for(lambda: counts, 20, what="the latched client count")
+    before = counts[-1]
+    other = roslibpy.Ros(host="127.0.0.1", port=bridge)
+    other.run(timeout=20)
+    wait_for(lambda: counts[-1] == before + 1, 20, what="count + 1")
+    other.close()
+    wait_for(lambda: counts[-1] == before, 20, what="count back")
+
+
+def test_rospy_service_called_and_bad_args_refused(client, node):
+    from std_srvs.srv import SetBool, SetBoolResponse
+    server = node.Service("/bridge_test/set_bool", SetBool, lambda req: SetBoolResponse(req.data, "ok"))
+    try:
+        assert call(client, "/bridge_test/set_bool", {"data": True}) == {"success": True, "message": "ok"}
+        assert call(client, "/bridge_test/set_bool", {"data": False}) == {"success": False, "message": "ok"}
+        with pytest.raises(Exception, match="data"):
+            call(client, "/bridge_test/set_bool", {"data": "yes"})
+    finally:
+        server.shutdown()
+
+
+def test_subscribe_receives_from_rospy_publisher(client, node):
+    from std_msgs.msg import Int32
+    pub = node.Publisher("/bridge_test/numbers", Int32, queue_size=10)
+    got = []
+    roslibpy.Topic(client, "/bridge_test/numbers", "std_msgs/Int32").subscribe(lambda m: got.append(m["data"]))
+    stop = threading.Event()
+
+    def publish():
+        n = 0
+        while not stop.is_set():
+            pub.publish(Int32(n))
+            n += 1
+            stop.wait(0.05)
+
+    thread = threading.Thread(target=publish, daemon=True)
+    thread.start()
+    try:
+        wait_for(lambda: len(got) >= 5, 20, what="five numbers")
+    finally:
+        stop.set()
+        thread.join()
+        pub.unregister()
+    assert got == sorted(got)
