@@ -1,0 +1,385 @@
+"""Security of live bridges: the listening address, the origin allow-list, the globs as a wall (not only a
+filter of rosapi lists), rosauth authentication that cannot be bypassed, TLS, and the message size limit."""
+import hashlib
+import json
+import socket
+import ssl
+import subprocess
+import time
+
+import pytest
+import roslibpy
+import tornado.httpclient
+
+from bridge_client import WsClient, ping
+from harness import make_workdir, start_bridge, wait_for
+
+SECRET = "fuzz-and-security-secret"
+
+
+def connect_refused(host, port):
+    try:
+        socket.create_connection((host, port), timeout=5).close()
+        return False
+    except OSError:
+        return True
+
+
+def listening_addresses(port):
+    """The local addresses of the sockets listening on TCP `port`, as `ss` shows them."""
+    out = subprocess.run(["ss", "-Hltn", f"sport = :{port}"], capture_output=True, text=True, check=True).stdout
+    return sorted(line.split()[3].rsplit(":", 1)[0] for line in out.splitlines() if line.strip())
+
+
+def other_local_addresses():
+    """IPv4 addresses of this machine besides 127.0.0.1 (127.0.0.2 is always there: lo owns 127/8)."""
+    out = subprocess.run(["ip", "-o", "-4", "addr", "show"], capture_output=True, text=True, check=True).stdout
+    found = {line.split()[3].split("/")[0] for line in out.splitlines()}
+    return sorted((found | {"127.0.0.2"}) - {"127.0.0.1"})
+
+
+# ---- address binding --------------------------------------------------------------------------------------
+@pytest.mark.parametrize("address", ["127.0.0.1", "127.0.0.2"])
+def test_the_bridge_listens_only_on_the_given_address(ros, address):
+    proc, port = start_bridge(ros, node_name="bind_bridge", address=address)
+    try:
+        assert listening_addresses(port) == [address]
+        client = WsClient(f"ws://{address}:{port}/")
+        assert ping(client)
+        client.close()
+        for other in other_local_addresses() + ["127.0.0.1"]:
+            if other != address:
+                assert connect_refused(other, port), f"reachable on {other}:{port}"
+    finally:
+        proc.stop()
+
+
+# ---- origins ----------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def origin_bridge(ros):
+    proc, port = start_bridge(ros, node_name="origin_bridge", allowed_origins="[http://good.example:8080, "
+                                                                            "https://*.robots.lan]")
+    yield port
+    proc.stop()
+
+
+@pytest.fixture(scope="module")
+def default_bridge(ros):
+    proc, port = start_bridge(ros, node_name="default_origin_bridge")
+    yield port
+    proc.stop()
+
+
+def refused_with_403(port, origin):
+    with pytest.raises(tornado.httpclient.HTTPClientError) as error:
+        WsClient(f"ws://127.0.0.1:{port}/", headers={"Origin": origin})
+    return error.value.code == 403
+
+
+@pytest.mark.parametrize("origin", ["http://good.example:8080", "HTTP://GOOD.EXAMPLE:8080", "https://a.robots.lan",
+                                    "https://b.c.robots.lan"])
+def test_allowed_origins_connect(origin_bridge, origin):
+    client = WsClient(f"ws://127.0.0.1:{origin_bridge}/", headers={"Origin": origin})
+    assert ping(client)
+    client.close()
+
+
+@pytest.mark.parametrize("origin", ["http://evil.example", "http://good.example:8081", "https://good.example:8080",
+                                   "http://good.example:8080.evil.example", "https://robots.lan.evil.example",
+                                   "http://a.robots.lan", "null", ""])
+def test_other_origins_are_refused_with_403(origin_bridge, origin):
+    assert refused_with_403(origin_bridge, origin)
+
+
+def test_clients_without_origin_connect(origin_bridge, default_bridge):
+    """Non-browser clients (roslibpy, rosbridge CLIs) send no Origin; a browser always does."""
+    for port in (origin_bridge, default_bridge):
+        client = WsClient(f"ws://127.0.0.1:{port}/")
+        assert ping(client)
+        client.close()
+    ros = roslibpy.Ros(host="127.0.0.1", port=origin_bridge)
+    ros.run(timeout=20)
+    assert ros.is_connected
+    ros.close()
+
+
+def test_default_allows_only_pages_of_the_same_host(default_bridge):
+    client = WsClient(f"ws://127.0.0.1:{default_bridge}/", headers={"Origin": f"http://127.0.0.1:{default_bridge}"})
+    assert ping(client)
+    client.close()
+    for origin in ("http://evil.example", "http://localhost.evil.example", "null"):
+        assert refused_with_403(default_bridge, origin)
+
+
+# ---- globs ------------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def glob_bridge(ros):
+    proc, port = start_bridge(ros, node_name="glob_security_bridge", topics_glob="[/sec/open/*]",
+                              services_glob="[/sec/open/*]", params_glob="[/sec/open/*]")
+    yield port
+    proc.stop()
+
+
+@pytest.fixture
+def glob_client(glob_bridge):
+    client = WsClient(f"ws://127.0.0.1:{glob_bridge}/")
+    yield client
+    client.close()
+
+
+def refused(reply, name):
+    """A status error or a failed service_response that names the hidden thing."""
+    if reply["op"] == "status":
+        return reply["level"] == "error" and name in reply["msg"]
+    return reply["result"] is False and name in json.dumps(reply["values"])
+
+
+@pytest.mark.parametrize("frame", [
+    {"op": "subscribe", "topic": "/sec/hidden/pose", "type": "std_msgs/String"},
+    {"op": "advertise", "topic": "/sec/hidden/cmd", "type": "std_msgs/String"},
+    {"op": "publish", "topic": "/sec/hidden/cmd", "msg": {"data": "x"}},
+    {"op": "call_service", "service": "/sec/hidden/reset"},
+    {"op": "advertise_service", "service": "/sec/hidden/offer", "type": "std_srvs/Empty"},
+    {"op": "call_service", "service": "/rosapi/get_param", "args": {"name": "/sec/hidden/gain"}},
+    {"op": "call_service", "service": "/rosapi/set_param", "args": {"name": "/sec/hidden/gain", "value": "1"}},
+    {"op": "call_service", "service": "/rosapi/delete_param", "args": {"name": "/sec/hidden/gain"}},
+], ids=lambda frame: f"{frame['op']}-{frame.get('topic') or frame['service']}")
+def test_hidden_names_are_refused(glob_client, frame):
+    name = frame["args"]["name"] if "args" in frame else frame.get("topic") or frame["service"]
+    reply = glob_client.request({**frame, "id": "hidden"})
+    assert refused(reply, name), reply
+    assert ping(glob_client)
+
+
+def test_hidden_topics_and_services_stay_hidden_from_ros(ros, node, glob_client):
+    """Nothing reaches ROS or comes back from it through a refused name."""
+    from std_msgs.msg import String
+    from std_srvs.srv import Empty, EmptyResponse
+    ros.run(["rosparam", "set", "/sec/hidden/gain", "7"])
+    calls = []
+    server = node.Service("/sec/hidden/reset", Empty, lambda req: calls.append(req) or EmptyResponse())
+    pub = node.Publisher("/sec/hidden/pose", String, queue_size=10, latch=True)
+    pub.publish(String("secret"))
+    try:
+        glob_client.request({"op": "subscribe", "topic": "/sec/hidden/pose", "id": "s"})
+        assert glob_client.request({"op": "call_service", "service": "/sec/hidden/reset", "id": "c"})
+        reply = glob_client.request({"op": "call_service", "service": "/rosapi/get_param", "id": "p",
+                                     "args": {"name": "/sec/hidden/gain"}})
+        assert "7" not in json.dumps(reply.get("values")), reply
+        for name, service, key in (("/sec/hidden/pose", "/rosapi/topics", "topics"),
+                                   ("/sec/hidden/reset", "/rosapi/services", "services"),
+                                   ("/sec/hidden/gain", "/rosapi/get_param_names", "names")):
+            listing = glob_client.request({"op": "call_service", "service": service, "id": service})
+            assert listing["result"] and name not in listing["values"][key], listing
+        assert ping(glob_client)  # no publish frame of the hidden topic came in between
+        assert calls == [] and ros.run(["rosparam", "get", "/sec/hidden/gain"]).stdout.strip() == "7"
+    finally:
+        server.shutdown()
+        pub.unregister()
+        ros.run(["rosparam", "delete", "/sec/hidden"], check=False)
+
+
+def test_open_names_still_work(node, glob_client):
+    from std_msgs.msg import String
+    got = []
+    sub = node.Subscriber("/sec/open/cmd", String, lambda m: got.append(m.data))
+    try:
+        glob_client.send({"op": "advertise", "topic": "/sec/open/cmd", "type": "std_msgs/String"})
+
+        def delivered():
+            glob_client.send({"op": "publish", "topic": "/sec/open/cmd", "msg": {"data": "open"}})
+            return got
+        assert wait_for(delivered, 20, interval=0.2, what="the open topic in rospy")[0] == "open"
+    finally:
+        sub.unregister()
+
+
+# ---- authentication ---------------------------------------------------------------------------------------
+def mac_for(secret, client, dest, rand, t, level, end):
+    """rosauth's MAC: sha512 hex of secret, client, dest, rand, t (whole seconds), level, end (whole seconds)."""
+    return hashlib.sha512(f"{secret}{client}{dest}{rand}{int(t)}{level}{int(end)}".encode()).hexdigest()
+
+
+def auth_frame(secret=SECRET, t=None, end=None, rand="r4nd0m", **changes):
+    t = time.time() if t is None else t
+    end = t + 60 if end is None else end
+    frame = {"op": "auth", "client": "127.0.0.1", "dest": "127.0.0.1", "rand": rand, "t": t, "level": "admin",
+             "end": end}
+    frame["mac"] = mac_for(secret, frame["client"], frame["dest"], rand, t, frame["level"], end)
+    frame.update(changes)
+    return frame
+
+
+@pytest.fixture(scope="module")
+def auth_bridge(ros):
+    secret_file = make_workdir("rosauth") / "secret"
+    secret_file.write_text(SECRET + "\n")
+    proc, port = start_bridge(ros, node_name="auth_bridge", authenticate="true", secret_file=str(secret_file))
+    yield port
+    proc.stop()
+
+
+@pytest.fixture
+def auth_client(auth_bridge):
+    client = WsClient(f"ws://127.0.0.1:{auth_bridge}/")
+    yield client
+    client.close()
+
+
+GET_TIME = {"op": "call_service", "service": "/rosapi/get_time", "id": "t"}
+GET_TIME_TEXT = json.dumps(GET_TIME)
+
+
+def not_executed(client, frame=GET_TIME):
+    reply = client.request(frame)
+    return reply["op"] == "status" and reply["level"] == "error" and "not authenticated" in reply["msg"]
+
+
+def test_valid_auth_then_ops_work(auth_client):
+    auth_client.send(auth_frame())
+    assert auth_client.request(GET_TIME)["result"] is True
+
+
+@pytest.mark.parametrize("frame", [
+    GET_TIME,
+    {"op": "subscribe", "topic": "/rosout", "type": "rosgraph_msgs/Log", "id": "t"},
+    {"op": "publish", "topic": "/sec/cmd", "msg": {}, "id": "t"},
+    {"op": "advertise_service", "service": "/sec/offer", "type": "std_srvs/Empty", "id": "t"},
+    {"op": "set_level", "level": "info", "id": "t"},
+    # wrapped ops: a fragment or png must not smuggle a request past authentication
+    {"op": "fragment", "id": "t", "data": GET_TIME_TEXT, "num": 0, "total": 1},
+    {"op": "png", "id": "t", "data": "iVBORw0KGgo="},
+], ids=lambda frame: frame["op"])
+def test_every_op_before_auth_is_refused(auth_client, frame):
+    assert not_executed(auth_client, frame)
+    assert not_executed(auth_client)
+
+
+@pytest.mark.parametrize("text", [
+    "x" + json.dumps(auth_frame()),  # junk before the JSON (the reference then runs the next ops unauthenticated)
+    json.dumps(auth_frame())[:-1],
+    json.dumps([auth_frame()]),
+])
+def test_junk_around_auth_is_not_authentication(auth_client, text):
+    auth_client.send(text)
+    assert not_executed(auth_client)
+
+
+def test_binary_auth_is_not_authentication(auth_client):
+    auth_client.send(json.dumps(auth_frame()).encode())
+    assert not_executed(auth_client)
+
+
+@pytest.mark.parametrize("name, frame", [
+    ("missing mac", {k: v for k, v in auth_frame().items() if k != "mac"}),
+    ("missing t", {k: v for k, v in auth_frame().items() if k != "t"}),
+    ("missing end", {k: v for k, v in auth_frame().items() if k != "end"}),
+    ("only op", {"op": "auth"}),
+    ("wrong secret", auth_frame(secret="guess")),
+    ("mac of other fields", auth_frame(level="user")),
+    ("mac upper-cased junk", auth_frame(mac="A" * 128)),
+    ("empty mac", auth_frame(mac="")),
+    ("mac as number", auth_frame(mac=0)),
+    ("t an hour old", auth_frame(t=time.time() - 3600)),
+    ("t an hour ahead", auth_frame(t=time.time() + 3600)),
+    ("end in the past", auth_frame(end=time.time() - 10)),
+    ("t NaN", {**auth_frame(), "t": float("nan")}),
+    ("end Infinity", {**auth_frame(), "end": float("inf")}),
+    ("t as text", {**auth_frame(), "t": "now"}),
+])
+def test_bad_auth_is_refused_and_the_socket_closed(auth_client, name, frame):
+    auth_client.send(json.dumps(frame))
+    reply = auth_client.recv()
+    assert reply is not None and reply["op"] == "status" and reply["level"] == "error", (name, reply)
+    assert auth_client.is_closed(), name
+
+
+def test_a_replayed_mac_is_refused_once_its_time_window_is_over(auth_bridge):
+    """rosauth has no nonce store: a captured MAC works again only while |t - now| < auth_time_delta (5 s by
+    default); after that it is refused."""
+    frame = auth_frame()
+    first = WsClient(f"ws://127.0.0.1:{auth_bridge}/")
+    first.send(frame)
+    assert first.request(GET_TIME)["result"] is True
+    first.close()
+    time.sleep(max(0.0, frame["t"] + 5.5 - time.time()))
+    replay = WsClient(f"ws://127.0.0.1:{auth_bridge}/")
+    replay.send(frame)
+    assert replay.recv()["level"] == "error"
+    assert replay.is_closed()
+
+
+def test_without_a_secret_nobody_gets_in(ros):
+    proc, port = start_bridge(ros, node_name="auth_nosecret_bridge", authenticate="true")
+    try:
+        client = WsClient(f"ws://127.0.0.1:{port}/")
+        client.send(auth_frame(secret=""))
+        assert client.recv()["level"] == "error" and client.is_closed()
+    finally:
+        proc.stop()
+
+
+# ---- TLS --------------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def tls_bridge(ros):
+    folder = make_workdir("tls")
+    cert, key = folder / "cert.pem", folder / "key.pem"
+    subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-subj", "/CN=localhost",
+                    "-addext", "subjectAltName=DNS:localhost,IP:127.0.0.1", "-days", "1",
+                    "-keyout", str(key), "-out", str(cert)], check=True, capture_output=True)
+    proc, port = start_bridge(ros, node_name="tls_bridge", ssl="true", certfile=str(cert), keyfile=str(key))
+    yield port, cert
+    proc.stop()
+
+
+def test_wss_with_the_certificate_trusted(tls_bridge):
+    port, cert = tls_bridge
+    client = WsClient(f"wss://127.0.0.1:{port}/", ca_certs=str(cert))
+    assert ping(client)
+    client.close()
+
+
+def test_wss_refuses_an_untrusted_certificate(tls_bridge):
+    port, _ = tls_bridge
+    with pytest.raises(ssl.SSLError):
+        WsClient(f"wss://127.0.0.1:{port}/")
+
+
+def test_roslibpy_over_wss(tls_bridge):
+    """roslibpy 2.1.0 (autobahn + twisted) connects with is_secure=True; it does not verify the certificate."""
+    port, _ = tls_bridge
+    ros = roslibpy.Ros(host="127.0.0.1", port=port, is_secure=True)
+    ros.run(timeout=20)
+    try:
+        reply = roslibpy.Service(ros, "/rosapi/get_time", "rosapi/GetTime").call(roslibpy.ServiceRequest(), timeout=20)
+        assert reply["time"]["secs"] > 0
+    finally:
+        ros.close()
+
+
+def test_plain_ws_to_the_tls_port_fails(tls_bridge):
+    port, _ = tls_bridge
+    with pytest.raises(Exception) as error:
+        WsClient(f"ws://127.0.0.1:{port}/", timeout=10)
+    assert not isinstance(error.value, AssertionError)
+
+
+# ---- message size -----------------------------------------------------------------------------------------
+def test_a_frame_over_max_message_size_gets_an_error_and_the_connection_goes_on(default_bridge):
+    client = WsClient(f"ws://127.0.0.1:{default_bridge}/")
+    try:
+        client.send(json.dumps({"op": "publish", "topic": "/sec/big", "msg": {"data": "z" * 9_000_000}}))
+        reply = client.recv(timeout=30)
+        assert reply["op"] == "status" and reply["level"] == "error" and "max_message_size" in reply["msg"]
+        assert ping(client)
+        # the same size in fragments is refused too, and the connection still works
+        text = json.dumps({"op": "publish", "topic": "/sec/big", "msg": {"data": "z" * 9_000_000}, "id": "big"})
+        step = 1_000_000
+        parts = [text[i:i + step] for i in range(0, len(text), step)]
+        for num, part in enumerate(parts):
+            client.send({"op": "fragment", "id": "big", "data": part, "num": num, "total": len(parts)})
+        reply = client.recv_op("status", timeout=30)
+        assert reply["level"] == "error" and "max_message_size" in reply["msg"]
+        assert ping(client)
+    finally:
+        client.close()
