@@ -1,9 +1,12 @@
 """The turtlesim node: the ROS interface of spec/turtlesim.md section 4 around the simulation core.
 
 Threads: rospy runs topic callbacks and service handlers in its own threads; the simulation ticks in one
-thread with absolute deadlines every 16 ms; the main thread runs the window (or just waits when there is
-no display). Every access to the world holds `self.lock`. ROS registration (advertising, subscribing,
-registering services) happens outside that lock so that it never delays a tick."""
+thread with absolute deadlines every 16 ms and hands each tick's readings to a publishing thread (rospy
+yields the processor after every message it queues, which would make ticks late with many turtles); the
+main thread runs the window (or just waits when there is no display). Every access to the world holds
+`self.lock`. ROS registration (advertising, subscribing, registering services) happens outside that lock
+so that it never delays a tick."""
+import collections
 import math
 import os
 import signal
@@ -25,6 +28,7 @@ from turtlesim.srv import (Kill, KillResponse, SetPen, SetPenResponse, Spawn, Sp
 
 BACKGROUND_PARAMS = ("~background_r", "~background_g", "~background_b")
 SNAPSHOT_ENV = "TURTLESIM_SNAPSHOT"
+UNPUBLISHED_TICKS = 16  # how far publishing may fall behind the simulation before old ticks are dropped
 LOGGERS = {"info": rospy.loginfo, "warn": rospy.logwarn, "error": rospy.logerr}
 
 
@@ -80,6 +84,8 @@ class TurtlesimNode:
         self.stopped = threading.Event()  # set when the node is done
         self._registration = threading.Lock()  # one spawn/kill/reset (and its ROS registrations) at a time
         self._interfaces = {}  # turtle name -> TurtleInterface
+        self._unpublished = collections.deque(maxlen=UNPUBLISHED_TICKS)  # readings of recent ticks
+        self._tick_done = threading.Condition()
         for param, default in zip(BACKGROUND_PARAMS, DEFAULT_BACKGROUND):
             if not rospy.has_param(param):
                 rospy.set_param(param, default)
@@ -168,11 +174,21 @@ class TurtlesimNode:
     def _tick(self, now):
         with self.lock:
             readings = self.world.tick(now)
-        interfaces = self._interfaces
-        for reading in readings:
-            interface = interfaces.get(reading.name)
-            if interface is not None:  # None while its topics are still being advertised
-                interface.publish(reading)
+        with self._tick_done:
+            self._unpublished.append(readings)
+            self._tick_done.notify()
+
+    def run_publishing(self):
+        """Publishes every tick's pose and color_sensor messages, in order."""
+        while not rospy.is_shutdown():
+            with self._tick_done:
+                if not self._tick_done.wait_for(lambda: self._unpublished, timeout=0.5):
+                    continue
+                readings = self._unpublished.popleft()
+            for reading in readings:
+                interface = self._interfaces.get(reading.name)
+                if interface is not None:  # None while its topics are still being advertised
+                    interface.publish(reading)
 
     # ---- pictures ------------------------------------------------------------------------------------
 
@@ -200,6 +216,7 @@ def main():
     node = TurtlesimNode()
     signal.signal(signal.SIGUSR1, node.save_snapshot)
     threading.Thread(target=node.run_simulation, name="simulation", daemon=True).start()
+    threading.Thread(target=node.run_publishing, name="publishing", daemon=True).start()
     window = view.open_window()
     if window is not None:
         window.run(node.snapshot, node.stopped, on_close=lambda: rospy.signal_shutdown("window closed"))

@@ -1,6 +1,7 @@
 """What the window shows: the trail image with a turtle drawn on top per turtle (`compose`, plain PIL), and
 the Tk window that displays it (`open_window`). The turtle drawings are never part of the trail image, so
 they never reach the colour sensor."""
+import functools
 import math
 import os
 
@@ -9,7 +10,7 @@ from PIL import Image, ImageDraw
 from turtlesim.sim import METER, SIZE_PX
 
 TITLE = "TurtleSim"
-REFRESH_MS = 25  # how often the window looks for a changed picture (40 Hz)
+REFRESH_MS = 30  # how often the window looks for a changed picture (about 33 Hz)
 
 
 def _ellipse(cx, cy, rx, ry, points=20):
@@ -32,21 +33,31 @@ TURTLE_SHAPES = [
 ]
 
 
-def draw_turtle(draw, x, qy, orient):
-    """Draws one turtle centred on its position (metres, qy down), its head towards orient."""
-    cx, cy = x * METER - 0.5, qy * METER - 0.5  # pixel n's centre is at n + 0.5
-    cos, sin = math.cos(orient), math.sin(orient)
-    for fill, outline, shape in TURTLE_SHAPES:
-        draw.polygon([(cx + u * cos - v * sin, cy - u * sin - v * cos) for u, v in shape],
+SPRITE_HALF = 28  # px: a turtle picture is a square of twice this, centred on the turtle
+
+
+@functools.lru_cache(maxsize=360)
+def turtle_sprite(degrees):
+    """The turtle picture (RGBA, transparent around it) heading `degrees` (whole degrees, 0 = +x, counter-
+    clockwise): drawn once per heading, then pasted, which is much faster than drawing every frame."""
+    sprite = Image.new("RGBA", (2 * SPRITE_HALF, 2 * SPRITE_HALF), (0, 0, 0, 0))
+    draw = ImageDraw.Draw(sprite)
+    cos, sin = math.cos(math.radians(degrees)), math.sin(math.radians(degrees))
+    for fill, outline, shape in TURTLE_SHAPES:  # (the picture's y axis points down)
+        draw.polygon([(SPRITE_HALF + u * cos - v * sin, SPRITE_HALF - u * sin - v * cos) for u, v in shape],
                      fill=fill, outline=outline)
+    return sprite
 
 
 def compose(trail, turtles):
     """The picture of the window: a copy of the trail image with every turtle drawn on it."""
     frame = trail.copy()
-    draw = ImageDraw.Draw(frame)
     for turtle in turtles:
-        draw_turtle(draw, turtle.x, turtle.qy, turtle.orient)
+        sprite = turtle_sprite(round(math.degrees(turtle.orient)) % 360)
+        # pixel n's centre is at n + 0.5 in the simulation's pixel coordinates
+        left = round(turtle.x * METER - 0.5) - SPRITE_HALF
+        top = round(turtle.qy * METER - 0.5) - SPRITE_HALF
+        frame.paste(sprite, (left, top), sprite)
     return frame
 
 
