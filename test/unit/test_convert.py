@@ -4,7 +4,6 @@ import io
 import json
 import math
 
-import turtlesim.msg  # (imported before rosbridge: see the report on catkin's src/ path insertion)
 import genpy
 import genpy.dynamic
 import pytest
@@ -13,6 +12,8 @@ import rosgraph_msgs.msg
 import sensor_msgs.msg
 import std_msgs.msg
 import std_srvs.srv
+import turtlesim.msg
+import turtlesim.srv
 
 from rosbridge.convert import ConversionError, dumps, from_json, request_from_args, to_json
 
@@ -296,7 +297,6 @@ def test_bad_values_are_refused_naming_the_field(cls, value, error):
 
 
 def test_request_from_args():
-    import turtlesim.srv
     spawn = turtlesim.srv.SpawnRequest
     assert request_from_args(spawn, {"x": 1, "y": 2.5, "name": "t2"}) == spawn(1.0, 2.5, 0.0, "t2")
     assert request_from_args(spawn, [1, 2.5, 0.5, "t2"]) == spawn(1.0, 2.5, 0.5, "t2")

@@ -7,9 +7,10 @@ import pytest
 import geometry_msgs.msg
 import rosgraph_msgs.msg
 import sensor_msgs.msg
+import turtlesim.msg
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from test_convert import AllTypes, serialized, turtlesim
+from test_convert import AllTypes, serialized
 from rosbridge.convert import INT_RANGES, ConversionError, dumps, from_json, parse_slot_type, to_json
 from rosbridge.types import message_class
 
