@@ -1,0 +1,144 @@
+"""Clients coming and going: abrupt disconnects, page reloads, 200 clients at once, a client too slow to read."""
+import asyncio
+import json
+import time
+
+import pytest
+from tornado.websocket import websocket_connect
+
+from bridge_client import WsClient, ping
+from harness import start_bridge, wait_for
+
+UNREGISTER_TIMEOUT = 3.0
+
+
+@pytest.fixture(scope="module")
+def bridge(ros):
+    proc, port = start_bridge(ros, node_name="clients_bridge", unregister_timeout=UNREGISTER_TIMEOUT,
+                              max_queue=20)
+    yield port
+    proc.stop()
+
+
+def connect(port):
+    return WsClient(f"ws://127.0.0.1:{port}/")
+
+
+def client_count(node):
+    from std_msgs.msg import Int32
+    return node.wait_for_message("/client_count", Int32, timeout=20).data
+
+
+def publishers_of(ros, topic):
+    for name, nodes in ros.master().getSystemState()[0]:
+        if name == topic:
+            return nodes
+    return []
+
+
+def subscribers_of(ros, topic):
+    for name, nodes in ros.master().getSystemState()[1]:
+        if name == topic:
+            return nodes
+    return []
+
+
+def test_abrupt_disconnect_releases_everything(bridge, ros, node):
+    before = client_count(node)
+    ws = connect(bridge)
+    ws.send({"op": "advertise", "topic": "/clients_test/abrupt_pub", "type": "std_msgs/String"})
+    ws.send({"op": "subscribe", "topic": "/clients_test/abrupt_sub", "type": "std_msgs/String"})
+    ws.send({"op": "advertise_service", "service": "/clients_test/abrupt_srv", "type": "std_srvs/Trigger"})
+    assert ping(ws)
+    wait_for(lambda: client_count(node) == before + 1, 20, what="count + 1")
+    assert "/clients_bridge" in publishers_of(ros, "/clients_test/abrupt_pub")
+    assert "/clients_bridge" in subscribers_of(ros, "/clients_test/abrupt_sub")
+    ws.abort()
+    wait_for(lambda: client_count(node) == before, 20, what="count back")
+    wait_for(lambda: not subscribers_of(ros, "/clients_test/abrupt_sub"), 20, what="subscriber released")
+    wait_for(lambda: "/clients_test/abrupt_srv" not in ros.run(["rosservice", "list"]).stdout, 20,
+             what="service released")
+    # the publisher lingers for unregister_timeout, then goes
+    wait_for(lambda: not publishers_of(ros, "/clients_test/abrupt_pub"), UNREGISTER_TIMEOUT + 20,
+             what="publisher released")
+
+
+def test_page_reload_keeps_the_topic_working(bridge, ros, node):
+    from std_msgs.msg import String
+    got = []
+    sub = node.Subscriber("/clients_test/reload", String, lambda m: got.append(m.data))
+
+    def publish_until_received(ws, text):
+        def received():
+            ws.send({"op": "publish", "topic": "/clients_test/reload", "msg": {"data": text}})
+            return text in got
+        wait_for(received, 20, interval=0.2, what=f"{text!r} in rospy")
+
+    first = connect(bridge)
+    first.send({"op": "advertise", "topic": "/clients_test/reload", "type": "std_msgs/String"})
+    publish_until_received(first, "before reload")
+    first.close()
+    second = connect(bridge)  # the reloaded page, within unregister_timeout
+    second.send({"op": "advertise", "topic": "/clients_test/reload", "type": "std_msgs/String"})
+    second.send({"op": "publish", "topic": "/clients_test/reload", "msg": {"data": "after reload"}})
+    wait_for(lambda: "after reload" in got, 20, what="the first message after the reload")  # no reconnect needed
+    second.abort()
+    time.sleep(UNREGISTER_TIMEOUT + 1)  # the publisher is gone now; a later client gets a new one
+    third = connect(bridge)
+    publish_until_received(third, "much later")
+    third.close()
+    sub.unregister()
+
+
+def test_200_clients_all_receive_a_message(bridge, node):
+    from std_msgs.msg import String
+    count, topic = 200, "/clients_test/broadcast"
+    pub = node.Publisher(topic, String, queue_size=10, latch=True)
+
+    async def run():
+        url = f"ws://127.0.0.1:{bridge}/"
+        conns = await asyncio.gather(*(websocket_connect(url) for _ in range(count)))
+        for conn in conns:
+            conn.write_message(json.dumps({"op": "subscribe", "topic": topic, "type": "std_msgs/String"}))
+        await asyncio.sleep(0.5)
+        pub.publish(String("to everyone"))
+
+        async def first_publish(conn):
+            while True:
+                frame = json.loads(await conn.read_message())
+                if frame["op"] == "publish":
+                    return frame["msg"]["data"]
+
+        received = await asyncio.wait_for(asyncio.gather(*(first_publish(c) for c in conns)), 60)
+        for conn in conns:
+            conn.close()
+        return received
+
+    received = asyncio.new_event_loop().run_until_complete(run())
+    assert received == ["to everyone"] * count
+    pub.unregister()
+
+
+def test_slow_client_loses_the_oldest_frames_and_is_told(bridge, node):
+    from std_msgs.msg import String
+    topic = "/clients_test/firehose"
+    pub = node.Publisher(topic, String, queue_size=1000)
+    slow = connect(bridge)
+    slow.send({"op": "set_level", "level": "warning"})
+    slow.send({"op": "subscribe", "topic": topic, "type": "std_msgs/String"})
+    wait_for(lambda: pub.get_num_connections(), 20, what="the bridge to subscribe")
+    payload = "x" * 200_000
+    for n in range(300):  # 60 MB: far more than the socket buffers hold while the client does not read
+        pub.publish(String(f"{n}:{payload}"))
+    warning = slow.recv_until(lambda f: f.get("op") == "status", timeout=60, limit=400)
+    assert warning["level"] == "warning" and "dropped" in warning["msg"]
+    numbers = []
+    while True:
+        frame = slow.recv_until(lambda f: f.get("op") == "publish", timeout=30, limit=400)
+        numbers.append(int(frame["msg"]["data"].split(":")[0]))
+        if numbers[-1] == 299:
+            break
+    assert len(numbers) < 300 and numbers == sorted(numbers)  # the newest arrive, in order
+    assert ping(slow)
+    slow.close()
+    pub.unregister()
