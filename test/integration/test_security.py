@@ -70,9 +70,10 @@ def default_bridge(ros):
     proc.stop()
 
 
-def refused_with_403(port, origin):
+def refused_with_403(port, origin, host_header=None):
+    headers = {"Origin": origin, **({"Host": host_header} if host_header else {})}
     with pytest.raises(tornado.httpclient.HTTPClientError) as error:
-        WsClient(f"ws://127.0.0.1:{port}/", headers={"Origin": origin})
+        WsClient(f"ws://127.0.0.1:{port}/", headers=headers)
     return error.value.code == 403
 
 
@@ -109,6 +110,28 @@ def test_default_allows_only_pages_of_the_same_host(default_bridge):
     client.close()
     for origin in ("http://evil.example", "http://localhost.evil.example", "null"):
         assert refused_with_403(default_bridge, origin)
+
+
+@pytest.mark.xfail(strict=True, reason="known gap: the default policy trusts a Host header that DNS rebinding "
+                                       "controls; needs an allow-list default of loopback/bound names")
+def test_default_refuses_a_dns_rebinding_page(default_bridge):
+    """A page of http://rebind.example:PORT whose name the attacker re-points at 127.0.0.1: the browser sends
+    Host and Origin of that name, so "same host" holds, yet the page is not one the user trusts."""
+    host = f"rebind.example:{default_bridge}"
+    assert refused_with_403(default_bridge, f"http://{host}", host_header=host)
+
+
+@pytest.mark.parametrize("path", ["/../../../../etc/passwd", "/%2e%2e/%2e%2e/%2e%2e/etc/passwd",
+                                  "/..%2f..%2f..%2fetc%2fpasswd", "//etc/passwd", "/vendor/../../package.xml"])
+def test_the_page_server_serves_nothing_outside_web_root(default_bridge, path):
+    with socket.create_connection(("127.0.0.1", default_bridge), timeout=10) as conn:
+        conn.sendall(f"GET {path} HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n".encode())
+        answer = b""
+        while chunk := conn.recv(65536):
+            answer += chunk
+    status = answer.split(b"\r\n", 1)[0]
+    assert b"root:" not in answer and b"<package" not in answer, status
+    assert status.split()[1] in (b"400", b"403", b"404"), status
 
 
 # ---- globs ------------------------------------------------------------------------------------------------
@@ -151,8 +174,9 @@ def test_hidden_names_are_refused(glob_client, frame):
     assert ping(glob_client)
 
 
-def test_hidden_topics_and_services_stay_hidden_from_ros(ros, node, glob_client):
-    """Nothing reaches ROS or comes back from it through a refused name."""
+@pytest.fixture
+def hidden_things(ros, node):
+    """A latched publisher, a service and a parameter under /sec/hidden, which the glob bridge hides."""
     from std_msgs.msg import String
     from std_srvs.srv import Empty, EmptyResponse
     ros.run(["rosparam", "set", "/sec/hidden/gain", "7"])
@@ -160,23 +184,50 @@ def test_hidden_topics_and_services_stay_hidden_from_ros(ros, node, glob_client)
     server = node.Service("/sec/hidden/reset", Empty, lambda req: calls.append(req) or EmptyResponse())
     pub = node.Publisher("/sec/hidden/pose", String, queue_size=10, latch=True)
     pub.publish(String("secret"))
-    try:
-        glob_client.request({"op": "subscribe", "topic": "/sec/hidden/pose", "id": "s"})
-        assert glob_client.request({"op": "call_service", "service": "/sec/hidden/reset", "id": "c"})
-        reply = glob_client.request({"op": "call_service", "service": "/rosapi/get_param", "id": "p",
-                                     "args": {"name": "/sec/hidden/gain"}})
-        assert "7" not in json.dumps(reply.get("values")), reply
-        for name, service, key in (("/sec/hidden/pose", "/rosapi/topics", "topics"),
-                                   ("/sec/hidden/reset", "/rosapi/services", "services"),
-                                   ("/sec/hidden/gain", "/rosapi/get_param_names", "names")):
-            listing = glob_client.request({"op": "call_service", "service": service, "id": service})
-            assert listing["result"] and name not in listing["values"][key], listing
-        assert ping(glob_client)  # no publish frame of the hidden topic came in between
-        assert calls == [] and ros.run(["rosparam", "get", "/sec/hidden/gain"]).stdout.strip() == "7"
-    finally:
-        server.shutdown()
-        pub.unregister()
-        ros.run(["rosparam", "delete", "/sec/hidden"], check=False)
+    wait_for(lambda: "/sec/hidden/pose" in dict(ros.master().getTopicTypes()), 20, what="the hidden topic")
+    yield calls
+    server.shutdown()
+    pub.unregister()
+    ros.run(["rosparam", "delete", "/sec/hidden"], check=False)
+
+
+def test_hidden_topics_and_services_stay_hidden_from_ros(ros, glob_client, hidden_things):
+    """Nothing reaches ROS or comes back from it through a refused name."""
+    glob_client.request({"op": "subscribe", "topic": "/sec/hidden/pose", "id": "s"})
+    assert glob_client.request({"op": "call_service", "service": "/sec/hidden/reset", "id": "c"})
+    glob_client.request({"op": "call_service", "service": "/rosapi/set_param", "id": "p",
+                         "args": {"name": "/sec/hidden/gain", "value": "8"}})
+    assert ping(glob_client)  # no publish frame of the hidden topic came in between
+    assert hidden_things == [] and ros.run(["rosparam", "get", "/sec/hidden/gain"]).stdout.strip() == "7"
+
+
+@pytest.mark.parametrize("service, args", [
+    ("/rosapi/topics", {}), ("/rosapi/topics_and_raw_types", {}),
+    ("/rosapi/topics_for_type", {"type": "std_msgs/String"}),
+    ("/rosapi/topic_type", {"topic": "/sec/hidden/pose"}), ("/rosapi/publishers", {"topic": "/sec/hidden/pose"}),
+    ("/rosapi/services", {}), ("/rosapi/services_for_type", {"type": "std_srvs/Empty"}),
+    ("/rosapi/service_type", {"service": "/sec/hidden/reset"}),
+    ("/rosapi/service_providers", {"service": "/sec/hidden/reset"}),
+    ("/rosapi/service_node", {"service": "/sec/hidden/reset"}),
+    ("/rosapi/service_host", {"service": "/sec/hidden/reset"}),
+    ("/rosapi/get_param_names", {}), ("/rosapi/has_param", {"name": "/sec/hidden/gain"}),
+    ("/rosapi/search_param", {"name": "gain"}), ("/rosapi/search_param", {"name": "/sec/hidden/gain"}),
+    ("/rosapi/get_param", {"name": "/"}), ("/rosapi/get_param", {"name": "/sec"}),
+    ("/rosapi/get_param", {"name": "sec/hidden/gain"}),
+])
+def test_rosapi_answers_never_show_hidden_names(glob_client, hidden_things, service, args):
+    """Either refused (the error may repeat the name asked for) or answered without a trace of /sec/hidden."""
+    reply = glob_client.request({"op": "call_service", "service": service, "args": args, "id": service})
+    assert reply["op"] == "service_response", reply
+    if reply["result"]:
+        assert "hidden" not in json.dumps(reply["values"]) and reply["values"] != {"exists": True}, reply
+
+
+def test_node_details_hide_what_the_node_does_on_hidden_names(glob_client, hidden_things, node):
+    reply = glob_client.request({"op": "call_service", "service": "/rosapi/node_details", "id": "n",
+                                 "args": {"node": node.get_name()}})
+    assert reply["result"], reply
+    assert "/sec/hidden" not in json.dumps(reply["values"]), reply
 
 
 def test_open_names_still_work(node, glob_client):
