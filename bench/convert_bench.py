@@ -1,4 +1,4 @@
-"""Micro-benchmark of the ROS <-> JSON conversion (rosbridge.convert) and the CBOR encoding, in microseconds
+"""Micro-benchmark of the ROS <-> JSON conversion (rosbridge.convert) and the wire encodings, in microseconds
 per call (best of several repeats, so a busy machine disturbs it less). No roscore needed:
 
     export PATH=/usr/bin:$PATH; source .build/ws/devel/setup.bash; python3 bench/convert_bench.py
@@ -10,7 +10,7 @@ import geometry_msgs.msg
 import sensor_msgs.msg
 
 from rosbridge.convert import dumps, from_json, to_json
-from rosbridge.encoding import cbor_frame, to_cbor_value
+from rosbridge.encoding import cbor_frame, png_frame, to_cbor_value
 
 
 def best_microseconds(function, repeats=5):
@@ -39,6 +39,7 @@ def main():
             "dumps(to_json)": lambda: dumps(to_json(msg)),
             "from_json(json.loads(text))": lambda text=dumps(value): from_json(type(msg), json.loads(text)),
             "cbor_frame(to_cbor_value)": lambda: cbor_frame(to_cbor_value(msg)),
+            "png_frame(dumps(to_json))": lambda: png_frame(dumps(to_json(msg))),
         }
         for operation, function in cases.items():
             print(f"{name:34} {operation:28} {best_microseconds(function):10.2f}")
