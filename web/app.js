@@ -124,8 +124,13 @@ function refreshTopics() {
   }, error => feedback(`Could not list topics: ${error}`, 'error'));
 }
 
+let shownTopics = '';
+
 function showTopics(entries) {
   const list = $('topics');
+  const key = JSON.stringify(entries);
+  if (key === shownTopics) return;  // leave a selection or a scroll position alone
+  shownTopics = key;
   list.replaceChildren(...entries.map(([name, type]) => {
     const item = document.createElement('li');
     item.innerHTML = '<code class="name"></code><code class="type"></code>';
