@@ -174,6 +174,18 @@ def test_hidden_names_are_refused(glob_client, frame):
     assert ping(glob_client)
 
 
+def test_a_library_call_of_a_hidden_service_fails_at_once(glob_bridge):
+    """roslibjs and roslibpy match a call by its service_response; the spec answers failures with
+    result:false, so the caller's error callback runs instead of waiting forever."""
+    ros = roslibpy.Ros(host="127.0.0.1", port=glob_bridge)
+    ros.run(timeout=20)
+    try:
+        with pytest.raises(roslibpy.core.ServiceException, match="/sec/hidden/reset"):
+            roslibpy.Service(ros, "/sec/hidden/reset", "std_srvs/Empty").call(roslibpy.ServiceRequest(), timeout=15)
+    finally:
+        ros.close()
+
+
 @pytest.fixture
 def hidden_things(ros, node):
     """A latched publisher, a service and a parameter under /sec/hidden, which the glob bridge hides."""
