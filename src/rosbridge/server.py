@@ -163,7 +163,9 @@ def main():
                     use_compression=bool(_param("use_compression", False)))
     backend.set_client_count(0)
 
-    web_root = str(_param("web_root", str(DEFAULT_WEB_ROOT)))
+    web_root = str(rospy.get_param("~web_root", DEFAULT_WEB_ROOT))
+    if web_root.lower() in ("", "none"):  # roslaunch drops an empty `web_root:=`, so "none" turns it off too
+        web_root = ""
     settings = {
         # Tornado closes the socket on frames over its limit; ours answers an error and keeps it open
         "websocket_max_message_size": max(4 * max_message_size, 64_000_000),

@@ -1,0 +1,165 @@
+"""Launch options: authentication (rosauth MAC), origin allow-list, address binding, the web page, wss."""
+import hashlib
+import socket
+import ssl
+import subprocess
+import time
+import urllib.error
+import urllib.request
+
+import pytest
+import tornado.httpclient
+
+from bridge_client import WsClient, ping
+from harness import start_bridge
+
+SECRET = "1234567890abcdef"
+
+
+def mac(client, dest, rand, t, level, end, secret=SECRET):
+    text = f"{secret}{client}{dest}{rand}{int(t)}{level}{int(end)}"
+    return hashlib.sha512(text.encode()).hexdigest()
+
+
+def auth_frame(**changes):
+    now = time.time()
+    fields = {"client": "192.168.1.101", "dest": "192.168.1.111", "rand": "xyzzy", "t": now, "level": "admin",
+              "end": now + 60}
+    fields["mac"] = mac(**fields)
+    return {"op": "auth", **fields, **changes}
+
+
+@pytest.fixture(scope="module")
+def auth_bridge(ros, tmp_path_factory):
+    secret_file = tmp_path_factory.mktemp("auth") / "secret"
+    secret_file.write_text(SECRET + "\n")
+    proc, port = start_bridge(ros, node_name="auth_bridge", authenticate="true", secret_file=secret_file)
+    yield f"ws://127.0.0.1:{port}/"
+    proc.stop()
+
+
+def test_valid_mac_opens_every_op(auth_bridge):
+    ws = WsClient(auth_bridge)
+    ws.send({"op": "set_level", "level": "info"})  # refused: not authenticated yet
+    reply = ws.recv()
+    assert reply["level"] == "error" and "not authenticated" in reply["msg"]
+    ws.send(auth_frame())
+    ws.send({"op": "set_level", "level": "info"})
+    ws.send({"op": "call_service", "service": "/rosapi/get_time", "id": "t"})
+    assert ws.recv_op("service_response", id="t")["result"] is True
+    ws.close()
+
+
+@pytest.mark.parametrize("frame", [
+    {"op": "subscribe", "topic": "/rosout", "type": "rosgraph_msgs/Log", "id": "x"},
+    'junk{"op": "subscribe", "topic": "/rosout", "type": "rosgraph_msgs/Log", "id": "x"}',
+    {"op": "call_service", "service": "/rosapi/topics", "id": "x"},
+    b'{"op": "subscribe", "topic": "/rosout", "type": "rosgraph_msgs/Log"}',
+], ids=["op", "junk-before-json", "rosapi", "binary"])
+def test_nothing_runs_before_auth(auth_bridge, frame):
+    ws = WsClient(auth_bridge)
+    ws.send(frame)
+    reply = ws.recv()
+    assert reply["op"] == "status" and reply["level"] == "error"
+    ws.send({"op": "set_level", "level": "info"})
+    assert "not authenticated" in ws.recv()["msg"]  # still refused: no publish/service_response came
+    ws.close()
+
+
+@pytest.mark.parametrize("frame", [
+    auth_frame(mac="0" * 128),
+    auth_frame(level="superuser"),  # the MAC covers the level
+    auth_frame(t=time.time() - 3600),  # too old (and the MAC no longer matches)
+    {k: v for k, v in auth_frame().items() if k != "rand"},
+    {**auth_frame(), "t": "now"},
+    {**auth_frame(), "extra": 1},
+], ids=["bad-mac", "changed-level", "old", "missing-field", "wrong-type", "extra-field"])
+def test_bad_auth_is_refused_and_closes(auth_bridge, frame):
+    ws = WsClient(auth_bridge)
+    ws.send(frame)
+    reply = ws.recv()
+    assert reply["op"] == "status" and reply["level"] == "error"
+    assert ws.is_closed()
+
+
+def test_expired_session_mac_is_refused(auth_bridge):
+    now = time.time()
+    fields = {"client": "c", "dest": "d", "rand": "r", "t": now, "level": "user", "end": now - 1}
+    ws = WsClient(auth_bridge)
+    ws.send({"op": "auth", "mac": mac(**fields), **fields})
+    assert "authentication failed" in ws.recv()["msg"]
+    assert ws.is_closed()
+
+
+@pytest.fixture(scope="module")
+def plain_bridge(ros):
+    proc, port = start_bridge(ros, node_name="options_bridge")
+    yield port
+    proc.stop()
+
+
+def test_origin_same_host_and_no_origin_allowed_others_refused(plain_bridge):
+    url = f"ws://127.0.0.1:{plain_bridge}/"
+    assert ping(WsClient(url))
+    assert ping(WsClient(url, headers={"Origin": f"http://127.0.0.1:{plain_bridge}"}))
+    with pytest.raises(tornado.httpclient.HTTPClientError, match="403"):
+        WsClient(url, headers={"Origin": "http://evil.example"})
+
+
+def test_origin_allow_list(ros):
+    proc, port = start_bridge(ros, node_name="origin_bridge", allowed_origins="[http://good.example, https://*.lan]")
+    try:
+        url = f"ws://127.0.0.1:{port}/"
+        assert ping(WsClient(url, headers={"Origin": "http://good.example"}))
+        assert ping(WsClient(url, headers={"Origin": "https://robot.lan"}))
+        assert ping(WsClient(url))  # not a browser
+        for origin in ("http://evil.example", f"http://127.0.0.1:{port}"):
+            with pytest.raises(tornado.httpclient.HTTPClientError, match="403"):
+                WsClient(url, headers={"Origin": origin})
+    finally:
+        proc.stop()
+
+
+def test_address_is_honoured(plain_bridge):
+    """Bound to 127.0.0.1 only: another loopback address of this host gets no answer."""
+    with socket.create_connection(("127.0.0.1", plain_bridge), timeout=5):
+        pass
+    with pytest.raises(OSError):
+        socket.create_connection(("127.0.0.2", plain_bridge), timeout=5).close()
+
+
+def test_http_get_serves_the_page_and_its_files(plain_bridge):
+    base = f"http://127.0.0.1:{plain_bridge}"
+    with urllib.request.urlopen(base + "/", timeout=10) as response:
+        page = response.read().decode()
+        assert response.headers["Content-Type"].startswith("text/html")
+    from harness import REPO
+    assert page == (REPO / "web" / "index.html").read_text()
+    assert urllib.request.urlopen(base + "/index.html", timeout=10).read().decode() == page
+    with pytest.raises(urllib.error.HTTPError, match="404"):
+        urllib.request.urlopen(base + "/no_such_file.js", timeout=10)
+    with pytest.raises(urllib.error.HTTPError, match="40[34]"):
+        urllib.request.urlopen(base + "/../../etc/passwd", timeout=10)
+
+
+def test_web_root_off(ros):
+    proc, port = start_bridge(ros, node_name="no_page_bridge", web_root="none")
+    try:
+        with pytest.raises(urllib.error.HTTPError, match="400"):
+            urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=10)
+        assert ping(WsClient(f"ws://127.0.0.1:{port}/"))
+    finally:
+        proc.stop()
+
+
+def test_wss(ros, tmp_path):
+    cert, key = tmp_path / "cert.pem", tmp_path / "key.pem"
+    subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "1", "-subj",
+                    "/CN=127.0.0.1", "-keyout", str(key), "-out", str(cert)], check=True, capture_output=True)
+    proc, port = start_bridge(ros, node_name="wss_bridge", ssl="true", certfile=cert, keyfile=key)
+    try:
+        context = ssl.create_default_context(cafile=str(cert))
+        context.check_hostname = False
+        assert ping(WsClient(f"wss://127.0.0.1:{port}/", ssl_options=context))
+    finally:
+        proc.stop()
