@@ -150,6 +150,21 @@ def test_holding_arrow_keys_drives_and_releasing_stops(open_page, world, listen)
     assert world.last.x > CENTRE + 1
 
 
+def test_leaving_the_page_while_a_key_is_held_stops_the_turtle(open_page, world, listen):
+    commands = listen("/turtle1/cmd_vel", Twist)
+    page = open_page()
+    page.el("world").click()
+    ActionChains(page.driver).key_down("w").perform()
+    wait_for(lambda: world.last.linear_velocity > 0, 10, what="turtle1 moving")
+    page.js("window.dispatchEvent(new Event('blur'))")  # e.g. alt-tab: the keyup will never come
+    wait_for(lambda: commands.last.linear.x == 0, 10, what="the zero Twist")
+    wait_for(lambda: world.last.linear_velocity == 0, 10, what="turtle1 at rest")
+    count = commands.count()
+    time.sleep(0.5)
+    assert commands.count() == count  # no longer sending
+    ActionChains(page.driver).key_up("w").perform()
+
+
 def test_keys_do_not_drive_while_typing_in_a_field(open_page, world, listen):
     commands = listen("/turtle1/cmd_vel", Twist)
     page = open_page()
@@ -158,6 +173,10 @@ def test_keys_do_not_drive_while_typing_in_a_field(open_page, world, listen):
     time.sleep(1.0)
     assert commands.count() == 0
     assert page.el("spawn-name").get_attribute("value") == "wasd"
+    page.el("world").click()  # out of the field, the same key drives (so the silence above was real)
+    ActionChains(page.driver).key_down(Keys.ARROW_UP).perform()
+    wait_for(lambda: commands.count() > 0, 10, what="a Twist")
+    ActionChains(page.driver).key_up(Keys.ARROW_UP).perform()
 
 
 def test_mouse_on_the_joystick_drives_and_letting_go_stops(open_page, world, listen):
