@@ -1,0 +1,296 @@
+"""rosbridge.protocol without ROS or sockets: a Session fed frames, with a backend that records what the
+protocol asks of the ROS side, and a clock and timers the test moves by hand."""
+import hashlib
+import json
+
+import pytest
+from std_msgs.msg import Int32, String
+
+from rosbridge import protocol
+from rosbridge.globs import Globs
+
+
+class RecordingBackend:
+    """Records every call; `refuse` makes the named method raise like the ROS side does."""
+
+    def __init__(self):
+        self.calls = []
+        self.refuse = {}
+
+    def __getattr__(self, name):
+        def record(session, *args):
+            if name in self.refuse:
+                raise protocol.RequestError(self.refuse[name])
+            self.calls.append((name, *args))
+        return record
+
+
+class Harness:
+    def __init__(self, **config):
+        self.now = 1000.0
+        self.timers = []
+        self.closed_with = None
+        self.backend = RecordingBackend()
+        self.session = protocol.Session(self.backend, protocol.Config(**config), lambda: self.now,
+                                        lambda delay, fn: self.timers.append((self.now + delay, fn)),
+                                        lambda: None, self._close)
+
+    def _close(self, reason):
+        self.closed_with = reason
+
+    def send(self, frame):
+        self.session.handle_text(frame if isinstance(frame, str) else json.dumps(frame))
+
+    def frames(self):
+        out = []
+        while (frame := self.session.take_frame()) is not None:
+            out.append(frame)
+        return out
+
+    def replies(self):
+        return [json.loads(frame) for frame in self.frames()]
+
+    def advance(self, seconds):
+        self.now += seconds
+        due = [t for t in self.timers if t[0] <= self.now]
+        self.timers = [t for t in self.timers if t[0] > self.now]
+        for _, fn in due:
+            fn()
+
+
+def message(topic="/t", data=1, stamp=1.5):
+    return protocol.TopicMessage(topic, Int32(data), stamp, lambda: b"\x01\x00\x00\x00")
+
+
+@pytest.fixture
+def h():
+    return Harness()
+
+
+def test_check_fields_names_the_problem():
+    protocol.check_fields("advertise", {"op": "advertise", "topic": "/a", "type": "std_msgs/String"})
+    with pytest.raises(protocol.RequestError, match="missing required field 'type'"):
+        protocol.check_fields("advertise", {"op": "advertise", "topic": "/a"})
+    with pytest.raises(protocol.RequestError, match="'latch' must be a boolean"):
+        protocol.check_fields("advertise", {"op": "advertise", "topic": "/a", "type": "x/Y", "latch": 1})
+    with pytest.raises(protocol.RequestError, match="'queue_size' must be an integer"):
+        protocol.check_fields("advertise", {"op": "advertise", "topic": "/a", "type": "x/Y", "queue_size": True})
+    with pytest.raises(protocol.RequestError, match="unknown field 'bogus'"):
+        protocol.check_fields("unadvertise", {"op": "unadvertise", "topic": "/a", "bogus": 1})
+    # null stands for an absent optional field (roslibpy sends "id": null)
+    protocol.check_fields("set_level", {"op": "set_level", "level": "info", "id": None})
+
+
+def test_ops_reach_the_backend_with_defaults(h):
+    h.send({"op": "advertise", "topic": "/a", "type": "std_msgs/String"})
+    h.send({"op": "publish", "topic": "/a", "msg": {"data": "x"}, "latch": True})
+    h.send({"op": "call_service", "service": "/s", "args": [1, 2], "id": "c"})
+    h.send({"op": "advertise_service", "service": "/p", "type": "std_srvs/Empty"})
+    h.send({"op": "service_response", "service": "/p", "id": "r", "result": True, "values": {}})
+    h.send({"op": "unadvertise", "topic": "/a"})
+    names = [call[0] for call in h.backend.calls]
+    assert names == ["advertise", "publish", "call_service", "advertise_service", "service_response",
+                     "unadvertise"]
+    assert h.backend.calls[0] == ("advertise", "/a", "std_msgs/String", False, 100)
+    assert h.backend.calls[1] == ("publish", "/a", {"data": "x"}, True, 100)
+    assert h.backend.calls[2][1:5] == ("/s", [1, 2], None, None)
+    assert h.frames() == []  # success is silent
+
+
+def test_call_service_reply_is_routed_by_id(h):
+    h.send({"op": "call_service", "service": "/s", "id": "call-7"})
+    reply = h.backend.calls[0][-1]
+    reply(False, "Service /s does not exist")
+    assert h.replies() == [{"op": "service_response", "service": "/s", "values": "Service /s does not exist",
+                            "result": False, "id": "call-7"}]
+
+
+def test_backend_refusal_becomes_a_status_error_with_the_id(h):
+    h.backend.refuse["advertise"] = "advertise /a: the topic already has type x/Y"
+    h.send({"op": "advertise", "topic": "/a", "type": "std_msgs/String", "id": "adv-1"})
+    assert h.replies() == [{"op": "status", "level": "error", "id": "adv-1",
+                            "msg": "advertise /a: the topic already has type x/Y"}]
+
+
+def test_globs_refuse_names_outside_them():
+    h = Harness(globs=Globs.parse(topics_glob="[/turtle1/*]", services_glob="[/spawn]"))
+    h.send({"op": "subscribe", "topic": "/secret", "type": "std_msgs/String", "id": "s"})
+    h.send({"op": "call_service", "service": "/kill", "id": "k"})
+    h.send({"op": "call_service", "service": "/rosapi/topics", "id": "r"})  # always callable
+    h.send({"op": "subscribe", "topic": "/turtle1/pose", "type": "turtlesim/Pose"})
+    errors = h.replies()
+    assert [e["id"] for e in errors] == ["s", "k"]
+    assert "topics_glob" in errors[0]["msg"] and "services_glob" in errors[1]["msg"]
+    assert [c[0] for c in h.backend.calls] == ["call_service", "subscribe"]
+
+
+def test_subscriptions_merge_and_unsubscribe(h):
+    h.send({"op": "subscribe", "topic": "/t", "id": "a", "throttle_rate": 500, "fragment_size": 100})
+    h.send({"op": "subscribe", "topic": "/t", "id": "b", "throttle_rate": 100, "queue_length": 5})
+    sub = h.session.subscriptions["/t"]
+    assert (sub.throttle_rate, sub.fragment_size, sub.queue_length) == (0.1, 100, 5)
+    h.send({"op": "unsubscribe", "topic": "/t", "id": "b"})
+    assert (sub.throttle_rate, sub.queue_length) == (0.5, 0)
+    assert ("unsubscribe", "/t") not in h.backend.calls
+    h.send({"op": "subscribe", "topic": "/t", "id": "c"})
+    h.send({"op": "unsubscribe", "topic": "/t"})  # no id: all of them
+    assert "/t" not in h.session.subscriptions and ("unsubscribe", "/t") in h.backend.calls
+
+
+def test_one_encoding_for_every_client():
+    sessions = [Harness() for _ in range(3)]
+    for s in sessions:
+        s.send({"op": "subscribe", "topic": "/t"})
+    msg = message(data=42)
+    for s in sessions:
+        s.session.deliver(msg)
+    frames = [s.frames() for s in sessions]
+    assert frames[0][0] is frames[1][0] is frames[2][0]  # the same bytes object
+    assert isinstance(frames[0][0], protocol.Utf8Text)
+    assert json.loads(frames[0][0]) == {"op": "publish", "topic": "/t", "msg": {"data": 42}}
+
+
+def test_fragment_size_and_compressions(h):
+    h.send({"op": "subscribe", "topic": "/t", "fragment_size": 10})
+    h.session.deliver(message(data=123456))
+    parts = h.replies()
+    assert {p["op"] for p in parts} == {"fragment"} and len(parts) == parts[0]["total"] > 1
+    assert json.loads("".join(p["data"] for p in parts))["msg"] == {"data": 123456}
+    h.send({"op": "subscribe", "topic": "/t", "compression": "cbor-raw"})
+    h.session.deliver(message(stamp=12.25))
+    import cbor2
+    frame = h.frames()
+    assert len(frame) == 1 and not isinstance(frame[0], protocol.Utf8Text)
+    assert cbor2.loads(frame[0])["msg"] == {"bytes": b"\x01\x00\x00\x00", "secs": 12, "nsecs": 250000000}
+
+
+def test_throttle_keeps_the_latest_and_queue_length_keeps_more(h):
+    h.send({"op": "subscribe", "topic": "/t", "throttle_rate": 1000})
+    for n in range(5):
+        h.session.deliver(message(data=n))
+    assert [r["msg"]["data"] for r in h.replies()] == [0]
+    h.advance(1.0)
+    assert [r["msg"]["data"] for r in h.replies()] == [4]  # the latest, not lost
+    h.advance(5.0)
+    assert h.replies() == []
+
+    q = Harness()
+    q.send({"op": "subscribe", "topic": "/t", "throttle_rate": 1000, "queue_length": 2})
+    for n in range(5):
+        q.session.deliver(message(data=n))
+    q.advance(1.0)
+    q.advance(1.0)
+    assert [r["msg"]["data"] for r in q.replies()] == [0, 3, 4]
+
+
+def test_slow_client_drops_oldest_and_is_told():
+    h = Harness(max_queue=3)
+    h.send({"op": "set_level", "level": "warning"})
+    h.send({"op": "subscribe", "topic": "/t"})
+    for n in range(10):
+        h.session.deliver(message(data=n))
+    replies = h.replies()
+    assert replies[0]["op"] == "status" and replies[0]["level"] == "warning" and "dropped 7" in replies[0]["msg"]
+    assert [r["msg"]["data"] for r in replies[1:]] == [7, 8, 9]
+
+
+def test_status_level_filters(h):
+    h.send({"op": "unsubscribe", "topic": "/nothing"})  # a warning: hidden at the default level (error)
+    assert h.frames() == []
+    h.send({"op": "set_level", "level": "warning"})
+    h.send({"op": "unsubscribe", "topic": "/nothing"})
+    assert h.replies()[0]["level"] == "warning"
+    h.send({"op": "set_level", "level": "none"})
+    h.send("garbage")
+    assert h.frames() == []
+
+
+def test_fragments_reassemble_in_any_order_and_expire(h):
+    text = json.dumps({"op": "advertise", "topic": "/f", "type": "std_msgs/String"})
+    parts = [text[i:i + 7] for i in range(0, len(text), 7)]
+    for num in reversed(range(1, len(parts))):
+        h.send({"op": "fragment", "id": 1, "data": parts[num], "num": num, "total": len(parts)})
+    assert h.backend.calls == []
+    h.send({"op": "fragment", "id": 1, "data": parts[0], "num": 0, "total": len(parts)})
+    assert h.backend.calls == [("advertise", "/f", "std_msgs/String", False, 100)]
+
+    h.send({"op": "set_level", "level": "warning"})
+    h.send({"op": "fragment", "id": 2, "data": "{", "num": 0, "total": 2})
+    h.advance(601)
+    h.send({"op": "fragment", "id": 3, "data": "{", "num": 0, "total": 2})
+    assert "fragment_timeout" in h.replies()[0]["msg"]
+    assert list(h.session._fragments) == [3]
+
+
+def test_fragments_cannot_exceed_max_message_size():
+    h = Harness(max_message_size=100)
+    h.send({"op": "fragment", "id": "big", "data": "x" * 60, "num": 0, "total": 3})
+    h.send({"op": "fragment", "id": "big", "data": "x" * 60, "num": 1, "total": 3})
+    assert "max_message_size" in h.replies()[0]["msg"]
+    assert h.session._fragments == {} and h.session._fragment_bytes == 0
+
+
+def test_nested_fragments_are_refused(h):
+    inner = json.dumps({"op": "fragment", "id": "in", "data": "{}", "num": 0, "total": 1})
+    frame = {"op": "fragment", "id": "out", "data": inner, "num": 0, "total": 1}
+    for _ in range(3):
+        frame = {"op": "fragment", "id": "out", "data": json.dumps(frame), "num": 0, "total": 1}
+    h.send(frame)
+    assert "nested too deeply" in h.replies()[0]["msg"]
+
+
+def test_png_op_carries_a_request(h):
+    from rosbridge import encoding
+    h.send({"op": "png", "data": encoding.png_frame(json.dumps({"op": "unadvertise", "topic": "/p"}))})
+    assert h.backend.calls == [("unadvertise", "/p")]
+
+
+def secret_mac(fields, secret="s3cret"):
+    text = "".join([secret, fields["client"], fields["dest"], fields["rand"], str(int(fields["t"])),
+                    fields["level"], str(int(fields["end"]))])
+    return hashlib.sha512(text.encode()).hexdigest()
+
+
+def auth(now, **changes):
+    fields = {"client": "c", "dest": "d", "rand": "r", "t": now, "level": "admin", "end": now + 100}
+    fields["mac"] = secret_mac(fields)
+    return {"op": "auth", **fields, **changes}
+
+
+def test_auth_gate():
+    h = Harness(authenticate=True, auth_secret="s3cret")
+    h.send({"op": "advertise", "topic": "/a", "type": "std_msgs/String", "id": "early"})
+    assert "not authenticated" in h.replies()[0]["msg"] and h.closed_with is None
+    h.send(auth(h.now))
+    h.send({"op": "advertise", "topic": "/a", "type": "std_msgs/String"})
+    assert h.backend.calls == [("advertise", "/a", "std_msgs/String", False, 100)]
+
+
+@pytest.mark.parametrize("changes", [{"mac": "00"}, {"rand": "other"}, {"t": 1000.0 - 10}, {"end": 999.0},
+                                     {"client": 5}, {"mac": None}])
+def test_bad_auth_closes(changes):
+    h = Harness(authenticate=True, auth_secret="s3cret")
+    frame = auth(h.now)
+    frame.update(changes)
+    if changes.get("mac", "") is None:
+        del frame["mac"]
+    h.send(frame)
+    assert h.replies()[0]["level"] == "error" and h.closed_with == "authentication failed"
+
+
+def test_auth_without_a_secret_refuses_everyone():
+    h = Harness(authenticate=True, auth_secret=None)
+    h.send(auth(h.now))
+    assert h.closed_with == "authentication failed"
+
+
+def test_closed_session_releases_and_stops_sending(h):
+    h.send({"op": "subscribe", "topic": "/t"})
+    h.session.closed()
+    h.session.deliver(message())
+    assert h.frames() == [] and h.backend.calls[-1] == ("release",)
+
+
+def test_string_messages_keep_unicode():
+    msg = protocol.TopicMessage("/s", String("grüß 🐢"), 0.0, None)
+    assert json.loads(msg.frames("none", None)[0])["msg"]["data"] == "grüß 🐢"
