@@ -4,8 +4,9 @@ they never reach the colour sensor."""
 import functools
 import math
 import os
+import tkinter
 
-from PIL import Image, ImageDraw
+from PIL import Image, ImageDraw, ImageTk
 
 from turtlesim.sim import METER, SIZE_PX
 
@@ -65,8 +66,6 @@ class Window:
     """A fixed 500 x 500 Tk window. It must run in the main thread and only reads snapshots."""
 
     def __init__(self, root):
-        from PIL import ImageTk
-        import tkinter
         self.root = root
         root.title(TITLE)
         root.resizable(False, False)
@@ -101,7 +100,6 @@ def open_window():
     """The window, or None when there is no display to show it on."""
     if not os.environ.get("DISPLAY"):
         return None
-    import tkinter
     try:
         root = tkinter.Tk(className=TITLE)
     except tkinter.TclError:
