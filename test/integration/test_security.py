@@ -41,7 +41,7 @@ def other_local_addresses():
 # ---- address binding --------------------------------------------------------------------------------------
 @pytest.mark.parametrize("address", ["127.0.0.1", "127.0.0.2"])
 def test_the_bridge_listens_only_on_the_given_address(ros, address):
-    proc, port = start_bridge(ros, node_name="bind_bridge", address=address)
+    proc, port = start_bridge(ros, node_name="security_bind_bridge", address=address)
     try:
         assert listening_addresses(port) == [address]
         client = WsClient(f"ws://{address}:{port}/")
@@ -57,7 +57,7 @@ def test_the_bridge_listens_only_on_the_given_address(ros, address):
 # ---- origins ----------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def origin_bridge(ros):
-    proc, port = start_bridge(ros, node_name="origin_bridge", allowed_origins="[http://good.example:8080, "
+    proc, port = start_bridge(ros, node_name="security_origin_bridge", allowed_origins="[http://good.example:8080, "
                                                                             "https://*.robots.lan]")
     yield port
     proc.stop()
@@ -65,7 +65,7 @@ def origin_bridge(ros):
 
 @pytest.fixture(scope="module")
 def default_bridge(ros):
-    proc, port = start_bridge(ros, node_name="default_origin_bridge")
+    proc, port = start_bridge(ros, node_name="security_default_origin_bridge")
     yield port
     proc.stop()
 
@@ -92,23 +92,15 @@ def test_other_origins_are_refused_with_403(origin_bridge, origin):
     assert refused_with_403(origin_bridge, origin)
 
 
-def test_clients_without_origin_connect(origin_bridge, default_bridge):
-    """Non-browser clients (roslibpy, rosbridge CLIs) send no Origin; a browser always does."""
-    for port in (origin_bridge, default_bridge):
-        client = WsClient(f"ws://127.0.0.1:{port}/")
-        assert ping(client)
-        client.close()
+def test_roslibpy_sends_no_origin_and_connects_to_an_allow_list_bridge(origin_bridge):
     ros = roslibpy.Ros(host="127.0.0.1", port=origin_bridge)
     ros.run(timeout=20)
     assert ros.is_connected
     ros.close()
 
 
-def test_default_allows_only_pages_of_the_same_host(default_bridge):
-    client = WsClient(f"ws://127.0.0.1:{default_bridge}/", headers={"Origin": f"http://127.0.0.1:{default_bridge}"})
-    assert ping(client)
-    client.close()
-    for origin in ("http://evil.example", "http://localhost.evil.example", "null"):
+def test_default_refuses_look_alike_origins(default_bridge):
+    for origin in ("http://localhost.evil.example", f"http://127.0.0.1.evil.example:{default_bridge}", "null"):
         assert refused_with_403(default_bridge, origin)
 
 
@@ -137,7 +129,7 @@ def test_the_page_server_serves_nothing_outside_web_root(default_bridge, path):
 # ---- globs ------------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def glob_bridge(ros):
-    proc, port = start_bridge(ros, node_name="glob_security_bridge", topics_glob="[/sec/open/*]",
+    proc, port = start_bridge(ros, node_name="security_glob_bridge", topics_glob="[/sec/open/*]",
                               services_glob="[/sec/open/*]", params_glob="[/sec/open/*]")
     yield port
     proc.stop()
@@ -277,7 +269,7 @@ def auth_frame(secret=SECRET, t=None, end=None, rand="r4nd0m", **changes):
 def auth_bridge(ros):
     secret_file = make_workdir("rosauth") / "secret"
     secret_file.write_text(SECRET + "\n")
-    proc, port = start_bridge(ros, node_name="auth_bridge", authenticate="true", secret_file=str(secret_file))
+    proc, port = start_bridge(ros, node_name="security_auth_bridge", authenticate="true", secret_file=str(secret_file))
     yield port
     proc.stop()
 
@@ -298,14 +290,7 @@ def not_executed(client, frame=GET_TIME):
     return reply["op"] == "status" and reply["level"] == "error" and "not authenticated" in reply["msg"]
 
 
-def test_valid_auth_then_ops_work(auth_client):
-    auth_client.send(auth_frame())
-    assert auth_client.request(GET_TIME)["result"] is True
-
-
-@pytest.mark.parametrize("frame", [
-    GET_TIME,
-    {"op": "subscribe", "topic": "/rosout", "type": "rosgraph_msgs/Log", "id": "t"},
+@pytest.mark.parametrize("frame", [  # besides subscribe and rosapi calls, in test_bridge_options.py
     {"op": "publish", "topic": "/sec/cmd", "msg": {}, "id": "t"},
     {"op": "advertise_service", "service": "/sec/offer", "type": "std_srvs/Empty", "id": "t"},
     {"op": "set_level", "level": "info", "id": "t"},
@@ -339,16 +324,11 @@ def test_binary_auth_is_not_authentication(auth_client):
     ("missing end", {k: v for k, v in auth_frame().items() if k != "end"}),
     ("only op", {"op": "auth"}),
     ("wrong secret", auth_frame(secret="guess")),
-    ("mac of other fields", auth_frame(level="user")),
-    ("mac upper-cased junk", auth_frame(mac="A" * 128)),
     ("empty mac", auth_frame(mac="")),
     ("mac as number", auth_frame(mac=0)),
-    ("t an hour old", auth_frame(t=time.time() - 3600)),
     ("t an hour ahead", auth_frame(t=time.time() + 3600)),
-    ("end in the past", auth_frame(end=time.time() - 10)),
     ("t NaN", {**auth_frame(), "t": float("nan")}),
     ("end Infinity", {**auth_frame(), "end": float("inf")}),
-    ("t as text", {**auth_frame(), "t": "now"}),
 ])
 def test_bad_auth_is_refused_and_the_socket_closed(auth_client, name, frame):
     auth_client.send(json.dumps(frame))
@@ -373,7 +353,7 @@ def test_a_replayed_mac_is_refused_once_its_time_window_is_over(auth_bridge):
 
 
 def test_without_a_secret_nobody_gets_in(ros):
-    proc, port = start_bridge(ros, node_name="auth_nosecret_bridge", authenticate="true")
+    proc, port = start_bridge(ros, node_name="security_auth_nosecret_bridge", authenticate="true")
     try:
         client = WsClient(f"ws://127.0.0.1:{port}/")
         client.send(auth_frame(secret=""))
@@ -390,16 +370,9 @@ def tls_bridge(ros):
     subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-subj", "/CN=localhost",
                     "-addext", "subjectAltName=DNS:localhost,IP:127.0.0.1", "-days", "1",
                     "-keyout", str(key), "-out", str(cert)], check=True, capture_output=True)
-    proc, port = start_bridge(ros, node_name="tls_bridge", ssl="true", certfile=str(cert), keyfile=str(key))
+    proc, port = start_bridge(ros, node_name="security_tls_bridge", ssl="true", certfile=str(cert), keyfile=str(key))
     yield port, cert
     proc.stop()
-
-
-def test_wss_with_the_certificate_trusted(tls_bridge):
-    port, cert = tls_bridge
-    client = WsClient(f"wss://127.0.0.1:{port}/", ca_certs=str(cert))
-    assert ping(client)
-    client.close()
 
 
 def test_wss_refuses_an_untrusted_certificate(tls_bridge):
