@@ -22,6 +22,7 @@ class Bench(tornado.websocket.WebSocketHandler):
 
     def open(self):
         self.seen = stats.Arrivals()
+        self.set_nodelay(True)  # as the bridge does: small frames go out at once
 
     def on_message(self, frame):
         op = json.loads(frame)

@@ -117,6 +117,7 @@ async def rtt(a):
             rtts.append(time.monotonic() - sent.pop(seq))
 
     ws = await websocket_connect(a.url, max_message_size=MAX_FRAME, on_message_callback=on_frame)
+    ws.stream.set_nodelay(True)  # (a latency-minded client; rospy's tcp_nodelay in the baseline)
     ping_type = payloads.TYPES[a.kind]
     await send(ws, {"op": "subscribe", "topic": a.out, "type": ping_type})
     await send(ws, {"op": "advertise", "topic": a.topic, "type": ping_type})
