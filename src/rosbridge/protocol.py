@@ -11,13 +11,17 @@ RequestError / ValueError with a message for the client when it refuses):
     advertise_service(session, service, type)                unadvertise_service(session, service)
     service_response(session, service, id, result, values)
 """
+import base64
 import collections
 import hashlib
 import hmac
+import io
 import itertools
 import json
 import logging
 import math
+
+from PIL import Image
 
 from rosbridge import encoding
 from rosbridge import globs as globs_module
@@ -390,6 +394,11 @@ class Session:
         if (req.get("total") or 1) != 1:
             raise RequestError("png: split png messages are not supported; send fragment ops instead")
         try:
+            with Image.open(io.BytesIO(base64.b64decode(req["data"]))) as image:  # reads the header only
+                size = image.width * image.height * 3
+            limit = self.config.max_message_size
+            if limit and size > limit:  # a small PNG can unpack to gigabytes
+                raise RequestError(f"png: image holds {size} bytes, over max_message_size ({limit} bytes)")
             text = encoding.png_unframe(req["data"])
         except (ValueError, OSError) as error:  # bad base64, not a PNG, not UTF-8
             raise RequestError(f"png: cannot read the image: {error}") from None

@@ -153,7 +153,7 @@ def main():
                              globs=globs, authenticate=authenticate, auth_secret=secret,
                              auth_time_delta=float(_param("auth_time_delta", 5.0)))
     loop = tornado.ioloop.IOLoop.current()
-    executor = concurrent.futures.ThreadPoolExecutor(max_workers=8, thread_name_prefix="rosbridge-call")
+    executor = concurrent.futures.ThreadPoolExecutor(max_workers=16, thread_name_prefix="rosbridge-call")
     rosapi = Rosapi(rosgraph.get_master_uri(), rospy.get_name(), globs, rospy.Time.now)
     backend = RosBackend(loop, executor, rosapi=rosapi,
                          unregister_timeout=float(_param("unregister_timeout", 10.0)))

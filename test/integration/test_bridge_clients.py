@@ -142,3 +142,20 @@ def test_slow_client_loses_the_oldest_frames_and_is_told(bridge, node):
     assert ping(slow)
     slow.close()
     pub.unregister()
+
+
+def test_a_later_subscriber_gets_the_latched_message(bridge, node):
+    from std_msgs.msg import String
+    pub = node.Publisher("/clients_test/latched", String, queue_size=1, latch=True)
+    pub.publish(String("latched once"))
+    first, second = connect(bridge), connect(bridge)
+    try:
+        first.send({"op": "subscribe", "topic": "/clients_test/latched", "type": "std_msgs/String"})
+        assert first.recv_op("publish")["msg"] == {"data": "latched once"}
+        # the bridge is subscribed already, so rospy will not deliver it again: the bridge keeps it
+        second.send({"op": "subscribe", "topic": "/clients_test/latched", "type": "std_msgs/String"})
+        assert second.recv_op("publish")["msg"] == {"data": "latched once"}
+    finally:
+        first.close()
+        second.close()
+        pub.unregister()

@@ -294,3 +294,15 @@ def test_closed_session_releases_and_stops_sending(h):
 def test_string_messages_keep_unicode():
     msg = protocol.TopicMessage("/s", String("grüß 🐢"), 0.0, None)
     assert json.loads(msg.frames("none", None)[0])["msg"]["data"] == "grüß 🐢"
+
+
+def test_png_bomb_is_refused_before_unpacking():
+    import base64
+    import io
+    from PIL import Image
+    h = Harness(max_message_size=1000)
+    buffer = io.BytesIO()
+    Image.new("RGB", (100, 100)).save(buffer, format="PNG")  # 30 kB of pixels in a tiny file
+    h.send({"op": "png", "data": base64.b64encode(buffer.getvalue()).decode(), "id": "bomb"})
+    reply = h.replies()[0]
+    assert reply["id"] == "bomb" and "over max_message_size" in reply["msg"]
