@@ -90,10 +90,14 @@ def _describe(value):
 
 def dumps(obj):
     """Compact JSON text, the one way every part of the bridge writes JSON."""
-    return _JSON_ENCODER(obj)
+    # CPython escapes long strings ~20x faster for ASCII output (a 640x480 image: 1 ms instead of 26 ms). Without
+    # any \u escape in it, the ASCII text is exactly what the Unicode encoder writes; otherwise write that.
+    text = _ASCII_JSON_ENCODER(obj)
+    return text if "\\u" not in text else _JSON_ENCODER(obj)
 
 
 _JSON_ENCODER = json.JSONEncoder(separators=(",", ":"), allow_nan=False, ensure_ascii=False).encode
+_ASCII_JSON_ENCODER = json.JSONEncoder(separators=(",", ":"), allow_nan=False).encode
 
 
 # ---------------------------------------------------------------------------------------------------------
