@@ -87,21 +87,28 @@ OPS = {
 }
 
 
+# per op: ({field: (exact JSON-decoded types, type text)}, required field names), for a fast check_fields
+_FIELD_CHECKS = {
+    op: ({name: (frozenset(types) if types != (object,) else None, text) for name, ((types, text), _) in
+          fields.items()}, tuple(name for name, (_, required) in fields.items() if required))
+    for op, fields in OPS.items()}
+
+
 def check_fields(op, request):
     """Raises RequestError naming the first missing, mistyped or unknown field of `request`."""
-    fields = OPS[op]
+    fields, required = _FIELD_CHECKS[op]
     for name, value in request.items():
-        if name == "op":
-            continue
-        if name not in fields:
+        check = fields.get(name)
+        if check is None:
+            if name == "op":
+                continue
             raise RequestError(f"{op}: unknown field {name!r} (expected: {', '.join(fields)})")
-        (types, type_text), _ = fields[name]
-        if value is None:
-            continue  # some clients send null for an absent optional field (checked below if required)
-        if not isinstance(value, types) or (isinstance(value, bool) and bool not in types):
+        types, type_text = check
+        # json.loads makes exact types (a bool is not an int here); None means absent (roslibpy sends null)
+        if value is not None and types is not None and type(value) not in types:
             raise RequestError(f"{op}: field {name!r} must be {type_text}, got {json.dumps(value)[:80]}")
-    for name, (_, required) in fields.items():
-        if required and request.get(name) is None:
+    for name in required:
+        if request.get(name) is None:
             raise RequestError(f"{op}: missing required field {name!r}")
 
 
@@ -134,15 +141,22 @@ class Utf8Text(bytes):
 
 class TopicMessage:
     """One ROS message from a topic, encoded lazily and at most once per encoding for all its subscribers.
-    stamp: receipt time (seconds); raw: zero-arg callable returning the ROS-serialized bytes (for cbor-raw)."""
-    __slots__ = ("topic", "msg", "stamp", "raw", "_frames")
+    stamp: its receipt time in seconds (sent with cbor-raw)."""
+    __slots__ = ("topic", "msg", "stamp", "_json", "_frames")
 
-    def __init__(self, topic, msg, stamp, raw):
-        self.topic, self.msg, self.stamp, self.raw = topic, msg, stamp, raw
-        self._frames = {}
+    def __init__(self, topic, msg, stamp):
+        self.topic, self.msg, self.stamp = topic, msg, stamp
+        self._json = None  # the frames of the usual case: plain JSON, not fragmented
+        self._frames = None  # (compression, fragment_size) -> frames, for the others
 
     def frames(self, compression, fragment_size):
         """The frames (Utf8Text for text, bytes for binary) that carry this message with these options."""
+        if compression == "none" and fragment_size is None:
+            if self._json is None:
+                self._json = self._encode(compression, fragment_size)
+            return self._json
+        if self._frames is None:
+            self._frames = {}
         key = (compression, fragment_size)
         frames = self._frames.get(key)
         if frames is None:
@@ -155,7 +169,9 @@ class TopicMessage:
                                          "msg": encoding.to_cbor_value(self.msg)}),)
         if compression == "cbor-raw":
             secs = int(self.stamp)
-            raw = {"bytes": self.raw(), "secs": secs, "nsecs": int((self.stamp - secs) * 1e9)}
+            buffer = io.BytesIO()
+            self.msg.serialize(buffer)  # the bytes rospy received: genpy serialization is canonical
+            raw = {"bytes": buffer.getvalue(), "secs": secs, "nsecs": int((self.stamp - secs) * 1e9)}
             return (encoding.cbor_frame({"op": "publish", "topic": self.topic, "msg": raw}),)
         text = '{"op":"publish","topic":%s,"msg":%s}' % (dumps(self.topic), dumps(to_json(self.msg)))
         if compression == "png":

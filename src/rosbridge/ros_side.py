@@ -6,7 +6,6 @@ threads (a received message only goes into the topic's inbox and wakes the loop 
 (run in a small thread pool; their answers come back to the loop)."""
 import collections
 import concurrent.futures
-import io
 import itertools
 import time
 
@@ -50,12 +49,6 @@ class _ProvidedService:
         self.name, self.type, self.cls, self.session = name, type_name, cls, session
         self.pending = {}  # call id -> concurrent.futures.Future waited on by a rospy thread
         self.server = None
-
-
-def _serialize(msg):
-    buffer = io.BytesIO()
-    msg.serialize(buffer)
-    return buffer.getvalue()
 
 
 class RosBackend:
@@ -170,7 +163,7 @@ class RosBackend:
         inbox, topic = entry.inbox, entry.topic
         while inbox:
             msg, stamp = inbox.popleft()
-            message = TopicMessage(topic, msg, stamp, lambda msg=msg: _serialize(msg))
+            message = TopicMessage(topic, msg, stamp)
             header = getattr(msg, "_connection_header", None)
             if header is not None and header.get("latching") == "1":
                 entry.latched = message

@@ -2,11 +2,9 @@
 the web page (web_root/index.html; other files of web_root are served as static files).
 
 One IOLoop thread serves every client; rospy's threads and the service-call pool only hand work to it."""
-import asyncio
 import concurrent.futures
 import fnmatch
-import logging
-import os
+import struct
 import time
 from pathlib import Path
 
@@ -14,6 +12,7 @@ import rosgraph
 import rospy
 import tornado.httpserver
 import tornado.ioloop
+import tornado.iostream
 import tornado.netutil
 import tornado.web
 import tornado.websocket
@@ -25,7 +24,6 @@ from rosbridge.rosapi import Rosapi
 
 DEFAULT_WEB_ROOT = Path(__file__).resolve().parents[2] / "web"
 DEFAULT_MAX_MESSAGE_SIZE = 8_000_000
-log = logging.getLogger("rosbridge")
 
 
 class Bridge:
@@ -98,26 +96,52 @@ class BridgeSocket(tornado.websocket.WebSocketHandler):
         self._close_reason = reason
         self._wake()
 
-    async def _flush(self):
-        """Writes the session's queued frames; waits whenever the socket is backed up, so the session's
-        bounded queue (not Tornado's unbounded buffer) absorbs a slow client."""
-        session, delay = self.session, self.bridge.delay_between_messages
-        try:
-            while (frame := session.take_frame()) is not None:
-                if self.ws_connection is None:
-                    return
-                if isinstance(frame, protocol.Utf8Text) or isinstance(frame, str):
-                    done = self.write_message(frame, binary=False)
-                else:
-                    done = self.write_message(frame, binary=True)
-                if self.ws_connection.stream.writing():
-                    await done
-                if delay:
-                    await asyncio.sleep(delay)
-        except tornado.websocket.WebSocketClosedError:
-            return
-        if self._close_reason is not None:
-            self.close(1008, self._close_reason)
+    def _flush(self):
+        """Writes the session's queued frames until the socket is backed up, then resumes when it has
+        drained: a slow client's backlog stays in the session's bounded queue, not in Tornado's buffer."""
+        conn, session = self.ws_connection, self.session
+        while conn is not None and not conn.is_closing():
+            frame = session.take_frame()
+            if frame is None:
+                if self._close_reason is not None:
+                    self.close(1008, self._close_reason)
+                return
+            try:
+                written = self._write(conn, frame)
+            except (tornado.iostream.StreamClosedError, tornado.websocket.WebSocketClosedError):
+                return
+            if conn.stream.writing():
+                written.add_done_callback(self._drained)
+                return
+            if self.bridge.delay_between_messages:
+                tornado.ioloop.IOLoop.current().call_later(self.bridge.delay_between_messages, self._flush)
+                return
+
+    def _drained(self, written):
+        if not written.cancelled() and written.exception() is None:
+            self._flush()
+
+    def _write(self, conn, frame):
+        """Sends one frame; returns the stream's write future. Without permessage-deflate the frame goes
+        straight to the stream: the same bytes for every client, and none of the Task that write_message
+        wraps around each write."""
+        binary = not isinstance(frame, str) and not isinstance(frame, protocol.Utf8Text)
+        if self.bridge.use_compression:
+            return self.write_message(frame, binary=binary)
+        payload = frame.encode() if isinstance(frame, str) else frame
+        return conn.stream.write(websocket_frame(payload, 0x2 if binary else 0x1))
+
+
+def websocket_frame(payload, opcode):
+    """An unmasked, unfragmented server-to-client websocket frame (RFC 6455 section 5.2)."""
+    length = len(payload)
+    if length < 126:
+        header = struct.pack("!BB", 0x80 | opcode, length)
+    elif length <= 0xFFFF:
+        header = struct.pack("!BBH", 0x80 | opcode, 126, length)
+    else:
+        header = struct.pack("!BBQ", 0x80 | opcode, 127, length)
+    return header + payload
 
 
 def routes(bridge, web_root):

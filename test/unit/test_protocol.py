@@ -59,7 +59,7 @@ class Harness:
 
 
 def message(topic="/t", data=1, stamp=1.5):
-    return protocol.TopicMessage(topic, Int32(data), stamp, lambda: b"\x01\x00\x00\x00")
+    return protocol.TopicMessage(topic, Int32(data), stamp)
 
 
 @pytest.fixture
@@ -157,7 +157,7 @@ def test_fragment_size_and_compressions(h):
     assert {p["op"] for p in parts} == {"fragment"} and len(parts) == parts[0]["total"] > 1
     assert json.loads("".join(p["data"] for p in parts))["msg"] == {"data": 123456}
     h.send({"op": "subscribe", "topic": "/t", "compression": "cbor-raw"})
-    h.session.deliver(message(stamp=12.25))
+    h.session.deliver(message(data=1, stamp=12.25))
     import cbor2
     frame = h.frames()
     assert len(frame) == 1 and not isinstance(frame[0], protocol.Utf8Text)
@@ -292,7 +292,7 @@ def test_closed_session_releases_and_stops_sending(h):
 
 
 def test_string_messages_keep_unicode():
-    msg = protocol.TopicMessage("/s", String("grüß 🐢"), 0.0, None)
+    msg = protocol.TopicMessage("/s", String("grüß 🐢"), 0.0)
     assert json.loads(msg.frames("none", None)[0])["msg"]["data"] == "grüß 🐢"
 
 
