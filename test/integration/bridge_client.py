@@ -9,11 +9,12 @@ from tornado.websocket import websocket_connect
 
 
 class WsClient:
-    def __init__(self, url, headers=None, timeout=10.0, **request_kwargs):
+    def __init__(self, url, headers=None, timeout=10.0, compression_options=None, **request_kwargs):
         self.loop = asyncio.new_event_loop()
         request = HTTPRequest(url, headers=headers or {}, connect_timeout=timeout, request_timeout=timeout,
                               **request_kwargs)
-        self.conn = self._run(lambda: websocket_connect(request, max_message_size=256 * 1024 * 1024), timeout)
+        self.conn = self._run(lambda: websocket_connect(request, max_message_size=256 * 1024 * 1024,
+                                                        compression_options=compression_options), timeout)
 
     def _run(self, start, timeout):
         """Runs start() (which returns an awaitable) inside this client's loop, up to timeout seconds."""

@@ -163,3 +163,24 @@ def test_wss(ros, tmp_path):
         assert ping(WsClient(f"wss://127.0.0.1:{port}/", ssl_options=context))
     finally:
         proc.stop()
+
+
+def test_compression_and_delay_between_messages(ros, node):
+    from std_msgs.msg import String
+    proc, port = start_bridge(ros, node_name="deflate_bridge", use_compression="true", delay_between_messages=0.05)
+    pub = node.Publisher("/options_test/deflate", String, queue_size=10, latch=True)
+    pub.publish(String("squeeze me " * 100))
+    try:
+        ws = WsClient(f"ws://127.0.0.1:{port}/", compression_options={})
+        assert ws.conn.protocol._compressor is not None  # permessage-deflate was negotiated
+        ws.send({"op": "subscribe", "topic": "/options_test/deflate", "type": "std_msgs/String"})
+        assert ws.recv_op("publish")["msg"]["data"] == "squeeze me " * 100
+        start = time.monotonic()
+        for n in range(4):
+            ws.send({"op": "set_level", "level": "bogus", "id": n})
+        assert [ws.recv()["id"] for _ in range(4)] == [0, 1, 2, 3]
+        assert time.monotonic() - start >= 0.15  # at least 50 ms between frames
+        ws.close()
+    finally:
+        pub.unregister()
+        proc.stop()
