@@ -110,11 +110,11 @@ class Cpu:
 
 # ---- measurements: each returns a dict of figures for one round ------------------------------------------
 
-def rospy_pubsub(run, kind, count):
+def rospy_pubsub(run, kind, count, rate=0):
     """Plain rospy publisher -> rospy subscriber: delivered rate, and each node's CPU per message."""
     topic = run.topic("plain")
     sub = run.role("ros_roles.py", "count", "--topic", topic, "--kind", kind, "--count", count)
-    pub = run.role("ros_roles.py", "pub", "--topic", topic, "--kind", kind, "--count", count)
+    pub = run.role("ros_roles.py", "pub", "--topic", topic, "--kind", kind, "--count", count, "--rate", rate)
     run.ready(pub), run.ready(sub)
     pub_cpu, sub_cpu = Cpu(stats.ProcStat(pub.pid)), Cpu(stats.ProcStat(sub.pid))
     run.go(pub)
@@ -140,13 +140,13 @@ def bridge_in(run, url, server, kind, count):
     return figures
 
 
-def bridge_out(run, url, server, kind, count, compression="none"):
-    """rospy publisher at full speed -> the bridge -> one subscribed websocket client."""
+def bridge_out(run, url, server, kind, count, compression="none", rate=0):
+    """rospy publisher (at full speed, or `rate` Hz) -> the bridge -> one subscribed websocket client."""
     topic = run.topic("out")
     client = run.role("ws_roles.py", "subscribe", "--url", url, "--topic", topic, "--kind", kind,
                       "--count", count, "--compression", compression)
     run.ready(client)
-    pub = run.role("ros_roles.py", "pub", "--topic", topic, "--kind", kind, "--count", count)
+    pub = run.role("ros_roles.py", "pub", "--topic", topic, "--kind", kind, "--count", count, "--rate", rate)
     run.ready(pub)
     cpu = Cpu(server)
     run.go(pub)
@@ -349,42 +349,51 @@ def section_fanout(run, table, rounds, sizes):
                            f"({lo['rss']:.1f} MB with {sizes[0]}, {hi['rss']:.1f} MB with {sizes[-1]}).")
 
 
+CAMERA_HZ = 30
+
+
 def section_large(run, table, rounds, count):
+    """Client -> ROS as fast as possible; ROS -> client at a camera's 30 Hz (a faster burst of megabyte frames
+    only measures how many the bounded client queue drops)."""
     for kind, label in (("image", "640x480 rgb8 sensor_msgs/Image"), ("string", "1 MB std_msgs/String")):
-        plain, into, outs = [], [], {c: [] for c in ("none", "png", "cbor")}
+        plain, paced, into, outs = [], [], [], {c: [] for c in ("none", "png", "cbor")}
         for _ in range(rounds):
             plain.append(rospy_pubsub(run, kind, count))
+            paced.append(rospy_pubsub(run, kind, count, rate=CAMERA_HZ))
             bridge, url, server = run.bridge()
             into.append(bridge_in(run, url, server, kind, count))
             for c in outs:
-                outs[c].append(bridge_out(run, url, server, kind, count, c))
+                outs[c].append(bridge_out(run, url, server, kind, count, c, rate=CAMERA_HZ))
             run.stop(bridge)
-        plain, into = medians(plain), medians(into)
+        plain, paced, into = medians(plain), medians(paced), medians(into)
         outs = {c: medians(v) for c, v in outs.items()}
-        table.row(f"{label}, client -> ROS", into["rate"], "msg/s", "plain rospy pub -> sub", plain["rate"])
+        table.row(f"{label}, client -> ROS, as fast as possible", into["rate"], "msg/s",
+                  "plain rospy pub -> sub", plain["rate"])
         table.row(f"{label}, client -> ROS: bridge CPU per message", into["server_us"], "µs",
                   "rospy publisher node", plain["pub_us"])
         for c, r in outs.items():
-            table.row(f"{label}, ROS -> client ({c})", r["rate"], "msg/s", "plain rospy pub -> sub", plain["rate"])
+            table.row(f"{label}, ROS -> client at {CAMERA_HZ} Hz ({c}): delivered", r["delivered"], "%",
+                      "plain rospy", paced["delivered"])
             table.row(f"{label}, ROS -> client ({c}): bytes on the wire per message", r["wire_bytes"], "B",
                       "JSON (none)", outs["none"]["wire_bytes"])
             table.row(f"{label}, ROS -> client ({c}): bridge CPU per message", r["server_us"], "µs",
-                      "JSON (none)", outs["none"]["server_us"])
-            table.row(f"{label}, ROS -> client ({c}): delivered", r["delivered"], "%", "plain rospy",
-                      plain["delivered"])
+                      "rospy subscriber node" if c == "none" else "JSON (none)",
+                      paced["sub_us"] if c == "none" else outs["none"]["server_us"])
 
 
-def section_turtlesim(run):
-    script = BENCH / "turtlesim_bench.py"
-    if not script.exists():
-        return "(bench/turtlesim_bench.py is not there yet)"
-    res = subprocess.run([PY, str(script)], env=run.ros.env, capture_output=True, text=True, timeout=240)
+def other_bench(run, script, title, code_block=False):
+    """Runs another part's benchmark (bench/<script>, same roscore environment) and returns its table."""
+    path = BENCH / script
+    if not path.exists():
+        return f"### {title}\n\n(bench/{script} is not there yet)"
+    res = subprocess.run([PY, str(path)], env=run.ros.env, capture_output=True, text=True, timeout=300)
     if res.returncode != 0:
-        return f"(bench/turtlesim_bench.py failed, exit {res.returncode}:\n\n```\n{res.stderr[-1500:]}\n```)"
-    return res.stdout.strip()
+        return f"### {title}\n\n(bench/{script} failed, exit {res.returncode}:\n\n```\n{res.stderr[-1500:]}\n```)"
+    out = res.stdout.strip()
+    return f"### {title}\n\n" + (f"```\n{out}\n```" if code_block else out)
 
 
-SECTIONS = ("throughput", "latency", "fanout", "large", "turtlesim")
+SECTIONS = ("throughput", "latency", "fanout", "large", "turtlesim", "convert")
 
 
 def main():
@@ -401,23 +410,28 @@ def main():
         signal.signal(sig, lambda *_: sys.exit("bench: stopped by signal"))
 
     started, load_before = time.monotonic(), os.getloadavg()[0]
-    table, turtle = Table(), ""
+    table, extras = Table(), []
     run = Run(tempfile.mkdtemp(prefix="bench-"))
     try:
         sections = {"throughput": lambda: section_throughput(run, table, a.rounds, a.count),
                     "latency": lambda: section_latency(run, table, a.rounds),
                     "fanout": lambda: section_fanout(run, table, a.rounds, a.fanout),
                     "large": lambda: section_large(run, table, a.rounds, 40),
-                    "turtlesim": lambda: section_turtlesim(run)}
+                    "turtlesim": lambda: other_bench(run, "turtlesim_bench.py",
+                                                     "turtlesim_node (bench/turtlesim_bench.py)"),
+                    "convert": lambda: other_bench(run, "convert_bench.py",
+                                                   "ROS <-> JSON conversion (bench/convert_bench.py)", code_block=True)}
         for name in a.only:
             t = time.monotonic()
-            turtle = sections[name]() or turtle
+            extra = sections[name]()
+            if extra:
+                extras.append(extra)
             print(f"bench: {name} done in {time.monotonic() - t:.0f} s", file=sys.stderr, flush=True)
     finally:
         run.close()
     elapsed = time.monotonic() - started
     results = "\n\n".join(filter(None, [
-        table.markdown(), "\n".join(f"- {n}" for n in table.notes), turtle and "### turtlesim_node\n\n" + turtle,
+        table.markdown(), "\n".join(f"- {n}" for n in table.notes), *extras,
         f"Measured {time.strftime('%Y-%m-%d')} on {os.cpu_count()} CPUs, {a.rounds} rounds (medians), "
         f"suite took {elapsed:.0f} s; load average {load_before:.1f} before, {os.getloadavg()[0]:.1f} after "
         f"(other work on the machine slows the baselines and the bridge alike; the ratios are what to compare). "
