@@ -35,14 +35,19 @@ class RequestError(ValueError):
     """A request the bridge refuses; the text goes back to the client in a status frame."""
 
 
-class Config:
-    """The per-server settings the protocol needs (from the launch args)."""
+DEFAULT_MAX_MESSAGE_SIZE = 8_000_000
 
-    def __init__(self, max_message_size=10_000_000, fragment_timeout=600.0, max_queue=1000,
+
+class Config:
+    """The per-server settings the protocol needs (from the launch args). max_message_size 0: no limit."""
+
+    def __init__(self, max_message_size=DEFAULT_MAX_MESSAGE_SIZE, fragment_timeout=600.0, max_queue=1000,
                  globs=None, authenticate=False, auth_secret=None, auth_time_delta=5.0):
         self.max_message_size = max_message_size
         self.fragment_timeout = fragment_timeout
-        self.max_queue = max_queue  # frames waiting for one slow client before the oldest are dropped
+        # what may wait for one slow client before the oldest frames are dropped: frames, and bytes
+        self.max_queue = max_queue
+        self.max_queue_bytes = max(32_000_000, 2 * max_message_size)
         self.globs = globs or globs_module.Globs()
         self.authenticate = authenticate
         self.auth_secret = auth_secret
@@ -485,7 +490,7 @@ class Session:
         queue.append(frame)
         self._queued_bytes += len(frame)
         while len(queue) > 1 and (len(queue) > self.config.max_queue
-                                   or self._queued_bytes > self.config.max_message_size):
+                                   or self._queued_bytes > self.config.max_queue_bytes):
             self._queued_bytes -= len(queue.popleft())
             self._dropped += 1
         if not self._woken:

@@ -23,7 +23,6 @@ from rosbridge.ros_side import RosBackend
 from rosbridge.rosapi import Rosapi
 
 DEFAULT_WEB_ROOT = Path(__file__).resolve().parents[2] / "web"
-DEFAULT_MAX_MESSAGE_SIZE = 8_000_000
 
 
 class Bridge:
@@ -160,7 +159,7 @@ def _param(name, default):
 
 def main():
     rospy.init_node("rosbridge_websocket")
-    max_message_size = int(_param("max_message_size", DEFAULT_MAX_MESSAGE_SIZE))
+    max_message_size = int(_param("max_message_size", protocol.DEFAULT_MAX_MESSAGE_SIZE))
     authenticate = bool(_param("authenticate", False))
     secret = None
     if authenticate:
@@ -192,7 +191,7 @@ def main():
         web_root = ""
     settings = {
         # Tornado closes the socket on frames over its limit; ours answers an error and keeps it open
-        "websocket_max_message_size": max(4 * max_message_size, 64_000_000),
+        "websocket_max_message_size": 4 * max_message_size or 1 << 30,
         "websocket_ping_interval": float(_param("websocket_ping_interval", 0)) or None,
         "websocket_ping_timeout": float(_param("websocket_ping_timeout", 30)),
     }
