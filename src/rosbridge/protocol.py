@@ -277,7 +277,11 @@ class Session:
                 raise RequestError(f"{op} nested too deeply")
             getattr(self, "_op_" + op)(request, depth)
         except ValueError as error:  # RequestError, types.UnknownType, convert.ConversionError
-            self.status("error", str(error), request_id)
+            if op == "call_service" and isinstance(request.get("service"), str) and self.authenticated:
+                # client libraries wait for the service_response of their call: fail it at once
+                self._service_response(request["service"], request_id, False, str(error))
+            else:
+                self.status("error", str(error), request_id)
             if op == "auth" and not self.authenticated:
                 self.close("authentication failed")
         except Exception as error:  # a bug: tell the client, keep serving
@@ -348,22 +352,25 @@ class Session:
             raise RequestError("call_service: timeout must be positive (seconds)")
 
         def reply(ok, values):
-            if self.is_closed:
-                return
-            frame = {"op": "service_response", "service": service, "values": values, "result": ok}
-            if call_id is not None:
-                frame["id"] = call_id
-            if compression in ("cbor", "cbor-raw"):
-                self.send(encoding.cbor_frame(frame))
-                return
-            text = dumps(frame)
-            if compression == "png":
-                text = dumps({"op": "png", "data": encoding.png_frame(text)})
-            for part in fragment_text(text, fragment_size):
-                self.send(part)
+            self._service_response(service, call_id, ok, values, compression, fragment_size)
 
         args = req.get("args")
         self.backend.call_service(self, service, {} if args is None else args, req.get("type"), timeout, reply)
+
+    def _service_response(self, service, call_id, ok, values, compression="none", fragment_size=None):
+        if self.is_closed:
+            return
+        frame = {"op": "service_response", "service": service, "values": values, "result": ok}
+        if call_id is not None:
+            frame["id"] = call_id
+        if compression in ("cbor", "cbor-raw"):
+            self.send(encoding.cbor_frame(frame))
+            return
+        text = dumps(frame)
+        if compression == "png":
+            text = dumps({"op": "png", "data": encoding.png_frame(text)})
+        for part in fragment_text(text, fragment_size):
+            self.send(part)
 
     def _op_advertise_service(self, req, depth):
         self._check_service(req["service"])

@@ -4,8 +4,11 @@ the web page (web_root/index.html; other files of web_root are served as static 
 One IOLoop thread serves every client; rospy's threads and the service-call pool only hand work to it."""
 import concurrent.futures
 import fnmatch
+import ipaddress
+import socket
 import struct
 import time
+import urllib.parse
 from pathlib import Path
 
 import rosgraph
@@ -62,9 +65,11 @@ class BridgeSocket(tornado.websocket.WebSocketHandler):
 
     def check_origin(self, origin):
         patterns = self.bridge.allowed_origins
-        if patterns is None:
-            return super().check_origin(origin)  # same host as the page that opens the socket
-        return any(fnmatch.fnmatchcase(origin.lower(), pattern.lower()) for pattern in patterns)
+        if patterns is not None:
+            return any(fnmatch.fnmatchcase(origin.lower(), pattern.lower()) for pattern in patterns)
+        # Default: a page served by this bridge (same host as the socket's), and reached by an address or by
+        # this machine's own name: a page of another name that DNS re-points here (DNS rebinding) is refused.
+        return super().check_origin(origin) and is_local_name(urllib.parse.urlparse(origin).hostname or "")
 
     def get_compression_options(self):
         return {} if self.bridge.use_compression else None
@@ -129,6 +134,15 @@ class BridgeSocket(tornado.websocket.WebSocketHandler):
             return self.write_message(frame, binary=binary)
         payload = frame.encode() if isinstance(frame, str) else frame
         return conn.stream.write(websocket_frame(payload, 0x2 if binary else 0x1))
+
+
+def is_local_name(host):
+    """An IP address, localhost, or this machine's host name."""
+    try:
+        ipaddress.ip_address(host)
+        return True
+    except ValueError:
+        return host.lower() in ("localhost", socket.gethostname().lower())
 
 
 def websocket_frame(payload, opcode):

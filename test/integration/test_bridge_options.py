@@ -106,6 +106,16 @@ def test_origin_same_host_and_no_origin_allowed_others_refused(plain_bridge):
         WsClient(url, headers={"Origin": "http://evil.example"})
 
 
+@pytest.mark.parametrize("host", ["rebind.example", "localhost.evil.example"])
+def test_default_origin_policy_refuses_dns_rebinding(plain_bridge, host):
+    """A page of a name that the attacker's DNS points at this machine: Origin and Host agree, yet it is refused."""
+    name = f"{host}:{plain_bridge}"
+    with pytest.raises(tornado.httpclient.HTTPClientError, match="403"):
+        WsClient(f"ws://127.0.0.1:{plain_bridge}/", headers={"Origin": f"http://{name}", "Host": name})
+    local = f"localhost:{plain_bridge}"
+    assert ping(WsClient(f"ws://127.0.0.1:{plain_bridge}/", headers={"Origin": f"http://{local}", "Host": local}))
+
+
 def test_origin_allow_list(ros):
     proc, port = start_bridge(ros, node_name="origin_bridge", allowed_origins="[http://good.example, https://*.lan]")
     try:

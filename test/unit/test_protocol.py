@@ -119,8 +119,8 @@ def test_globs_refuse_names_outside_them():
     h.send({"op": "call_service", "service": "/rosapi/topics", "id": "r"})  # always callable
     h.send({"op": "subscribe", "topic": "/turtle1/pose", "type": "turtlesim/Pose"})
     errors = h.replies()
-    assert [e["id"] for e in errors] == ["s", "k"]
-    assert "topics_glob" in errors[0]["msg"] and "services_glob" in errors[1]["msg"]
+    assert [(e["op"], e["id"]) for e in errors] == [("status", "s"), ("service_response", "k")]
+    assert "topics_glob" in errors[0]["msg"] and "services_glob" in errors[1]["values"]
     assert [c[0] for c in h.backend.calls] == ["call_service", "subscribe"]
 
 
@@ -306,3 +306,14 @@ def test_png_bomb_is_refused_before_unpacking():
     h.send({"op": "png", "data": base64.b64encode(buffer.getvalue()).decode(), "id": "bomb"})
     reply = h.replies()[0]
     assert reply["id"] == "bomb" and "over max_message_size" in reply["msg"]
+
+
+def test_refused_call_service_fails_the_call():
+    """Client libraries match a call by its service_response: a refusal must be one, or they wait forever."""
+    h = Harness(globs=Globs.parse(services_glob="[/open/*]"))
+    h.send({"op": "call_service", "service": "/closed/reset", "id": "c1"})
+    h.send({"op": "call_service", "service": "/open/x", "id": "c2", "compression": "zip"})
+    replies = h.replies()
+    assert [(r["op"], r["id"], r["result"]) for r in replies] == [("service_response", "c1", False),
+                                                               ("service_response", "c2", False)]
+    assert "services_glob" in replies[0]["values"] and "compression" in replies[1]["values"]
