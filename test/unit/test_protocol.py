@@ -267,7 +267,8 @@ def test_auth_gate():
 
 
 @pytest.mark.parametrize("changes", [{"mac": "00"}, {"rand": "other"}, {"t": 1000.0 - 10}, {"end": 999.0},
-                                     {"client": 5}, {"mac": None}])
+                                     {"client": 5}, {"mac": None}, {"mac": "é" * 128},
+                                     {"end": float("inf")}, {"t": float("nan")}])
 def test_bad_auth_closes(changes):
     h = Harness(authenticate=True, auth_secret="s3cret")
     frame = auth(h.now)
