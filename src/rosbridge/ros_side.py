@@ -161,7 +161,7 @@ class RosBackend:
     def _drain(self, entry):
         entry.wake_pending = False
         inbox, topic = entry.inbox, entry.topic
-        while inbox:
+        for _ in range(len(inbox)):  # what is there now: a busy topic must not hold the loop (it wakes again)
             msg, stamp = inbox.popleft()
             message = TopicMessage(topic, msg, stamp)
             header = getattr(msg, "_connection_header", None)
