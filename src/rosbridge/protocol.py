@@ -277,11 +277,10 @@ class Session:
                 raise RequestError(f"{op} nested too deeply")
             getattr(self, "_op_" + op)(request, depth)
         except ValueError as error:  # RequestError, types.UnknownType, convert.ConversionError
+            self.status("error", str(error), request_id)
             if op == "call_service" and isinstance(request.get("service"), str) and self.authenticated:
-                # client libraries wait for the service_response of their call: fail it at once
+                # client libraries wait for the service_response of their call: fail it at once too
                 self._service_response(request["service"], request_id, False, str(error))
-            else:
-                self.status("error", str(error), request_id)
             if op == "auth" and not self.authenticated:
                 self.close("authentication failed")
         except Exception as error:  # a bug: tell the client, keep serving

@@ -93,12 +93,12 @@ def binary_frame(ws):
 def test_bad_input_gets_an_error_and_the_connection_goes_on(ws, frame, expected):
     ws.send(frame)
     reply = ws.recv()
-    if '"call_service"' in frame:  # a failed service_response, which client libraries wait for
-        assert reply["op"] == "service_response" and reply["result"] is False, reply
-        assert expected in reply["values"], reply
-    else:
-        assert reply["op"] == "status" and reply["level"] == "error", reply
-        assert expected in reply["msg"], reply
+    assert reply["op"] == "status" and reply["level"] == "error", reply
+    assert expected in reply["msg"], reply
+    if '"call_service"' in frame:  # and a failed service_response, which client libraries wait for
+        response = ws.recv()
+        assert response["op"] == "service_response" and response["result"] is False, response
+        assert response["values"] == reply["msg"] and response["id"] == reply["id"]
     sent = json.loads(frame) if frame.startswith("{") else None
     if isinstance(sent, dict) and "id" in sent and not isinstance(sent["id"], (dict, list)):
         assert reply.get("id") == sent["id"]
