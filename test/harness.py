@@ -32,6 +32,24 @@ def wait_for(predicate, timeout=10.0, interval=0.05, what="condition"):
         time.sleep(interval)
 
 
+def descendants(pid):
+    """The pids of every living descendant of pid (from /proc)."""
+    children = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        children.setdefault(int(fields[1]), []).append(int(stat.parent.name))
+    found, todo = set(), [pid]
+    while todo:
+        for child in children.get(todo.pop(), []):
+            if child not in found:
+                found.add(child)
+                todo.append(child)
+    return found
+
+
 class Proc:
     """A process in its own process group; its stdout+stderr go to a log file that tests can read."""
 
@@ -60,7 +78,9 @@ class Proc:
             os.killpg(self.popen.pid, sig)
 
     def stop(self, timeout=5.0):
-        """SIGINT, then SIGKILL the whole group; returns the exit code."""
+        """SIGINT, then SIGTERM, then SIGKILL the whole group; returns the exit code. Descendants that left the
+        group (roslaunch starts each node in a session of its own) are killed afterwards if still running."""
+        tree = descendants(self.popen.pid)
         for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
             try:
                 os.killpg(self.popen.pid, sig)
@@ -75,6 +95,11 @@ class Proc:
             os.killpg(self.popen.pid, signal.SIGKILL)
         except ProcessLookupError:
             pass
+        for pid in tree | descendants(self.popen.pid):
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
         self._log.close()
         return self.popen.wait()
 

@@ -179,6 +179,16 @@ def generate(rng, client):
     return plans
 
 
+def is_call_service(frame):
+    """Whether a planned frame is a call_service op naming a service (a refused one is also answered with a
+    failed service_response, so that client libraries waiting for the reply are not left hanging)."""
+    try:
+        obj = frame if isinstance(frame, dict) else json.loads(frame)
+    except (ValueError, RecursionError):
+        return False
+    return isinstance(obj, dict) and obj.get("op") == "call_service" and isinstance(obj.get("service"), str)
+
+
 def encode(frame):
     return frame if isinstance(frame, (str, bytes)) else json.dumps(frame)
 
@@ -200,6 +210,8 @@ async def fuzz_one_client(url, name, plans, deadline):
                 idless += 1
             elif expect and expect[0] == "error":
                 errors_with_id[expect[1]] = errors_with_id.get(expect[1], 0) + 1
+                if is_call_service(plan.frame):
+                    responses[expect[1]] = False
             elif expect:
                 responses[expect[1]] = expect[2]
         stats["frames"] += len(batch)

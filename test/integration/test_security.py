@@ -104,8 +104,6 @@ def test_default_refuses_look_alike_origins(default_bridge):
         assert refused_with_403(default_bridge, origin)
 
 
-@pytest.mark.xfail(strict=True, reason="known gap: the default policy trusts a Host header that DNS rebinding "
-                                       "controls; needs an allow-list default of loopback/bound names")
 def test_default_refuses_a_dns_rebinding_page(default_bridge):
     """A page of http://rebind.example:PORT whose name the attacker re-points at 127.0.0.1: the browser sends
     Host and Origin of that name, so "same host" holds, yet the page is not one the user trusts."""
