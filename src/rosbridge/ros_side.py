@@ -8,6 +8,7 @@ the converted messages from a bounded queue, see _Outbox)."""
 import collections
 import concurrent.futures
 import itertools
+import sys
 import threading
 import time
 import warnings
@@ -44,7 +45,7 @@ class _Outbox:
         with warnings.catch_warnings():  # rospy warns about queue_size=None: synchronous is meant here
             warnings.simplefilter("ignore")
             self._publisher = rospy.Publisher(topic, cls, latch=latch, queue_size=None)
-        self._queue = collections.deque(maxlen=queue_size if queue_size and queue_size > 0 else None)
+        self._queue = collections.deque(maxlen=queue_size if 0 < queue_size < sys.maxsize else None)
         self._ready = threading.Event()
         self._closed = False
         threading.Thread(target=self._run, name=f"publish {topic}", daemon=True).start()
