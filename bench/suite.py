@@ -31,7 +31,6 @@ class Run:
         self.ros.env["PYTHONPATH"] = f"{BENCH}:{self.ros.env.get('PYTHONPATH', '')}"
         self.topics = 0
         self.spawned = 0
-        self.nodes = {}  # bridge launch Proc -> pid of its server node
 
     def topic(self, stem):
         """A fresh topic name per measurement, so no publisher or latched message of an earlier one interferes."""
@@ -69,15 +68,11 @@ class Run:
             p.stop()
             if p in self.ros.procs:
                 self.ros.procs.remove(p)
-            node = self.nodes.pop(p, None)
-            if node and b"rosbridge_websocket" in read_or_empty(f"/proc/{node}/cmdline"):
-                os.kill(node, signal.SIGKILL)  # roslaunch gave up on it (nodes run in sessions of their own)
 
     def bridge(self, **launch_args):
         """A fresh bridge (the launch file, as a user starts it): (Proc, websocket URL, ProcStat of the server)."""
         proc, port = harness.start_bridge(self.ros, **launch_args)
-        self.nodes[proc] = harness.node_pid(self.ros, "/rosbridge_websocket")
-        return proc, f"ws://127.0.0.1:{port}", stats.ProcStat(self.nodes[proc])
+        return proc, f"ws://127.0.0.1:{port}", stats.ProcStat(harness.node_pid(self.ros, "/rosbridge_websocket"))
 
     def transport(self, *args):
         port = harness.free_port()
@@ -86,15 +81,7 @@ class Run:
         return proc, f"ws://127.0.0.1:{port}/", stats.ProcStat(proc.pid)
 
     def close(self):
-        self.stop(*list(self.nodes))
         self.ros.stop()
-
-
-def read_or_empty(path):
-    try:
-        return Path(path).read_bytes()
-    except OSError:
-        return b""
 
 
 class Cpu:
