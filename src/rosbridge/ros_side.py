@@ -22,6 +22,10 @@ from rosbridge.protocol import RequestError, TopicMessage
 from rosbridge.types import message_class, service_class
 
 INBOX_LIMIT = 10_000  # messages per topic waiting for the loop; beyond that the oldest are dropped
+# A client usually publishes right after advertising, before any subscriber has connected to the new
+# publisher (that takes the master's publisherUpdate and a TCP handshake): such early messages are kept this
+# long and replayed to each subscriber that connects, so that the first Twist of a page is not lost.
+REPLAY_WINDOW = 2.0  # seconds after advertising
 
 
 class _Publisher:
@@ -33,7 +37,7 @@ class _Publisher:
         self.unregister_timer = None
 
 
-class _Outbox:
+class _Outbox(rospy.SubscribeListener):
     """Publishes one topic's messages from a thread of its own, with a synchronous rospy publisher.
 
     Not rospy's queued publisher on the loop: it yields the thread after every message (time.sleep(0)), which
@@ -44,8 +48,11 @@ class _Outbox:
     def __init__(self, topic, cls, latch, queue_size):
         with warnings.catch_warnings():  # rospy warns about queue_size=None: synchronous is meant here
             warnings.simplefilter("ignore")
-            self._publisher = rospy.Publisher(topic, cls, latch=latch, queue_size=None)
+            self._publisher = rospy.Publisher(topic, cls, latch=latch, queue_size=None, subscriber_listener=self)
         self._queue = collections.deque(maxlen=queue_size if 0 < queue_size < sys.maxsize else None)
+        # (a latched publisher already sends its last message to every new subscriber)
+        self._early = None if latch else collections.deque(maxlen=self._queue.maxlen or 100)
+        self._early_until = time.monotonic() + REPLAY_WINDOW
         self._ready = threading.Event()
         self._closed = False
         threading.Thread(target=self._run, name=f"publish {topic}", daemon=True).start()
@@ -55,6 +62,13 @@ class _Outbox:
         self._ready.set()
         if self._queue.maxlen and len(self._queue) * 2 > self._queue.maxlen:
             time.sleep(0)  # the publishing thread falls behind: let it have the GIL before the queue overflows
+
+    def peer_subscribe(self, topic_name, topic_publish, peer_publish):
+        """On a rospy thread, when a subscriber connects: replay the early messages to it alone."""
+        early = self._early
+        if early is not None and time.monotonic() < self._early_until:
+            for msg in list(early):
+                peer_publish(msg)
 
     def close(self):
         """Publishes what is queued, then unregisters (in the publishing thread)."""
@@ -66,10 +80,16 @@ class _Outbox:
             self._ready.wait()
             self._ready.clear()
             while self._queue:
+                msg = self._queue.popleft()
                 try:
-                    self._publisher.publish(self._queue.popleft())
+                    self._publisher.publish(msg)
                 except Exception as error:  # a broken connection: rospy drops it; keep publishing to the others
                     rospy.logwarn("publishing on %s failed: %s", self._publisher.resolved_name, error)
+                if self._early is not None:
+                    if time.monotonic() < self._early_until:
+                        self._early.append(msg)
+                    else:
+                        self._early = None
             if self._closed:
                 self._publisher.unregister()
                 return

@@ -197,3 +197,17 @@ def test_subscribe_receives_from_rospy_publisher(client, node):
         thread.join()
         pub.unregister()
     assert got == sorted(got)
+
+
+def test_first_message_after_advertise_reaches_subscribers(client, node):
+    """roslibjs/roslibpy advertise and publish at once, before subscribers have connected to the bridge's new
+    publisher: the message must still arrive (a page's first Publish must move the turtle)."""
+    from std_msgs.msg import String
+    received = []
+    sub = node.Subscriber("/bridge_test/first_message", String, lambda m: received.append(m.data))
+    try:
+        roslibpy.Topic(client, "/bridge_test/first_message", "std_msgs/String").publish(roslibpy.Message({"data": "first"}))
+        wait_for(lambda: received, 10, what="the first message")
+        assert received == ["first"]
+    finally:
+        sub.unregister()
