@@ -23,9 +23,11 @@ from rosbridge.types import message_class, service_class
 
 INBOX_LIMIT = 10_000  # messages per topic waiting for the loop; beyond that the oldest are dropped
 # A client usually publishes right after advertising, before any subscriber has connected to the new
-# publisher (that takes the master's publisherUpdate and a TCP handshake): such early messages are kept this
-# long and replayed to each subscriber that connects, so that the first Twist of a page is not lost.
-REPLAY_WINDOW = 2.0  # seconds after advertising
+# publisher (that takes the master's publisherUpdate and a TCP handshake): messages published while nobody was
+# connected yet, in this window after advertising, are replayed to the subscribers that connect within it, so
+# that the first Twist of a page is not lost. Never after a subscriber has left: a robot driver that restarts
+# must not receive stale commands.
+REPLAY_WINDOW = 1.0  # seconds after advertising
 
 
 class _Publisher:
@@ -70,6 +72,9 @@ class _Outbox(rospy.SubscribeListener):
             for msg in list(early):
                 peer_publish(msg)
 
+    def peer_unsubscribe(self, topic_name, num_peers):
+        self._early = None
+
     def close(self):
         """Publishes what is queued, then unregisters (in the publishing thread)."""
         self._closed = True
@@ -86,10 +91,10 @@ class _Outbox(rospy.SubscribeListener):
                 except Exception as error:  # a broken connection: rospy drops it; keep publishing to the others
                     rospy.logwarn("publishing on %s failed: %s", self._publisher.resolved_name, error)
                 if self._early is not None:
-                    if time.monotonic() < self._early_until:
-                        self._early.append(msg)
-                    else:
+                    if time.monotonic() >= self._early_until:
                         self._early = None
+                    elif not self._publisher.get_num_connections():
+                        self._early.append(msg)
             if self._closed:
                 self._publisher.unregister()
                 return
