@@ -8,7 +8,6 @@
 Protocol with bench/suite.py: a role prints READY when it is connected, waits for a line on stdin when it is
 an actor that must start on cue, and prints one `RESULT <json>` line at the end."""
 import argparse
-import json
 import sys
 import threading
 import time

@@ -324,7 +324,7 @@ def section_fanout(run, table, rounds, sizes):
     for n, r in results.items():
         table.row(f"fan-out, {n} clients on a 10 Hz topic: messages delivered to every client", r["delivered"],
                   "%", "", None, "100%", r["delivered"] == 1.0)
-        table.row(f"fan-out, {n} clients: bridge RSS", r["rss"], "MB", f"idle bridge", r["idle_rss"])
+        table.row(f"fan-out, {n} clients: bridge RSS", r["rss"], "MB", "idle bridge", r["idle_rss"])
         table.row(f"fan-out, {n} clients: bridge threads", r["threads"], "", f"{sizes[0]} client(s)",
                   base["threads"], "constant", r["threads"] <= base["threads"])
         if n >= 100:  # (with fewer, the 10 ms CPU clock ticks swamp the few messages)
