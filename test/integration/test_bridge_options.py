@@ -1,4 +1,5 @@
 """Launch options: authentication (rosauth MAC), origin allow-list, address binding, the web page, wss."""
+import asyncio
 import hashlib
 import socket
 import ssl
@@ -193,4 +194,30 @@ def test_compression_and_delay_between_messages(ros, node):
         ws.close()
     finally:
         pub.unregister()
+        proc.stop()
+
+
+def test_pings_keep_alive_and_drop_a_silent_peer(ros):
+    """websocket_ping_interval/timeout: the bridge pings every interval; a peer that never answers (here a raw
+    socket that completed the handshake and then went silent, like a phone that lost Wi-Fi) is dropped."""
+    proc, port = start_bridge(ros, node_name="ping_bridge", websocket_ping_interval=0.5, websocket_ping_timeout=1.5)
+    try:
+        answering = WsClient(f"ws://127.0.0.1:{port}/")  # Tornado's client answers pings while its loop runs
+        with pytest.raises(asyncio.TimeoutError):
+            answering.recv_raw(timeout=3)  # nothing to read for twice the ping timeout: pings answered meanwhile
+        assert ping(answering)  # still served
+        answering.close()
+        with socket.create_connection(("127.0.0.1", port), timeout=10) as silent:
+            silent.sendall(b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                           b"Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n")
+            received = b""
+            started = time.monotonic()
+            while chunk := silent.recv(4096):  # until the bridge closes the socket
+                received += chunk
+                assert time.monotonic() - started < 30, "the silent peer was never dropped"
+            assert b" 101 " in received.split(b"\r\n", 1)[0]
+            frames = received.split(b"\r\n\r\n", 1)[1]
+            assert frames[:1] == b"\x89"  # the first frame the bridge sent is a ping (FIN + opcode 9)
+            assert time.monotonic() - started >= 1.5  # kept until the timeout ran out, not dropped at once
+    finally:
         proc.stop()
