@@ -1,15 +1,10 @@
 """Small measuring tools shared by the benchmark roles and the suite (standard library only)."""
 import asyncio
 import json
-import os
 import statistics
 import sys
 import threading
 import time
-
-CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
-PAGE = os.sysconf("SC_PAGE_SIZE")
-
 
 def wait_until(predicate, timeout, what, fail=True, interval=0.02):
     deadline = time.monotonic() + timeout
@@ -78,25 +73,6 @@ def latency_summary(rtts, sent):
         return {"sent": sent, "echoed": 0, "p50_ms": None, "p99_ms": None}
     q = statistics.quantiles(rtts, n=100, method="inclusive")
     return {"sent": sent, "echoed": len(rtts), "p50_ms": statistics.median(rtts) * 1e3, "p99_ms": q[98] * 1e3}
-
-
-class ProcStat:
-    """CPU time, resident memory and thread count of one process, read from /proc."""
-
-    def __init__(self, pid):
-        self.pid = pid
-
-    def cpu_seconds(self):
-        with open(f"/proc/{self.pid}/stat") as f:
-            fields = f.read().rsplit(")", 1)[1].split()
-        return (int(fields[11]) + int(fields[12])) / CLOCK_TICKS  # utime + stime
-
-    def rss_mb(self):
-        with open(f"/proc/{self.pid}/statm") as f:
-            return int(f.read().split()[1]) * PAGE / 1e6
-
-    def threads(self):
-        return len(os.listdir(f"/proc/{self.pid}/task"))
 
 
 def median(values):

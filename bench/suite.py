@@ -72,13 +72,13 @@ class Run:
     def bridge(self, **launch_args):
         """A fresh bridge (the launch file, as a user starts it): (Proc, websocket URL, ProcStat of the server)."""
         proc, port = harness.start_bridge(self.ros, **launch_args)
-        return proc, f"ws://127.0.0.1:{port}", stats.ProcStat(harness.node_pid(self.ros, "/rosbridge_websocket"))
+        return proc, f"ws://127.0.0.1:{port}", harness.ProcStat(harness.node_pid(self.ros, "/rosbridge_websocket"))
 
     def transport(self, *args):
         port = harness.free_port()
         proc = self.role("transport_server.py", "--port", port, *args)
         self.ready(proc)
-        return proc, f"ws://127.0.0.1:{port}/", stats.ProcStat(proc.pid)
+        return proc, f"ws://127.0.0.1:{port}/", harness.ProcStat(proc.pid)
 
     def close(self):
         self.ros.stop()
@@ -103,7 +103,7 @@ def rospy_pubsub(run, kind, count, rate=0):
     sub = run.role("ros_roles.py", "count", "--topic", topic, "--kind", kind, "--count", count)
     pub = run.role("ros_roles.py", "pub", "--topic", topic, "--kind", kind, "--count", count, "--rate", rate)
     run.ready(pub), run.ready(sub)
-    pub_cpu, sub_cpu = Cpu(stats.ProcStat(pub.pid)), Cpu(stats.ProcStat(sub.pid))
+    pub_cpu, sub_cpu = Cpu(harness.ProcStat(pub.pid)), Cpu(harness.ProcStat(sub.pid))
     run.go(pub)
     got = run.result(sub)
     figures = {"rate": got["rate"], "delivered": got["received"] / count,

@@ -15,16 +15,10 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO / "test"))
-from harness import RosMaster, make_workdir, wait_for  # noqa: E402  (the test harness starts the processes)
+from harness import ProcStat, RosMaster, make_workdir, wait_for  # noqa: E402  (the test harness starts the processes)
 
 TARGET_HZ = 62.5
 TURN = 0.8  # rad/s: every turtle drives in circles
-CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
-
-
-def cpu_seconds(pid):
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / CLOCK_TICKS  # utime + stime
 
 
 def free_display():
@@ -74,14 +68,14 @@ def measure(ros, rospy, turtles, display, seconds):
         with lock:
             counts.update(dict.fromkeys(names, 0))
             turned.update(dict.fromkeys(names, 0.0))
-        start, cpu_start = time.monotonic(), cpu_seconds(node.pid)
+        start, cpu_start = time.monotonic(), ProcStat(node.pid).cpu_seconds()
         while time.monotonic() - start < seconds:
             drive()
             time.sleep(0.5)
         with lock:
             final, final_turned = dict(counts), dict(turned)
         elapsed = time.monotonic() - start
-        cpu = (cpu_seconds(node.pid) - cpu_start) / elapsed * 100
+        cpu = (ProcStat(node.pid).cpu_seconds() - cpu_start) / elapsed * 100
         for s in subscribers + drivers:
             s.unregister()
         rates = [final[n] / elapsed for n in names]

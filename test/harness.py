@@ -156,6 +156,25 @@ class RosMaster:
         self.procs.clear()
 
 
+class ProcStat:
+    """CPU time, resident memory and thread count of one running process, read from /proc."""
+    CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
+    PAGE = os.sysconf("SC_PAGE_SIZE")
+
+    def __init__(self, pid):
+        self.pid = pid
+
+    def cpu_seconds(self):
+        fields = Path(f"/proc/{self.pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / self.CLOCK_TICKS  # utime + stime
+
+    def rss_mb(self):
+        return int(Path(f"/proc/{self.pid}/statm").read_text().split()[1]) * self.PAGE / 1e6
+
+    def threads(self):
+        return len(os.listdir(f"/proc/{self.pid}/task"))
+
+
 def make_workdir(prefix):
     return Path(tempfile.mkdtemp(prefix=prefix))
 

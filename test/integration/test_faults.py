@@ -13,7 +13,7 @@ import pytest
 import roslibpy
 
 from bridge_client import WsClient, ping
-from harness import RosMaster, free_port, node_pid, start_bridge, wait_for
+from harness import ProcStat, RosMaster, free_port, node_pid, start_bridge, wait_for
 
 
 @pytest.fixture(autouse=True, scope="module")
@@ -24,11 +24,6 @@ def quick_reconnects():
     factory.set_max_delay(2.0)
     yield
     factory.set_max_delay(before)
-
-
-def rss_mb(pid):
-    with open(f"/proc/{pid}/statm") as f:
-        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 1e6
 
 
 def bridge_topics(ros, node_name):
@@ -108,10 +103,10 @@ def test_a_client_that_stops_reading_does_not_grow_the_bridge_or_starve_others(r
         count, filler = 10_000, "x" * 10_000  # 10 s at 1 kHz of 10 kB messages: 100 MB if nothing were dropped
         flood = publish_in_thread(pub, lambda i: String(f"{i}:{filler}"), rate=1000, count=count)
         time.sleep(3)
-        early = rss_mb(pid)
+        early = ProcStat(pid).rss_mb()
         flood.join(60)
         wait_for(lambda: got and got[-1] == count - 1, 60, what="the reading client to get the last message")
-        grown = rss_mb(pid) - early
+        grown = ProcStat(pid).rss_mb() - early
         topic.unsubscribe()
         reader.close()
         stuck.close()

@@ -6,13 +6,12 @@ import asyncio
 import json
 import random
 import time
-import xmlrpc.client
 
 import pytest
 from tornado.websocket import websocket_connect
 
 from bridge_client import WsClient
-from harness import start_bridge, wait_for
+from harness import ProcStat, node_pid, start_bridge, wait_for
 
 FRAMES_PER_CLIENT = 5_000
 BATCH = 250  # frames sent before waiting for their answers (keeps the bridge's per-client queue from dropping)
@@ -25,13 +24,6 @@ def fuzz_bridge(ros):
     proc, port = start_bridge(ros, node_name="fuzz_bridge", max_message_size=MAX_MESSAGE_SIZE)
     yield proc, port
     proc.stop()
-
-
-def bridge_rss_kb(ros, node_name):
-    uri = ros.master().lookupNode(f"/{node_name}")
-    pid = xmlrpc.client.ServerProxy(uri).getPid("/fuzz_test")[2]
-    with open(f"/proc/{pid}/status") as status:
-        return next(int(line.split()[1]) for line in status if line.startswith("VmRSS:"))
 
 
 class Plan:
@@ -273,7 +265,8 @@ def test_ten_thousand_fuzzed_frames_leave_the_bridge_working(ros, node, fuzz_bri
     from std_msgs.msg import String
     proc, port = fuzz_bridge
     url = f"ws://127.0.0.1:{port}/"
-    rss_before = bridge_rss_kb(ros, "fuzz_bridge")
+    bridge = ProcStat(node_pid(ros, "/fuzz_bridge"))
+    rss_before = bridge.rss_mb()
     plans = {f"c{seed}": generate(random.Random(seed), f"c{seed}") for seed in (1, 2)}
     started = time.monotonic()
 
@@ -287,13 +280,13 @@ def test_ten_thousand_fuzzed_frames_leave_the_bridge_working(ros, node, fuzz_bri
     finally:
         loop.close()
     elapsed = time.monotonic() - started
-    rss_after = bridge_rss_kb(ros, "fuzz_bridge")
+    rss_after = bridge.rss_mb()
     frames = sum(s["frames"] for s in stats)
-    print(f"fuzz: {frames} frames in {elapsed:.1f} s, stats {stats}, bridge RSS {rss_before} -> {rss_after} kB")
+    print(f"fuzz: {frames} frames in {elapsed:.1f} s, stats {stats}, bridge RSS {rss_before:.1f} -> {rss_after:.1f} MB")
     assert frames >= 10_000
     assert proc.alive()
     assert sum(s["errors"] for s in stats) > 3_000 and sum(s["responses"] for s in stats) > 1_000
-    assert rss_after < rss_before + 150_000, f"bridge RSS grew from {rss_before} to {rss_after} kB"
+    assert rss_after < rss_before + 150, f"bridge RSS grew from {rss_before:.1f} to {rss_after:.1f} MB"
 
     # a fresh connection publishes to ROS and receives from ROS
     got = []

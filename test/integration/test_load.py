@@ -3,23 +3,13 @@ publishing and leaving (half of them cleanly, half by dropping the connection) m
 growth in the bridge's threads or ROS registrations, memory within a bound, /client_count back to 0."""
 import asyncio
 import json
-import os
 import threading
 
 from tornado.websocket import websocket_connect
 
-from harness import node_pid, start_bridge, wait_for
+from harness import ProcStat, node_pid, start_bridge, wait_for
 
 CLIENTS_PER_ROUND = 250
-
-
-def rss_mb(pid):
-    with open(f"/proc/{pid}/statm") as f:
-        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 1e6
-
-
-def threads(pid):
-    return len(os.listdir(f"/proc/{pid}/task"))
 
 
 def registrations(ros, node_name):
@@ -81,12 +71,12 @@ def test_a_thousand_clients_coming_and_going_leave_no_trace(ros, node):
                      what="the bridge to drop the clients' topics at the master")
 
         round_of_clients()  # warm-up: the allocator and the thread pools reach their working size
-        baseline_rss, baseline_threads = rss_mb(pid), threads(pid)
+        baseline_rss, baseline_threads = ProcStat(pid).rss_mb(), ProcStat(pid).threads()
         for _ in range(1000 // CLIENTS_PER_ROUND):
             round_of_clients()
 
-        assert threads(pid) <= baseline_threads
-        grown = rss_mb(pid) - baseline_rss
+        assert ProcStat(pid).threads() <= baseline_threads
+        grown = ProcStat(pid).rss_mb() - baseline_rss
         assert grown < 15, f"bridge RSS grew {grown:.1f} MB over 1000 clients that came and went"
         assert proc.alive()
     finally:
