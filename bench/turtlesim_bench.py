@@ -21,12 +21,6 @@ TARGET_HZ = 62.5
 TURN = 0.8  # rad/s: every turtle drives in circles
 
 
-def free_display():
-    number = next(n for n in range(90, 300) if not Path(f"/tmp/.X11-unix/X{n}").exists()
-                  and not Path(f"/tmp/.X{n}-lock").exists())
-    return f":{number}"
-
-
 def measure(ros, rospy, turtles, display, seconds):
     from geometry_msgs.msg import Twist
     from turtlesim.msg import Pose
@@ -101,10 +95,8 @@ def main():
     os.environ.update({k: ros.env[k] for k in ("ROS_MASTER_URI", "ROS_IP", "ROS_HOME", "ROS_LOG_DIR")})
     import rospy
     rospy.init_node("turtlesim_bench", anonymous=True, disable_signals=True)
-    display = free_display()
-    xvfb = ros.spawn(["Xvfb", display, "-screen", "0", "1024x768x24", "-nolisten", "tcp"], "xvfb")
+    xvfb, display = ros.start_xvfb()
     try:
-        wait_for(Path(f"/tmp/.X11-unix/X{display[1:]}").exists, 20, what="Xvfb")
         print(f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} at the start\n")
         print("| turtles | view | pose rate per turtle, Hz (min / mean / max) | within 62.5 Hz +-2 % | "
               "ticks simulated, Hz | node CPU, % of one core |")

@@ -150,6 +150,16 @@ class RosMaster:
     def master(self):
         return rosgraph.Master("/harness", master_uri=self.uri)
 
+    def start_xvfb(self):
+        """A virtual X server on a free display number; returns (Proc, display name such as ':90')."""
+        number = next((n for n in range(90, 300) if not Path(f"/tmp/.X11-unix/X{n}").exists()
+                       and not Path(f"/tmp/.X{n}-lock").exists()), None)
+        if number is None:
+            raise RuntimeError("no free X display number")
+        xvfb = self.spawn(["Xvfb", f":{number}", "-screen", "0", "1024x768x24", "-nolisten", "tcp"], "xvfb")
+        wait_for(Path(f"/tmp/.X11-unix/X{number}").exists, 20, what="Xvfb")
+        return xvfb, f":{number}"
+
     def stop(self):
         for proc in reversed(self.procs):
             proc.stop()

@@ -6,7 +6,6 @@ import os
 import re
 import signal
 import time
-from pathlib import Path
 
 import pytest
 from PIL import Image, ImageGrab
@@ -17,18 +16,9 @@ BACKGROUND = (69, 86, 255)
 PEN = (179, 184, 255)
 
 
-def free_display():
-    for number in range(90, 300):
-        if not Path(f"/tmp/.X11-unix/X{number}").exists() and not Path(f"/tmp/.X{number}-lock").exists():
-            return f":{number}"
-    raise RuntimeError("no free X display number")
-
-
 @pytest.fixture(scope="module")
 def display(ros):
-    name = free_display()
-    xvfb = ros.spawn(["Xvfb", name, "-screen", "0", "1024x768x24", "-nolisten", "tcp"], "xvfb")
-    wait_for(Path(f"/tmp/.X11-unix/X{name[1:]}").exists, 20, what="Xvfb")
+    xvfb, name = ros.start_xvfb()
     yield name
     xvfb.stop()
 
