@@ -1,7 +1,7 @@
 """Micro-benchmark of the ROS <-> JSON conversion (rosbridge.convert) and the wire encodings, in microseconds
 per call (best of several repeats, so a busy machine disturbs it less). No roscore needed:
 
-    export PATH=/usr/bin:$PATH; source .build/ws/devel/setup.bash; python3 bench/convert_bench.py
+    export PATH=/usr/bin:$PATH; source .build/setup.bash; python3 bench/convert_bench.py
 """
 import json
 import timeit

@@ -4,7 +4,7 @@ driving in circles (so every tick also draws trail), headless and with a window 
 
 Starts its own roscore on a free port. Prints a markdown table. Target: 62.5 Hz +-2 % per turtle.
 Run from the repository with the workspace sourced:
-    source .build/ws/devel/setup.bash && /usr/bin/python3 bench/turtlesim_bench.py [--seconds 10]"""
+    source .build/setup.bash && /usr/bin/python3 bench/turtlesim_bench.py [--seconds 10]"""
 import argparse
 import math
 import os

@@ -60,14 +60,59 @@ def test_installed_messages_nodes_launch_file_and_page(ros, install_space):
     bridge = ros.spawn(installed(ros, install_space, "roslaunch turtlesim rosbridge_websocket.launch "
                                  f"port:={port} address:=127.0.0.1 node_name:=installed_bridge"), "installed_bridge")
 
-    def page():
-        try:
-            with urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=5) as answer:
-                return answer.read().decode()
-        except OSError:
-            return None
-    assert "<canvas" in wait_for(page, 30, what=f"the page from the installed bridge ({bridge.log_path})")
-    with urllib.request.urlopen(f"http://127.0.0.1:{port}/vendor/roslib.min.js", timeout=5) as answer:
-        assert b"ROSLIB" in answer.read()
+    assert "<canvas" in wait_for(lambda: fetch(f"http://127.0.0.1:{port}/"), 30,
+                                 what=f"the page from the installed bridge ({bridge.log_path})")
+    assert "ROSLIB" in fetch(f"http://127.0.0.1:{port}/vendor/roslib.min.js")
     bridge.stop()
     sim.stop()
+
+
+# Every type a tutorial command, the page, the demo or a test reads the definition of (`rosmsg show`,
+# `rossrv show`, rosapi's message details): each needs its ros-*-msgs Debian package, which tools/setup installs.
+DEFINITIONS = {
+    "msg": ["geometry_msgs/Twist", "geometry_msgs/Vector3", "std_msgs/String", "std_msgs/Int32",
+            "rosgraph_msgs/Log", "turtlesim/Pose", "turtlesim/Color", "sensor_msgs/Image",
+            "sensor_msgs/CompressedImage", "visualization_msgs/Marker"],
+    "srv": ["std_srvs/Empty", "std_srvs/SetBool", "std_srvs/Trigger", "turtlesim/Spawn"],
+}
+
+
+@pytest.mark.parametrize("kind,type_name", [(kind, name) for kind, names in DEFINITIONS.items() for name in names])
+def test_definitions_are_installed(ros, kind, type_name):
+    shown = ros.run([f"ros{kind}", "show", type_name], check=False)
+    assert shown.returncode == 0 and shown.stdout.strip(), shown.stdout + shown.stderr
+
+
+def test_the_readme_workspace_route(ros, tmp_path):
+    """The README's route: clone into a workspace's src, `bash tools/setup` there, `catkin_make`, then rosrun and
+    roslaunch from that workspace find one executable each and the bridge serves the page."""
+    pkg = tmp_path / "catkin_ws" / "src" / "turtlesim"
+    tracked = subprocess.run(["git", "ls-files", "-z"], cwd=REPO, capture_output=True, text=True, check=True)
+    for name in filter(None, tracked.stdout.split("\0")):  # what a clone of this tree holds
+        (pkg / name).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(REPO / name, pkg / name)
+    env = {"PATH": "/usr/bin:/bin", "HOME": os.environ.get("HOME", "/root"),
+           "XDG_CACHE_HOME": str(tmp_path / "cache")}  # setup's own workspace: kept out of the user's cache
+    for command, cwd in ((["bash", "tools/setup"], pkg), (["catkin_make", "-DPYTHON_EXECUTABLE=/usr/bin/python3"],
+                                                           tmp_path / "catkin_ws")):
+        res = subprocess.run(command, cwd=cwd, env=env, capture_output=True, text=True, timeout=900)
+        assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+
+    devel = tmp_path / "catkin_ws" / "devel"
+    sim = ros.spawn(installed(ros, devel, "rosrun turtlesim turtlesim_node __name:=workspace_sim"), "workspace_sim")
+    sim.wait_output("Spawning turtle [turtle1]", 30)
+    port = free_port()
+    bridge = ros.spawn(installed(ros, devel, "roslaunch turtlesim rosbridge_websocket.launch "
+                                 f"port:={port} address:=127.0.0.1 node_name:=workspace_bridge"), "workspace_bridge")
+    assert "<canvas" in wait_for(lambda: fetch(f"http://127.0.0.1:{port}/"), 30, what="the page")
+    assert "ROSLIB" in fetch(f"http://127.0.0.1:{port}/vendor/roslib.min.js")
+    bridge.stop()
+    sim.stop()
+
+
+def fetch(url):
+    try:
+        with urllib.request.urlopen(url, timeout=5) as answer:
+            return answer.read().decode()
+    except OSError:
+        return None
