@@ -30,6 +30,7 @@ import struct
 
 import genpy
 
+from rosbridge.errors import ClientError
 from rosbridge.types import message_class
 
 INT_RANGES = {
@@ -59,7 +60,7 @@ def parse_slot_type(slot_type):
     return _ALIASES.get(base, base), is_array, int(size) if size else None
 
 
-class ConversionError(ValueError):
+class ConversionError(ClientError):
     """A JSON value that does not fit the message field it is meant for. str() names the field path."""
 
     def __init__(self, problem, path=()):

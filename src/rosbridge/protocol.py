@@ -1,48 +1,36 @@
-"""The rosbridge v2 protocol for one websocket client: parse and check every frame, keep the client's state
-(subscriptions, fragments, authentication, status level, bounded outgoing queue) and call the ROS side through
-the small `backend` interface below. Pure: no rospy, no tornado; the server gives it a clock and a timer.
+"""The rosbridge v2 protocol for one websocket client: check every frame and dispatch it, keep the client's
+state (subscriptions, authentication, status level) and call the ROS side through the `backend.Backend`
+contract. Pure: no rospy, no tornado; the server gives it a clock, a timer and a wake-up.
 
-Backend interface (ros_side.RosBackend implements it; every method runs on the event loop and raises
-RequestError / ValueError with a message for the client when it refuses):
-    advertise(session, topic, type, latch, queue_size)       unadvertise(session, topic)
-    publish(session, topic, msg, latch, queue_size)          subscribe(session, topic, type)
-    unsubscribe(session, topic)                              release(session)   (the client left)
-    call_service(session, service, args, type, timeout, reply)  reply(ok, values) is called later on the loop
-    advertise_service(session, service, type)                unadvertise_service(session, service)
-    service_response(session, service, id, result, values)
-"""
-import base64
-import collections
-import hashlib
-import hmac
-import io
-import itertools
+The jobs around it have rooms of their own: reassembly.py (fragment and png ops), subscription.py (merging and
+throttling), outgoing.py (the bounded outgoing queue), frames.py (encoding what goes out), auth.py (rosauth)."""
 import json
 import logging
 import math
+import sys
+import time
 
-from PIL import Image
-
-from rosbridge import encoding
 from rosbridge import globs as globs_module
-from rosbridge.convert import dumps, to_json
+from rosbridge import settings
+from rosbridge.auth import mac_is_valid
+from rosbridge.convert import dumps
+from rosbridge.errors import ClientError, RequestError
+from rosbridge.frames import COMPRESSIONS, service_response_frames, status_frame
+from rosbridge.outgoing import FrameQueue
+from rosbridge.reassembly import Fragments, unpack_png
+from rosbridge.subscription import MAX_THROTTLE_RATE, Subscription
 
 STATUS_LEVELS = ("info", "warning", "error", "none")
-COMPRESSIONS = ("none", "png", "cbor", "cbor-raw")
-
-
-class RequestError(ValueError):
-    """A request the bridge refuses; the text goes back to the client in a status frame."""
-
-
-DEFAULT_MAX_MESSAGE_SIZE = 8_000_000
+LARGEST_INT = 2**63 - 1  # the widest integer ROS has (int64/uint64 aside); any count or time fits
 
 
 class Config:
-    """The per-server settings the protocol needs (from the launch args). max_message_size 0: no limit."""
+    """The per-server settings the protocol needs (see settings.py for each)."""
 
-    def __init__(self, max_message_size=DEFAULT_MAX_MESSAGE_SIZE, fragment_timeout=600.0, max_queue=1000,
-                 globs=None, authenticate=False, auth_secret=None, auth_time_delta=5.0):
+    def __init__(self, max_message_size=settings.default("max_message_size"),
+                 fragment_timeout=settings.default("fragment_timeout"), max_queue=settings.default("max_queue"),
+                 globs=None, authenticate=False, auth_secret=None,
+                 auth_time_delta=settings.default("auth_time_delta")):
         self.max_message_size = max_message_size
         self.fragment_timeout = fragment_timeout
         # what may wait for one slow client before the oldest frames are dropped: frames, and bytes
@@ -100,7 +88,7 @@ _FIELD_CHECKS = {
 
 
 def check_fields(op, request):
-    """Raises RequestError naming the first missing, mistyped or unknown field of `request`."""
+    """Raises RequestError naming the first missing, mistyped, out-of-range or unknown field of `request`."""
     fields, required = _FIELD_CHECKS[op]
     for name, value in request.items():
         check = fields.get(name)
@@ -112,108 +100,11 @@ def check_fields(op, request):
         # json.loads makes exact types (a bool is not an int here); None means absent (roslibpy sends null)
         if value is not None and types is not None and type(value) not in types:
             raise RequestError(f"{op}: field {name!r} must be {type_text}, got {json.dumps(value)[:80]}")
+        if type(value) is int and name != "id" and not -LARGEST_INT <= value <= LARGEST_INT:  # JSON has no bound
+            raise RequestError(f"{op}: field {name!r} is out of range: {str(value)[:40]}...")
     for name in required:
         if request.get(name) is None:
             raise RequestError(f"{op}: missing required field {name!r}")
-
-
-def status_frame(level, msg, request_id=None):
-    frame = {"op": "status", "level": level, "msg": msg}
-    if request_id is not None:
-        frame["id"] = request_id
-    return dumps(frame)
-
-
-def mac_is_valid(auth, secret, now, time_delta):
-    """rosauth's check: mac == hex(sha512(secret+client+dest+rand+int(t)+level+int(end))), t within
-    time_delta seconds of now (a negative delta skips that check) and end still in the future."""
-    if secret is None or not (math.isfinite(auth["t"]) and math.isfinite(auth["end"])):
-        return False
-    if time_delta >= 0 and abs(auth["t"] - now) >= time_delta:
-        return False
-    if auth["end"] <= now:
-        return False
-    text = "".join((secret, auth["client"], auth["dest"], auth["rand"], str(int(auth["t"])), auth["level"],
-                    str(int(auth["end"]))))
-    expected = hashlib.sha512(text.encode()).hexdigest()
-    return hmac.compare_digest(expected.encode(), auth["mac"].lower().encode())
-
-
-class Utf8Text(bytes):
-    """A text frame already encoded to UTF-8, so that it is encoded once for all the clients it goes to."""
-    __slots__ = ()
-
-
-class TopicMessage:
-    """One ROS message from a topic, encoded lazily and at most once per encoding for all its subscribers.
-    stamp: its receipt time in seconds (sent with cbor-raw)."""
-    __slots__ = ("topic", "msg", "stamp", "_json", "_frames")
-
-    def __init__(self, topic, msg, stamp):
-        self.topic, self.msg, self.stamp = topic, msg, stamp
-        self._json = None  # the frames of the usual case: plain JSON, not fragmented
-        self._frames = None  # (compression, fragment_size) -> frames, for the others
-
-    def frames(self, compression, fragment_size):
-        """The frames (Utf8Text for text, bytes for binary) that carry this message with these options."""
-        if compression == "none" and fragment_size is None:
-            if self._json is None:
-                self._json = self._encode(compression, fragment_size)
-            return self._json
-        if self._frames is None:
-            self._frames = {}
-        key = (compression, fragment_size)
-        frames = self._frames.get(key)
-        if frames is None:
-            frames = self._frames[key] = self._encode(compression, fragment_size)
-        return frames
-
-    def _encode(self, compression, fragment_size):
-        if compression == "cbor":
-            return (encoding.cbor_frame({"op": "publish", "topic": self.topic,
-                                         "msg": encoding.to_cbor_value(self.msg)}),)
-        if compression == "cbor-raw":
-            secs = int(self.stamp)
-            buffer = io.BytesIO()
-            self.msg.serialize(buffer)  # the bytes rospy received: genpy serialization is canonical
-            raw = {"bytes": buffer.getvalue(), "secs": secs, "nsecs": int((self.stamp - secs) * 1e9)}
-            return (encoding.cbor_frame({"op": "publish", "topic": self.topic, "msg": raw}),)
-        text = '{"op":"publish","topic":%s,"msg":%s}' % (dumps(self.topic), dumps(to_json(self.msg)))
-        if compression == "png":
-            text = dumps({"op": "png", "data": encoding.png_frame(text)})
-        return tuple(Utf8Text(part.encode()) for part in fragment_text(text, fragment_size))
-
-
-_fragment_ids = itertools.count(1)
-
-
-def fragment_text(text, fragment_size):
-    if fragment_size is None or len(text) <= fragment_size:
-        return (text,)
-    return tuple(dumps(f) for f in encoding.fragments(text, fragment_size, f"fragment:{next(_fragment_ids)}"))
-
-
-class Subscription:
-    """All of one client's subscribe requests to one topic, merged: lowest throttle_rate, lowest
-    fragment_size, longest queue_length, the latest compression."""
-    __slots__ = ("requests", "throttle_rate", "queue_length", "fragment_size", "compression", "last_sent",
-                 "pending", "flush_scheduled")
-
-    def __init__(self):
-        self.requests = {}  # subscribe id (None when the client gave none) -> its options
-        self.last_sent = float("-inf")
-        self.pending = collections.deque(maxlen=1)
-        self.flush_scheduled = False
-
-    def merge(self):
-        options = list(self.requests.values())
-        self.throttle_rate = min(o["throttle_rate"] for o in options) / 1000.0
-        self.queue_length = max(o["queue_length"] for o in options)
-        sizes = [o["fragment_size"] for o in options if o["fragment_size"] is not None]
-        self.fragment_size = min(sizes) if sizes else None
-        self.compression = options[-1]["compression"]
-        if self.pending.maxlen != max(1, self.queue_length):
-            self.pending = collections.deque(self.pending, maxlen=max(1, self.queue_length))
 
 
 class Session:
@@ -222,7 +113,6 @@ class Session:
 
     clock() -> seconds since the epoch; call_later(delay, fn) runs fn on the loop later; wake() says frames
     are waiting; close(reason) asks the server to close the connection after the queued frames."""
-    MAX_FRAGMENT_SETS = 100
 
     def __init__(self, backend, config, clock, call_later, wake, close, name="client"):
         self.backend, self.config, self.name = backend, config, name
@@ -231,12 +121,9 @@ class Session:
         self.level = STATUS_LEVELS.index("error")
         self.authenticated = not config.authenticate
         self.is_closed = False
-        self._queue = collections.deque()
-        self._queued_bytes = 0
-        self._dropped = 0
+        self._outgoing = FrameQueue(config.max_queue, config.max_queue_bytes)
         self._woken = False
-        self._fragments = {}  # fragment id -> [total, {num: data}, bytes so far, deadline]
-        self._fragment_bytes = 0
+        self._fragments = Fragments(config.max_message_size, config.fragment_timeout)
 
     # ---- incoming -------------------------------------------------------------------------------
     def handle_text(self, text, depth=0):
@@ -276,16 +163,18 @@ class Session:
             if depth > 2 and op in ("fragment", "png"):
                 raise RequestError(f"{op} nested too deeply")
             getattr(self, "_op_" + op)(request, depth)
-        except ValueError as error:  # RequestError, types.UnknownType, convert.ConversionError
+        except ClientError as error:
             self.status("error", str(error), request_id)
             if op == "call_service" and isinstance(request.get("service"), str) and self.authenticated:
                 # client libraries wait for the service_response of their call: fail it at once too
-                self._service_response(request["service"], request_id, False, str(error))
+                self._send_frames(service_response_frames(request["service"], request_id, False, str(error)))
             if op == "auth" and not self.authenticated:
                 self.close("authentication failed")
-        except Exception as error:  # a bug: tell the client, keep serving
-            logging.getLogger("rosbridge").exception("%s: %s failed", self.name, op)
-            self.status("error", f"{op}: internal error: {error!r}", request_id)
+        except Exception:  # a bug: logged (once a minute per kind), the client told, the connection kept
+            log_bug(f"{op} failed")
+            self.status("error", f"{op}: internal error (logged by the bridge)", request_id)
+            if op == "auth" and not self.authenticated:
+                self.close("authentication failed")
 
     def _check_topic(self, topic):
         if not globs_module.allowed(topic, self.config.globs.topics):
@@ -313,16 +202,19 @@ class Session:
         self._check_topic(topic)
         compression = _compression(req)
         throttle_rate = req.get("throttle_rate") or 0
-        queue_length = min(req.get("queue_length") or 0, self.config.max_queue)  # a deque needs a C-sized maxlen
-        if not 0 <= throttle_rate < math.inf or queue_length < 0:  # NaN/Infinity would spin or stall the timer
-            raise RequestError("subscribe: throttle_rate must be finite and queue_length must not be negative")
+        queue_length = min(req.get("queue_length") or 0, self.config.max_queue)
+        if not 0 <= throttle_rate <= MAX_THROTTLE_RATE:  # also NaN, which would spin or stall the timer
+            raise RequestError(f"subscribe: throttle_rate must be 0..{MAX_THROTTLE_RATE} ms, got {throttle_rate}")
+        if queue_length < 0:
+            raise RequestError(f"subscribe: queue_length must not be negative, got {queue_length}")
         fragment_size = _positive(req, "fragment_size", None)
         self.backend.subscribe(self, topic, req.get("type"))
-        subscription = self.subscriptions.get(topic) or self.subscriptions.setdefault(topic, Subscription())
-        subscription.requests.pop(req.get("id"), None)  # a repeated id moves to the end (latest compression)
-        subscription.requests[req.get("id")] = {"throttle_rate": throttle_rate, "queue_length": queue_length,
-                                               "fragment_size": fragment_size, "compression": compression}
-        subscription.merge()
+        subscription = self.subscriptions.get(topic)
+        if subscription is None:
+            subscription = self.subscriptions[topic] = Subscription(
+                self._send_frames, self._clock, self._call_later, self.config.max_queue_bytes)
+        subscription.add(req.get("id"), {"throttle_rate": throttle_rate, "queue_length": queue_length,
+                                         "fragment_size": fragment_size, "compression": compression})
 
     def _op_unsubscribe(self, req, depth):
         topic, sub_id = req["topic"], req.get("id")
@@ -330,15 +222,12 @@ class Session:
         if subscription is None:
             self.status("warning", f"unsubscribe: not subscribed to {topic}", sub_id)
             return
-        if sub_id is None:
-            subscription.requests.clear()
-        elif subscription.requests.pop(sub_id, False) is False:
+        if not subscription.remove(sub_id):
             self.status("warning", f"unsubscribe: no subscription to {topic} with id {sub_id!r}", sub_id)
             return
-        if subscription.requests:
-            subscription.merge()
-        else:
+        if not subscription.requests:
             del self.subscriptions[topic]
+            subscription.close()
             self.backend.unsubscribe(self, topic)
 
     def _op_call_service(self, req, depth):
@@ -351,25 +240,11 @@ class Session:
             raise RequestError("call_service: timeout must be positive (seconds)")
 
         def reply(ok, values):
-            self._service_response(service, call_id, ok, values, compression, fragment_size)
+            if not self.is_closed:
+                self._send_frames(service_response_frames(service, call_id, ok, values, compression, fragment_size))
 
         args = req.get("args")
         self.backend.call_service(self, service, {} if args is None else args, req.get("type"), timeout, reply)
-
-    def _service_response(self, service, call_id, ok, values, compression="none", fragment_size=None):
-        if self.is_closed:
-            return
-        frame = {"op": "service_response", "service": service, "values": values, "result": ok}
-        if call_id is not None:
-            frame["id"] = call_id
-        if compression in ("cbor", "cbor-raw"):
-            self.send(encoding.cbor_frame(frame))
-            return
-        text = dumps(frame)
-        if compression == "png":
-            text = dumps({"op": "png", "data": encoding.png_frame(text)})
-        for part in fragment_text(text, fragment_size):
-            self.send(part)
 
     def _op_advertise_service(self, req, depth):
         self._check_service(req["service"])
@@ -382,54 +257,18 @@ class Session:
         self.backend.service_response(self, req["service"], req.get("id"), req["result"], req.get("values"))
 
     def _op_fragment(self, req, depth):
-        frag_id, num, total, data = req["id"], req["num"], req["total"], req["data"]
-        limit = self.config.max_message_size
-        if total < 1 or not 0 <= num < total or (limit and total > limit):
-            raise RequestError(f"fragment: num {num} / total {total} out of range")
         now = self._clock()
-        self._expire_fragments(now)
-        entry = self._fragments.get(frag_id)
-        if entry is None:
-            if len(self._fragments) >= self.MAX_FRAGMENT_SETS:
-                raise RequestError(f"fragment: too many unfinished fragmented messages ({self.MAX_FRAGMENT_SETS})")
-            entry = self._fragments[frag_id] = [total, {}, now + self.config.fragment_timeout]
-        if entry[0] != total:
-            raise RequestError(f"fragment {frag_id!r}: total changed from {entry[0]} to {total}")
-        if limit and self._fragment_bytes + len(data) > limit:
-            self._drop_fragments(frag_id)
-            raise RequestError(f"fragment {frag_id!r}: reassembled message over max_message_size ({limit} bytes)")
-        previous = entry[1].get(num)
-        self._fragment_bytes += len(data) - (len(previous) if previous else 0)
-        entry[1][num] = data
-        if len(entry[1]) == total:
-            parts = entry[1]
-            self._drop_fragments(frag_id)
-            self.handle_text("".join(parts[i] for i in range(total)), depth + 1)
-
-    def _drop_fragments(self, frag_id):
-        entry = self._fragments.pop(frag_id)
-        self._fragment_bytes -= sum(len(part) for part in entry[1].values())
-
-    def _expire_fragments(self, now):
-        for frag_id, entry in list(self._fragments.items()):
-            if entry[2] < now:
-                self._drop_fragments(frag_id)
-                self.status("warning", f"fragment {frag_id!r}: dropped after fragment_timeout "
-                                       f"({self.config.fragment_timeout} s) with {len(entry[1])} of {entry[0]} parts")
+        for frag_id, received, total in self._fragments.expire(now):
+            self.status("warning", f"fragment {frag_id!r}: dropped after fragment_timeout "
+                                   f"({self.config.fragment_timeout} s) with {received} of {total} parts")
+        text = self._fragments.add(req["id"], req["num"], req["total"], req["data"], now)
+        if text is not None:
+            self.handle_text(text, depth + 1)
 
     def _op_png(self, req, depth):
         if (req.get("total") or 1) != 1:
             raise RequestError("png: split png messages are not supported; send fragment ops instead")
-        try:
-            with Image.open(io.BytesIO(base64.b64decode(req["data"]))) as image:  # reads the header only
-                size = image.width * image.height * 3
-            limit = self.config.max_message_size
-            if limit and size > limit:  # a small PNG can unpack to gigabytes
-                raise RequestError(f"png: image holds {size} bytes, over max_message_size ({limit} bytes)")
-            text = encoding.png_unframe(req["data"])
-        except (ValueError, OSError) as error:  # bad base64, not a PNG, not UTF-8
-            raise RequestError(f"png: cannot read the image: {error}") from None
-        self.handle_text(text, depth + 1)
+        self.handle_text(unpack_png(req["data"], self.config.max_message_size), depth + 1)
 
     def _op_auth(self, req, depth):
         if self.authenticated:
@@ -448,32 +287,8 @@ class Session:
     def deliver(self, message):
         """A TopicMessage for a topic this client subscribes to."""
         subscription = self.subscriptions.get(message.topic)
-        if subscription is None:
-            return
-        if not subscription.throttle_rate:
-            self._send_frames(message.frames(subscription.compression, subscription.fragment_size))
-            return
-        subscription.pending.append(message)
-        if not subscription.flush_scheduled:
-            self._flush_throttled(subscription)
-
-    def _flush_throttled(self, subscription):
-        """Sends the oldest pending message if throttle_rate allows; otherwise comes back when it does. The
-        latest message is kept (not dropped as the reference does), so a throttled stream ends on the last value."""
-        subscription.flush_scheduled = False
-        if self.is_closed or not subscription.pending or self.subscriptions.get(
-                subscription.pending[0].topic) is not subscription:
-            return
-        wait = subscription.last_sent + subscription.throttle_rate - self._clock()
-        if wait <= 0:
-            message = subscription.pending.popleft()
-            self._send_frames(message.frames(subscription.compression, subscription.fragment_size))
-            subscription.last_sent = self._clock()
-            wait = subscription.throttle_rate
-            if not subscription.pending:
-                return
-        subscription.flush_scheduled = True
-        self._call_later(wait, lambda: self._flush_throttled(subscription))
+        if subscription is not None:
+            subscription.deliver(message)
 
     def request_service(self, call_id, service, args):
         """The ROS side forwards a call of a service this client advertised."""
@@ -492,29 +307,20 @@ class Session:
         """Queues a frame (str: text, bytes: binary); the oldest are dropped when the client is too slow."""
         if self.is_closed:
             return
-        queue = self._queue
-        queue.append(frame)
-        self._queued_bytes += len(frame)
-        while len(queue) > 1 and (len(queue) > self.config.max_queue
-                                   or self._queued_bytes > self.config.max_queue_bytes):
-            self._queued_bytes -= len(queue.popleft())
-            self._dropped += 1
+        self._outgoing.push(frame)
         if not self._woken:
             self._woken = True
             self._wake()
 
     def take_frame(self):
         """The next frame to write, or None when the queue is empty (the next send wakes the server again)."""
-        if self._dropped:
-            dropped, self._dropped = self._dropped, 0
-            if STATUS_LEVELS.index("warning") >= self.level:
-                return status_frame("warning", f"client too slow: dropped {dropped} oldest outgoing frame(s) "
-                                               f"(queue bound: {self.config.max_queue} frames)")
-        if not self._queue:
+        dropped = self._outgoing.take_dropped()
+        if dropped and STATUS_LEVELS.index("warning") >= self.level:
+            return status_frame("warning", f"client too slow: dropped {dropped} oldest outgoing frame(s) "
+                                           f"(queue bound: {self.config.max_queue} frames)")
+        frame = self._outgoing.pop()
+        if frame is None:
             self._woken = False
-            return None
-        frame = self._queue.popleft()
-        self._queued_bytes -= len(frame)
         return frame
 
     def close(self, reason):
@@ -525,8 +331,10 @@ class Session:
         if self.is_closed:
             return
         self.is_closed = True
+        for subscription in self.subscriptions.values():
+            subscription.close()
         self.subscriptions.clear()
-        self._queue.clear()
+        self._outgoing.clear()
         self._fragments.clear()
         self.backend.release(self)
 
@@ -545,3 +353,20 @@ def _compression(req):
     if compression not in COMPRESSIONS:
         raise RequestError(f"{req['op']}: compression must be one of {', '.join(COMPRESSIONS)}, got {compression!r}")
     return compression
+
+
+_bug_last_logged = {}
+
+
+def log_bug(what, every=60.0):
+    """Logs the exception being handled with its traceback, at most once per `every` seconds per kind (its
+    place and type), so that a client repeating a bad frame cannot fill the disk."""
+    error = sys.exc_info()[1]
+    tb = error.__traceback__
+    while tb.tb_next is not None:
+        tb = tb.tb_next
+    kind = (what, type(error).__name__, tb.tb_frame.f_code.co_filename, tb.tb_lineno)
+    now = time.monotonic()
+    if now - _bug_last_logged.get(kind, -every) >= every:
+        _bug_last_logged[kind] = now
+        logging.getLogger("rosbridge").exception("internal error: %s", what)

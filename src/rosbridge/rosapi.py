@@ -19,8 +19,9 @@ import rosgraph
 import rosgraph.names
 import rosservice
 
+from rosbridge.errors import ClientError
 from rosbridge.globs import Globs, allowed, filter_names
-from rosbridge.types import message_class, service_class
+from rosbridge.types import UnknownType, message_class, service_class
 
 # Field types without a typedef of their own. The reference forgets `char`; we count it as a number.
 ATOMIC_TYPES = {"bool", "byte", "char", "int8", "uint8", "int16", "uint16", "int32", "uint32", "int64",
@@ -59,7 +60,7 @@ SERVICES = {
     "/rosapi/get_time": ("rosapi/GetTime", ()),
 }
 
-class RosapiError(Exception):
+class RosapiError(ClientError):
     """A /rosapi call failed; the message says why and is meant for the client."""
 
 
@@ -383,7 +384,7 @@ def _full_text(type_name):
         return ""
     try:
         return message_class(type_name)._full_text
-    except ValueError:
+    except UnknownType:
         return ""
 
 

@@ -2,7 +2,6 @@
 the web page (web_root/index.html; other files of web_root are served as static files).
 
 One IOLoop thread serves every client; rospy's threads and the service-call pool only hand work to it."""
-import concurrent.futures
 import fnmatch
 import ipaddress
 import socket
@@ -12,6 +11,7 @@ import urllib.parse
 from pathlib import Path
 
 import rosgraph
+import rospkg
 import rospy
 import tornado.httpserver
 import tornado.ioloop
@@ -21,12 +21,11 @@ import tornado.web
 import tornado.websocket
 
 from rosbridge import protocol
+from rosbridge.frames import Utf8Text
 from rosbridge.globs import Globs, parse_globs
 from rosbridge.ros_side import RosBackend
 from rosbridge.rosapi import Rosapi
-
-DEFAULT_WEB_ROOT = Path(__file__).resolve().parents[2] / "web"
-
+from rosbridge.settings import Settings
 
 class Bridge:
     """What every connection shares: the ROS side, the protocol settings and the connection policy."""
@@ -129,7 +128,7 @@ class BridgeSocket(tornado.websocket.WebSocketHandler):
         """Sends one frame; returns the stream's write future. Without permessage-deflate the frame goes
         straight to the stream: the same bytes for every client, and none of the Task that write_message
         wraps around each write."""
-        binary = not isinstance(frame, str) and not isinstance(frame, protocol.Utf8Text)
+        binary = not isinstance(frame, str) and not isinstance(frame, Utf8Text)
         if self.bridge.use_compression:
             return self.write_message(frame, binary=binary)
         payload = frame.encode() if isinstance(frame, str) else frame
@@ -166,63 +165,50 @@ def routes(bridge, web_root):
     return table
 
 
-def _param(name, default):
-    value = rospy.get_param("~" + name, default)
-    return default if value in ("None", None) else value
-
-
 def main():
     rospy.init_node("rosbridge_websocket")
-    max_message_size = int(_param("max_message_size", protocol.DEFAULT_MAX_MESSAGE_SIZE))
-    authenticate = bool(_param("authenticate", False))
+    try:
+        current = Settings(lambda name: rospy.get_param("~" + name, None))
+        globs = Globs.parse(current.topics_glob, current.services_glob, current.params_glob)
+        origins = parse_globs(current.allowed_origins)
+    except ValueError as error:
+        rospy.logfatal("%s", error)
+        raise SystemExit(1)
     secret = None
-    if authenticate:
-        secret_file = _param("secret_file", "")
-        if secret_file:
-            secret = Path(secret_file).read_text().strip()
+    if current.authenticate:
+        if current.secret_file:
+            secret = Path(current.secret_file).read_text().strip()
         else:
             rospy.logerr("authenticate is on but secret_file is not set: every client will be refused")
-    globs = Globs.parse(str(_param("topics_glob", "")), str(_param("services_glob", "")),
-                        str(_param("params_glob", "")))
-    config = protocol.Config(max_message_size=max_message_size,
-                             fragment_timeout=float(_param("fragment_timeout", 600)),
-                             max_queue=int(_param("max_queue", 1000)),
-                             globs=globs, authenticate=authenticate, auth_secret=secret,
-                             auth_time_delta=float(_param("auth_time_delta", 5.0)))
+    config = protocol.Config(max_message_size=current.max_message_size, fragment_timeout=current.fragment_timeout,
+                             max_queue=current.max_queue, globs=globs, authenticate=current.authenticate,
+                             auth_secret=secret, auth_time_delta=current.auth_time_delta)
     loop = tornado.ioloop.IOLoop.current()
-    executor = concurrent.futures.ThreadPoolExecutor(max_workers=16, thread_name_prefix="rosbridge-call")
     rosapi = Rosapi(rosgraph.get_master_uri(), rospy.get_name(), globs, rospy.Time.now)
-    backend = RosBackend(loop, executor, rosapi=rosapi,
-                         unregister_timeout=float(_param("unregister_timeout", 10.0)))
-    origins = parse_globs(str(_param("allowed_origins", "")))
+    backend = RosBackend(loop, rosapi=rosapi, unregister_timeout=current.unregister_timeout)
     bridge = Bridge(backend, config, allowed_origins=origins,
-                    delay_between_messages=float(_param("delay_between_messages", 0)),
-                    use_compression=bool(_param("use_compression", False)))
+                    delay_between_messages=current.delay_between_messages, use_compression=current.use_compression)
     backend.set_client_count(0)
 
-    web_root = str(rospy.get_param("~web_root", DEFAULT_WEB_ROOT))
-    if web_root.lower() in ("", "none"):  # roslaunch drops an empty `web_root:=`, so "none" turns it off too
+    web_root = current.web_root or str(Path(rospkg.RosPack().get_path("turtlesim")) / "web")
+    if web_root.lower() == "none":
         web_root = ""
-    settings = {
+    max_frame = 4 * current.max_message_size or 1 << 30
+    app = tornado.web.Application(
+        routes(bridge, web_root),
         # Tornado closes the socket on frames over its limit; ours answers an error and keeps it open
-        "websocket_max_message_size": 4 * max_message_size or 1 << 30,
-        "websocket_ping_interval": float(_param("websocket_ping_interval", 0)) or None,
-        "websocket_ping_timeout": float(_param("websocket_ping_timeout", 30)),
-    }
-    app = tornado.web.Application(routes(bridge, web_root), **settings)
-    ssl_options = None
-    if _param("ssl", False):
-        ssl_options = {"certfile": _param("certfile", ""), "keyfile": _param("keyfile", "")}
-    address = str(_param("address", ""))
-    sockets = tornado.netutil.bind_sockets(int(_param("port", 9090)), address or None)
-    server = tornado.httpserver.HTTPServer(app, ssl_options=ssl_options, max_buffer_size=settings[
-        "websocket_max_message_size"])
+        websocket_max_message_size=max_frame,
+        websocket_ping_interval=current.websocket_ping_interval or None,
+        websocket_ping_timeout=current.websocket_ping_timeout)
+    ssl_options = {"certfile": current.certfile, "keyfile": current.keyfile} if current.ssl else None
+    sockets = tornado.netutil.bind_sockets(current.port, current.address or None)
+    server = tornado.httpserver.HTTPServer(app, ssl_options=ssl_options, max_buffer_size=max_frame)
     server.add_sockets(sockets)
     port = sockets[0].getsockname()[1]
     rospy.set_param("~actual_port", port)
     scheme = "wss" if ssl_options else "ws"
-    rospy.loginfo("Rosbridge WebSocket server started at %s://%s:%d (page: %s)", scheme, address or "0.0.0.0",
-                  port, web_root or "off")
+    rospy.loginfo("Rosbridge WebSocket server started at %s://%s:%d (page: %s)", scheme,
+                  current.address or "0.0.0.0", port, web_root or "off")
 
     # The kernel may deliver SIGINT to one of rospy's threads, which leaves the loop asleep in epoll: wake it
     # twice a second so that Python runs rospy's signal handler, and stop once rospy is shutting down.
@@ -233,7 +219,6 @@ def main():
         pass
     finally:
         server.stop()
-        executor.shutdown(wait=False, cancel_futures=True)
 
 
 if __name__ == "__main__":

@@ -8,10 +8,12 @@ import re
 import genpy
 import roslib.message
 
+from rosbridge.errors import ClientError
+
 TYPE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*/[A-Za-z][A-Za-z0-9_]*")
 
 
-class UnknownType(ValueError):
+class UnknownType(ClientError):
     """The type name is malformed or names no message/service that ROS knows."""
 
 

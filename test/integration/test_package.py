@@ -87,10 +87,12 @@ def test_the_readme_workspace_route(ros, tmp_path):
     """The README's route: clone into a workspace's src, `bash tools/setup` there, `catkin_make`, then rosrun and
     roslaunch from that workspace find one executable each and the bridge serves the page."""
     pkg = tmp_path / "catkin_ws" / "src" / "turtlesim"
-    tracked = subprocess.run(["git", "ls-files", "-z"], cwd=REPO, capture_output=True, text=True, check=True)
-    for name in filter(None, tracked.stdout.split("\0")):  # what a clone of this tree holds
-        (pkg / name).parent.mkdir(parents=True, exist_ok=True)
-        shutil.copy2(REPO / name, pkg / name)
+    listed = subprocess.run(["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"], cwd=REPO,
+                            capture_output=True, text=True, check=True)
+    for name in filter(None, listed.stdout.split("\0")):  # what a clone of this tree holds (edits included)
+        if (REPO / name).is_file():
+            (pkg / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(REPO / name, pkg / name)
     env = {"PATH": "/usr/bin:/bin", "HOME": os.environ.get("HOME", "/root"),
            "XDG_CACHE_HOME": str(tmp_path / "cache")}  # setup's own workspace: kept out of the user's cache
     for command, cwd in ((["bash", "tools/setup"], pkg), (["catkin_make", "-DPYTHON_EXECUTABLE=/usr/bin/python3"],

@@ -288,7 +288,7 @@ def not_executed(client, frame=GET_TIME):
     return reply["op"] == "status" and reply["level"] == "error" and "not authenticated" in reply["msg"]
 
 
-@pytest.mark.parametrize("frame", [  # besides subscribe and rosapi calls, in test_bridge_options.py
+@pytest.mark.parametrize("frame", [  # besides subscribe and rosapi calls, in test_bridge_launch_args.py
     {"op": "publish", "topic": "/sec/cmd", "msg": {}, "id": "t"},
     {"op": "advertise_service", "service": "/sec/offer", "type": "std_srvs/Empty", "id": "t"},
     {"op": "set_level", "level": "info", "id": "t"},

@@ -1,28 +1,45 @@
 """rosbridge.protocol without ROS or sockets: a Session fed frames, with a backend that records what the
 protocol asks of the ROS side, and a clock and timers the test moves by hand."""
 import hashlib
+import inspect
 import json
 
 import pytest
 from std_msgs.msg import Int32, String
 
 from rosbridge import protocol
+from rosbridge.frames import TopicMessage, Utf8Text
+from rosbridge.backend import Backend
 from rosbridge.globs import Globs
 
 
-class RecordingBackend:
-    """Records every call; `refuse` makes the named method raise like the ROS side does."""
+class RecordingBackend(Backend):
+    """Records every call; `refuse` makes the named method raise like the ROS side does. Its methods are made
+    from the Backend contract, so a protocol call outside the contract fails here."""
 
     def __init__(self):
         self.calls = []
         self.refuse = {}
 
-    def __getattr__(self, name):
-        def record(session, *args):
-            if name in self.refuse:
-                raise protocol.RequestError(self.refuse[name])
-            self.calls.append((name, *args))
-        return record
+
+def _recorder(name):
+    def record(self, session, *args):
+        if name in self.refuse:
+            raise protocol.RequestError(self.refuse[name])
+        self.calls.append((name, *args))
+    return record
+
+
+for _name in Backend.__abstractmethods__:
+    setattr(RecordingBackend, _name, _recorder(_name))
+RecordingBackend.__abstractmethods__ = frozenset()
+
+
+def test_the_ros_backend_implements_the_contract_with_its_signatures():
+    from rosbridge.ros_side import RosBackend
+    for name in Backend.__abstractmethods__:
+        contract = inspect.signature(getattr(Backend, name)).parameters
+        assert list(inspect.signature(getattr(RosBackend, name)).parameters) == list(contract), name
 
 
 class Harness:
@@ -59,7 +76,7 @@ class Harness:
 
 
 def message(topic="/t", data=1, stamp=1.5):
-    return protocol.TopicMessage(topic, Int32(data), stamp)
+    return TopicMessage(topic, Int32(data), stamp)
 
 
 @pytest.fixture
@@ -146,7 +163,7 @@ def test_one_encoding_for_every_client():
         s.session.deliver(msg)
     frames = [s.frames() for s in sessions]
     assert frames[0][0] is frames[1][0] is frames[2][0]  # the same bytes object
-    assert isinstance(frames[0][0], protocol.Utf8Text)
+    assert isinstance(frames[0][0], Utf8Text)
     assert json.loads(frames[0][0]) == {"op": "publish", "topic": "/t", "msg": {"data": 42}}
 
 
@@ -160,7 +177,7 @@ def test_fragment_size_and_compressions(h):
     h.session.deliver(message(data=1, stamp=12.25))
     import cbor2
     frame = h.frames()
-    assert len(frame) == 1 and not isinstance(frame[0], protocol.Utf8Text)
+    assert len(frame) == 1 and not isinstance(frame[0], Utf8Text)
     assert cbor2.loads(frame[0])["msg"] == {"bytes": b"\x01\x00\x00\x00", "secs": 12, "nsecs": 250000000}
 
 
@@ -219,15 +236,23 @@ def test_fragments_reassemble_in_any_order_and_expire(h):
     h.advance(601)
     h.send({"op": "fragment", "id": 3, "data": "{", "num": 0, "total": 2})
     assert "fragment_timeout" in h.replies()[0]["msg"]
-    assert list(h.session._fragments) == [3]
+    assert h.session._fragments.ids() == [3]
 
 
 def test_fragments_cannot_exceed_max_message_size():
-    h = Harness(max_message_size=100)
-    h.send({"op": "fragment", "id": "big", "data": "x" * 60, "num": 0, "total": 3})
-    h.send({"op": "fragment", "id": "big", "data": "x" * 60, "num": 1, "total": 3})
+    h = Harness(max_message_size=300)
+    h.send({"op": "fragment", "id": "big", "data": "x" * 120, "num": 0, "total": 3})
+    h.send({"op": "fragment", "id": "big", "data": "x" * 120, "num": 1, "total": 3})
     assert "max_message_size" in h.replies()[0]["msg"]
-    assert h.session._fragments == {} and h.session._fragment_bytes == 0
+    assert h.session._fragments.ids() == [] and h.session._fragments.bytes == 0
+
+
+def test_empty_fragments_count_against_the_budget():
+    h = Harness(max_message_size=10_000)
+    for num in range(1000):
+        h.send({"op": "fragment", "id": "empty", "data": "", "num": num, "total": 5000})
+    assert any("max_message_size" in reply["msg"] for reply in h.replies())
+    assert h.session._fragments.bytes <= 10_000
 
 
 def test_nested_fragments_are_refused(h):
@@ -293,7 +318,7 @@ def test_closed_session_releases_and_stops_sending(h):
 
 
 def test_string_messages_keep_unicode():
-    msg = protocol.TopicMessage("/s", String("grüß 🐢"), 0.0)
+    msg = TopicMessage("/s", String("grüß 🐢"), 0.0)
     assert json.loads(msg.frames("none", None)[0])["msg"]["data"] == "grüß 🐢"
 
 

@@ -1,4 +1,4 @@
-// A roslibjs 1.x client in Node, driven by test_bridge_roslibjs.py: it runs the steps named on the command
+// A roslibjs 1.x client in Node, driven by test_bridge_with_roslibjs.py: it runs the steps named on the command
 // line against the bridge and prints one JSON line per result ({"step": ..., ...}) on stdout.
 // Usage: node roslibjs_client.js ws://127.0.0.1:PORT step...
 'use strict';

@@ -8,7 +8,7 @@ import yaml
 
 from harness import start_bridge, wait_for
 from rosbridge.rosapi import SERVICES
-from test_rosapi import graph, settle  # noqa: F401  (graph is a fixture)
+from test_rosapi_against_cli import graph, settle  # noqa: F401  (graph is a fixture)
 
 
 def connect(port):

@@ -2,22 +2,25 @@
 frames: it never raises, answers every refused frame with exactly one `status` error that carries the
 request's id, writes only strict JSON, and keeps working afterwards.
 
-The backend is an in-memory test double of the small backend interface documented in protocol.py (no ROS
+The backend is an in-memory implementation of the backend.Backend contract (no ROS
 here): it accepts any topic/service whose type looks like "pkg/Name" and answers service calls at once."""
 import json
 import math
 
+import cbor2
+
 import std_msgs.msg
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from rosbridge import protocol
+from rosbridge import frames, protocol
+from rosbridge.backend import Backend
 from rosbridge.globs import Globs
 
 SETTINGS = settings(max_examples=150, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 
 
-class MemoryBackend:
+class MemoryBackend(Backend):
     """Records what the session asked for; refuses like the real one does (RequestError with a message)."""
 
     def __init__(self):
@@ -79,9 +82,13 @@ class Harness:
                                         self.close_reasons.append)
 
     def frames(self):
-        """Every frame queued since the last call, decoded (strict JSON: NaN/Infinity are refused)."""
+        """Every frame queued since the last call, decoded (strict JSON: NaN/Infinity are refused; binary
+        frames are CBOR)."""
         out = []
         while (frame := self.session.take_frame()) is not None:
+            if isinstance(frame, bytes) and not isinstance(frame, frames.Utf8Text):
+                out.append(cbor2.loads(frame))
+                continue
             text = frame.decode() if isinstance(frame, bytes) else frame
             out.append(json.loads(text, parse_constant=_refuse_constant))
         return out
@@ -93,7 +100,7 @@ class Harness:
         """Delivers `count` messages on /chatter and runs due timers (advancing the clock to each) until none
         is left or a timer storm shows; returns the frames sent."""
         for n in range(count):
-            self.session.deliver(protocol.TopicMessage("/chatter", std_msgs.msg.String(f"m{n}"), self.now))
+            self.session.deliver(frames.TopicMessage("/chatter", std_msgs.msg.String(f"m{n}"), self.now))
         for _ in range(100):
             if not self.timers:
                 break

@@ -1,0 +1,50 @@
+"""The contract between the protocol (one Session per client) and the ROS side (ros_side.RosBackend).
+
+Every method runs on the event-loop thread. A method that refuses raises a ClientError whose text goes back
+to the client; any other exception is a bug. `session` is the calling client's Session: the ROS side hands
+messages back through `session.deliver(TopicMessage)` and calls of a client's service through
+`session.request_service(call_id, service, args)`, both on the loop."""
+import abc
+
+
+class Backend(abc.ABC):
+    @abc.abstractmethod
+    def advertise(self, session, topic, type_name, latch, queue_size):
+        """The client will publish `topic` as `type_name`."""
+
+    @abc.abstractmethod
+    def unadvertise(self, session, topic):
+        """The client no longer publishes `topic`."""
+
+    @abc.abstractmethod
+    def publish(self, session, topic, msg, latch, queue_size):
+        """One message (JSON-parsed dict) from the client; advertises `topic` first if needed."""
+
+    @abc.abstractmethod
+    def subscribe(self, session, topic, type_name):
+        """The client wants `topic`'s messages (type_name None: the graph's type)."""
+
+    @abc.abstractmethod
+    def unsubscribe(self, session, topic):
+        """The client no longer wants `topic`."""
+
+    @abc.abstractmethod
+    def call_service(self, session, service, args, type_name, timeout, reply):
+        """Calls a ROS service (or rosapi) with JSON args; reply(ok, values) later, on the loop, exactly once.
+        timeout: seconds or None."""
+
+    @abc.abstractmethod
+    def advertise_service(self, session, service, type_name):
+        """The client provides `service`: ROS calls of it go to session.request_service."""
+
+    @abc.abstractmethod
+    def unadvertise_service(self, session, service):
+        """The client no longer provides `service`."""
+
+    @abc.abstractmethod
+    def service_response(self, session, service, call_id, result, values):
+        """The client's answer to a call forwarded with request_service."""
+
+    @abc.abstractmethod
+    def release(self, session):
+        """The client left: release everything it held."""

@@ -1,0 +1,83 @@
+"""What the bridge sends: frames ready for the socket, each encoded once for every client it goes to."""
+import io
+import itertools
+
+from rosbridge import encoding
+from rosbridge.convert import dumps, to_json
+
+COMPRESSIONS = ("none", "png", "cbor", "cbor-raw")
+
+
+class Utf8Text(bytes):
+    """A text frame already encoded to UTF-8, so that it is encoded once for all the clients it goes to."""
+    __slots__ = ()
+
+
+def status_frame(level, msg, request_id=None):
+    frame = {"op": "status", "level": level, "msg": msg}
+    if request_id is not None:
+        frame["id"] = request_id
+    return dumps(frame)
+
+
+_fragment_ids = itertools.count(1)
+
+
+def fragment_text(text, fragment_size):
+    if fragment_size is None or len(text) <= fragment_size:
+        return (text,)
+    return tuple(dumps(f) for f in encoding.fragments(text, fragment_size, f"fragment:{next(_fragment_ids)}"))
+
+
+def text_frames(text, compression, fragment_size):
+    """The JSON text of one op as the frames that carry it: inside a png op if asked, then in fragments."""
+    if compression == "png":
+        text = dumps({"op": "png", "data": encoding.png_frame(text)})
+    return tuple(Utf8Text(part.encode()) for part in fragment_text(text, fragment_size))
+
+
+class TopicMessage:
+    """One ROS message from a topic, encoded lazily and at most once per encoding for all its subscribers.
+    stamp: its receipt time in seconds (sent with cbor-raw)."""
+    __slots__ = ("topic", "msg", "stamp", "_json", "_frames")
+
+    def __init__(self, topic, msg, stamp):
+        self.topic, self.msg, self.stamp = topic, msg, stamp
+        self._json = None  # the frames of the usual case: plain JSON, not fragmented
+        self._frames = None  # (compression, fragment_size) -> frames, for the others
+
+    def frames(self, compression, fragment_size):
+        """The frames (Utf8Text for text, bytes for binary) that carry this message with these options."""
+        if compression == "none" and fragment_size is None:
+            if self._json is None:
+                self._json = self._encode(compression, fragment_size)
+            return self._json
+        if self._frames is None:
+            self._frames = {}
+        key = (compression, fragment_size)
+        frames = self._frames.get(key)
+        if frames is None:
+            frames = self._frames[key] = self._encode(compression, fragment_size)
+        return frames
+
+    def _encode(self, compression, fragment_size):
+        if compression == "cbor":
+            return (encoding.cbor_frame({"op": "publish", "topic": self.topic,
+                                         "msg": encoding.to_cbor_value(self.msg)}),)
+        if compression == "cbor-raw":
+            secs = int(self.stamp)
+            buffer = io.BytesIO()
+            self.msg.serialize(buffer)  # the bytes rospy received: genpy serialization is canonical
+            raw = {"bytes": buffer.getvalue(), "secs": secs, "nsecs": int((self.stamp - secs) * 1e9)}
+            return (encoding.cbor_frame({"op": "publish", "topic": self.topic, "msg": raw}),)
+        text = '{"op":"publish","topic":%s,"msg":%s}' % (dumps(self.topic), dumps(to_json(self.msg)))
+        return text_frames(text, compression, fragment_size)
+
+
+def service_response_frames(service, call_id, ok, values, compression="none", fragment_size=None):
+    frame = {"op": "service_response", "service": service, "values": values, "result": ok}
+    if call_id is not None:
+        frame["id"] = call_id
+    if compression in ("cbor", "cbor-raw"):
+        return (encoding.cbor_frame(frame),)
+    return text_frames(dumps(frame), compression, fragment_size)

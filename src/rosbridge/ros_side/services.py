@@ -1,0 +1,215 @@
+"""Services: calls from clients to ROS services (and rosapi), and ROS services whose answers come from a client."""
+import collections
+import concurrent.futures
+import functools
+import itertools
+import threading
+
+import rospy
+import rosservice
+
+from rosbridge.convert import ConversionError, from_json, request_from_args, to_json
+from rosbridge.errors import RequestError
+from rosbridge.types import service_class
+
+
+class ServiceCalls:
+    """Client -> ROS service calls, each on a thread of its own so that a slow or silent service holds only
+    its own callers. Bounded: at most max_running calls of one client run at once (a call's thread counts
+    until the service answers, even after the client's timeout told it no), at most max_total in all; the
+    others wait, in turns between clients, and one client may have at most max_pending calls in all."""
+
+    def __init__(self, loop, rosapi, max_running, max_total, max_pending):
+        self._loop, self._rosapi = loop, rosapi
+        self._max_running, self._max_total, self._max_pending = max_running, max_total, max_pending
+        # only touched on the loop:
+        self._running = {}  # session -> calls of it still running
+        self._total = 0
+        self._waiting = collections.OrderedDict()  # session -> deque of (start, answer); the next turn first
+
+    def call(self, session, service, args, type_name, timeout, reply):
+        running, waiting = self._running.get(session, 0), self._waiting.get(session, ())
+        if running + len(waiting) >= self._max_pending:
+            raise RequestError(f"call_service {service}: refused, this client has {running + len(waiting)} calls "
+                               f"pending (at most {self._max_pending})")
+        if self._rosapi is not None and self._rosapi.handles(service):
+            work = functools.partial(self._rosapi.call, service, args)
+        else:
+            work = functools.partial(_call_ros_service, service, args, type_name)
+        answer = _Answer(self._loop, reply)
+        if timeout is not None:
+            answer.time_out(timeout, f"Service {service} timed out after {timeout} s")
+        self._waiting.setdefault(session, collections.deque()).append(
+            (functools.partial(self._start, session, service, work, answer), answer))
+        self._start_waiting()
+
+    def release(self, session):
+        """The client left: its waiting calls are dropped (the running ones finish unheard)."""
+        for _, answer in self._waiting.pop(session, ()):
+            answer.cancel()
+
+    def _start_waiting(self):
+        for session in list(self._waiting):  # clients in turns: one that starts a call goes to the back
+            if self._total >= self._max_total:
+                return
+            if self._running.get(session, 0) < self._max_running:
+                queue = self._waiting.pop(session)
+                start, _ = queue.popleft()
+                if queue:
+                    self._waiting[session] = queue
+                start()
+
+    def _start(self, session, service, work, answer):
+        self._running[session] = self._running.get(session, 0) + 1
+        self._total += 1
+
+        def run():  # on the call's thread
+            try:
+                result = (True, work())
+            except Exception as error:  # the service's failure, told to the client
+                result = (False, str(error) or repr(error))
+            self._loop.add_callback(self._finished, session, answer, *result)
+
+        threading.Thread(target=run, name=f"call {service}", daemon=True).start()
+
+    def _finished(self, session, answer, ok, values):
+        self._total -= 1
+        left = self._running.pop(session) - 1
+        if left:
+            self._running[session] = left
+        answer(ok, values)
+        self._start_waiting()
+
+
+class _Answer:
+    """Replies once: with the call's result or with the timeout, whichever comes first; then drops the timer
+    (a timer left behind would hold the reply and the client's session for as long as the timeout)."""
+    __slots__ = ("_loop", "_reply", "_timer")
+
+    def __init__(self, loop, reply):
+        self._loop, self._reply, self._timer = loop, reply, None
+
+    def __call__(self, ok, values):
+        if self._reply is None:
+            return
+        reply, self._reply = self._reply, None
+        if self._timer is not None:
+            self._loop.remove_timeout(self._timer)
+            self._timer = None
+        reply(ok, values)
+
+    def time_out(self, seconds, text):
+        self._timer = self._loop.call_later(seconds, self, False, text)
+
+    def cancel(self):
+        """Never replies (the client left)."""
+        self._reply = None
+        if self._timer is not None:
+            self._loop.remove_timeout(self._timer)
+            self._timer = None
+
+
+def _call_ros_service(service, args, type_name):
+    """On a call's thread: the service's response as JSON, or an exception whose text goes to the client."""
+    if type_name is None:
+        type_name = rosservice.get_service_type(service)
+        if type_name is None:
+            raise RequestError(f"Service {service} does not exist")
+    cls = service_class(type_name)
+    request = request_from_args(cls._request_class, args, now=rospy.Time.now)
+    try:
+        response = rospy.ServiceProxy(service, cls)(request)
+    except rospy.ServiceException as error:
+        raise RequestError(f"Service {service} failed: {error}") from None
+    return to_json(response)
+
+
+class _ProvidedService:
+    """A ROS service whose answers come from one websocket client."""
+    __slots__ = ("name", "type", "cls", "session", "server", "pending")
+
+    def __init__(self, name, type_name, cls, session):
+        self.name, self.type, self.cls, self.session = name, type_name, cls, session
+        self.pending = {}  # call id -> concurrent.futures.Future waited on by a rospy thread
+        self.server = None
+
+
+class ProvidedServices:
+    """ROS services provided by clients: a ROS call is forwarded to the client (call_service op) and answered
+    with its service_response."""
+
+    def __init__(self, loop, master, service_timeout):
+        self._loop, self._master, self._service_timeout = loop, master, service_timeout
+        self._services = {}
+        self._call_ids = itertools.count(1)
+
+    def advertise(self, session, service, type_name):
+        cls = service_class(type_name)
+        entry = self._services.get(service)
+        if entry is not None:
+            if entry.session is session and entry.type == type_name:
+                return
+            self._shutdown(entry, "advertised again by another client")
+        else:
+            me = rospy.get_name()
+            for name, providers in self._master.getSystemState()[2]:
+                if name == service and any(p != me for p in providers):
+                    raise RequestError(f"advertise_service {service}: already provided by {', '.join(providers)}")
+        entry = self._services[service] = _ProvidedService(service, type_name, cls, session)
+        entry.server = rospy.Service(service, cls, lambda request: self._serve(entry, request))
+
+    def unadvertise(self, session, service):
+        entry = self._services.get(service)
+        if entry is None or entry.session is not session:
+            raise RequestError(f"unadvertise_service {service}: not advertised by this client")
+        self._shutdown(entry, "unadvertised by its client")
+
+    def _shutdown(self, entry, why):
+        del self._services[entry.name]
+        entry.server.shutdown(why)
+        for future in entry.pending.values():
+            if not future.done():
+                future.set_exception(rospy.ServiceException(f"service {entry.name} {why}"))
+        entry.pending.clear()
+
+    def _serve(self, entry, request):
+        """On a rospy thread: forward the call to the client and wait for its service_response."""
+        future = concurrent.futures.Future()
+        self._loop.add_callback(self._forward_call, entry, request, future)
+        try:
+            return future.result(timeout=self._service_timeout)
+        except concurrent.futures.TimeoutError:
+            raise rospy.ServiceException(f"service {entry.name}: the client did not answer within "
+                                         f"{self._service_timeout} s") from None
+
+    def _forward_call(self, entry, request, future):
+        if self._services.get(entry.name) is not entry:
+            future.set_exception(rospy.ServiceException(f"service {entry.name} is no longer provided"))
+            return
+        call_id = f"service_request:{entry.name}:{next(self._call_ids)}"
+        entry.pending[call_id] = future
+        future.add_done_callback(lambda _: self._loop.add_callback(entry.pending.pop, call_id, None))
+        entry.session.request_service(call_id, entry.name, to_json(request))
+
+    def respond(self, session, service, call_id, result, values):
+        entry = self._services.get(service)
+        if entry is None or entry.session is not session:
+            raise RequestError(f"service_response {service}: not advertised by this client")
+        future = entry.pending.pop(call_id, None)
+        if future is None or future.done():
+            raise RequestError(f"service_response {service}: no call with id {call_id!r} is waiting")
+        if not result:
+            future.set_exception(rospy.ServiceException(f"service {service}: the client answered result=false: "
+                                                        f"{values}"))
+            return
+        try:
+            response = from_json(entry.cls._response_class, {} if values is None else values)
+        except ConversionError as error:
+            future.set_exception(rospy.ServiceException(f"service {service}: invalid response: {error}"))
+            raise RequestError(f"service_response {service}: {error}") from None
+        future.set_result(response)
+
+    def release(self, session):
+        for entry in list(self._services.values()):
+            if entry.session is session:
+                self._shutdown(entry, "lost its client (disconnected)")

@@ -1,0 +1,98 @@
+"""Every setting of the bridge, in one table: its name (the launch arg and the node's private parameter), type,
+default and meaning. The launch file, `server.main`, `protocol.Config` and the README's table all come from or
+are checked against this table (test_settings.py)."""
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Setting:
+    name: str
+    kind: type  # bool, int, float or str
+    default: object
+    meaning: str
+    ours: bool = False  # not a setting of the ROS 1 rosbridge_server, or a different default
+
+
+SETTINGS = (
+    Setting("port", int, 9090, "0 = pick a free port, written to the `~actual_port` param"),
+    Setting("address", str, "", "interface to bind, e.g. `127.0.0.1`; empty = all interfaces"),
+    Setting("ssl", bool, False, "serve `wss://` (and `https://` for the page)"),
+    Setting("certfile", str, "", "TLS certificate file, with `ssl`"),
+    Setting("keyfile", str, "", "TLS key file, with `ssl`"),
+    Setting("authenticate", bool, False, "a valid rosauth `auth` must come first; see Security"),
+    Setting("secret_file", str, "", "file holding the rosauth secret, with `authenticate`", ours=True),
+    Setting("auth_time_delta", float, 5.0, "seconds `auth`'s `t` may differ from now (negative: no check)",
+            ours=True),
+    Setting("fragment_timeout", float, 600.0, "seconds to wait for the rest of a fragmented message"),
+    Setting("delay_between_messages", float, 0.0, "seconds between frames sent to one client"),
+    Setting("max_message_size", int, 8_000_000,
+            "bytes; larger frames get a `status` error; 0 = no limit (the reference has none)", ours=True),
+    Setting("max_queue", int, 1000,
+            "frames waiting for one slow client before the oldest are dropped (the client is told)", ours=True),
+    Setting("unregister_timeout", float, 10.0,
+            "seconds a topic's publisher outlives its last client (a page reload reuses it)"),
+    Setting("use_compression", bool, False, "websocket permessage-deflate"),
+    Setting("websocket_ping_interval", float, 0.0, "seconds between keep-alive pings; 0 = none"),
+    Setting("websocket_ping_timeout", float, 30.0, "seconds without a pong before the connection is closed"),
+    Setting("topics_glob", str, "", 'topics clients may use, e.g. `"[/turtle1/*, /rosout]"`; empty = all'),
+    Setting("services_glob", str, "", "services clients may call or provide; empty = all"),
+    Setting("params_glob", str, "", "parameters clients may read or write; empty = all"),
+    Setting("allowed_origins", str, "",
+            'other web pages allowed to connect, e.g. `"[http://*.lan:*]"`; `"[*]"` = any; empty = same host '
+            "only (the bridge's own page is always allowed)", ours=True),
+    Setting("web_root", str, "", "folder served over HTTP; empty = the package's `web/`; `none` = no page",
+            ours=True),
+)
+BY_NAME = {setting.name: setting for setting in SETTINGS}
+
+
+def default(name):
+    return BY_NAME[name].default
+
+
+class SettingError(ValueError):
+    """A setting's value cannot be used (the node refuses to start, naming it)."""
+
+
+def convert(setting, value):
+    """`value` (from the parameter server: maybe a string, since launch args are text) as the setting's type."""
+    if value is None or value == "None":
+        return setting.default
+    try:
+        if setting.kind is bool:
+            if isinstance(value, str):
+                if value.lower() not in ("true", "false", "1", "0"):
+                    raise ValueError(value)
+                return value.lower() in ("true", "1")
+            return bool(value)
+        if setting.kind is str:
+            return str(value)
+        return setting.kind(value)
+    except (TypeError, ValueError):
+        raise SettingError(f"setting {setting.name}: expected {setting.kind.__name__}, got {value!r}") from None
+
+
+class Settings:
+    """The values in force: one attribute per setting."""
+
+    def __init__(self, get=lambda name: None):
+        """get(name) -> the configured value or None (then the default holds)."""
+        for setting in SETTINGS:
+            setattr(self, setting.name, convert(setting, get(setting.name)))
+
+
+def markdown_table():
+    """The README's table of launch args."""
+    rows = ["| arg | default | meaning |", "|---|---|---|"]
+    for s in SETTINGS:
+        rows.append(f"| `{s.name}`{' (ours)' if s.ours else ''} | {launch_text(s.default)} | {s.meaning} |")
+    return "\n".join(rows)
+
+
+def launch_text(value):
+    """A default as a launch file (and the README) writes it."""
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, float):
+        return format(value, "g")
+    return '""' if value == "" else str(value)
