@@ -30,7 +30,8 @@ class Config:
     def __init__(self, max_message_size=settings.default("max_message_size"),
                  fragment_timeout=settings.default("fragment_timeout"), max_queue=settings.default("max_queue"),
                  globs=None, authenticate=False, auth_secret=None,
-                 auth_time_delta=settings.default("auth_time_delta")):
+                 auth_time_delta=settings.default("auth_time_delta"),
+                 max_topics_per_client=settings.default("max_topics_per_client")):
         self.max_message_size = max_message_size
         self.fragment_timeout = fragment_timeout
         # what may wait for one slow client before the oldest frames are dropped: frames, and bytes
@@ -40,6 +41,7 @@ class Config:
         self.authenticate = authenticate
         self.auth_secret = auth_secret
         self.auth_time_delta = auth_time_delta
+        self.max_topics_per_client = max_topics_per_client
 
 
 # JSON types of the fields of each op: (python types, name shown to the client)
@@ -118,6 +120,7 @@ class Session:
         self.backend, self.config, self.name = backend, config, name
         self._clock, self._call_later, self._wake, self._close = clock, call_later, wake, close
         self.subscriptions = {}
+        self.advertised = set()
         self.level = STATUS_LEVELS.index("error")
         self.authenticated = not config.authenticate
         self.is_closed = False
@@ -184,18 +187,29 @@ class Session:
         if not service.startswith("/rosapi/") and not globs_module.allowed(service, self.config.globs.services):
             raise RequestError(f"service {service!r} is not allowed by services_glob {self.config.globs.services}")
 
+    def _check_topic_count(self, topics, topic, what):
+        limit = self.config.max_topics_per_client
+        if topic not in topics and len(topics) >= limit:
+            raise RequestError(f"{what} {topic}: refused, this client already has {len(topics)} topics "
+                               f"(max_topics_per_client {limit})")
+
     def _op_advertise(self, req, depth):
-        self._check_topic(req["topic"])
-        self.backend.advertise(self, req["topic"], req["type"], bool(req.get("latch")),
-                               _positive(req, "queue_size", 100))
+        topic = req["topic"]
+        self._check_topic(topic)
+        self._check_topic_count(self.advertised, topic, "advertise")
+        self.backend.advertise(self, topic, req["type"], bool(req.get("latch")), _positive(req, "queue_size", 100))
+        self.advertised.add(topic)
 
     def _op_unadvertise(self, req, depth):
         self.backend.unadvertise(self, req["topic"])
+        self.advertised.discard(req["topic"])
 
     def _op_publish(self, req, depth):
-        self._check_topic(req["topic"])
-        self.backend.publish(self, req["topic"], req["msg"], bool(req.get("latch")),
-                             _positive(req, "queue_size", 100))
+        topic = req["topic"]
+        self._check_topic(topic)
+        self._check_topic_count(self.advertised, topic, "publish")
+        self.backend.publish(self, topic, req["msg"], bool(req.get("latch")), _positive(req, "queue_size", 100))
+        self.advertised.add(topic)
 
     def _op_subscribe(self, req, depth):
         topic = req["topic"]
@@ -208,6 +222,7 @@ class Session:
         if queue_length < 0:
             raise RequestError(f"subscribe: queue_length must not be negative, got {queue_length}")
         fragment_size = _positive(req, "fragment_size", None)
+        self._check_topic_count(self.subscriptions, topic, "subscribe")
         self.backend.subscribe(self, topic, req.get("type"))
         subscription = self.subscriptions.get(topic)
         if subscription is None:

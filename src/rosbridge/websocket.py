@@ -1,0 +1,181 @@
+"""One websocket client on the event loop: reads its frames in turns with the other clients (budget.py), feeds
+them to its protocol Session, and writes the Session's frames as fast as the client reads them."""
+import asyncio
+import fnmatch
+import ipaddress
+import socket
+import struct
+import time
+import urllib.parse
+
+import tornado.ioloop
+import tornado.iostream
+import tornado.web
+import tornado.websocket
+
+from rosbridge import protocol
+from rosbridge.budget import ClientBudget
+from rosbridge.frames import Utf8Text
+from rosbridge.pages import SECURITY_HEADERS
+
+
+class FairProtocol(tornado.websocket.WebSocketProtocol13):
+    """Tornado's RFC 6455 protocol, except that every frame a client sends, pings included, counts against its
+    budget: Tornado's reading task only waits for what `_handle_message` returns (on_message's result, never a
+    ping's), and without waiting it reads on for as long as the client's data lasts, holding the loop."""
+
+    def _handle_message(self, opcode, data):
+        handled = super()._handle_message(opcode, data)
+        delay = self.handler.budget.after_frame(len(data))
+        if delay is None:
+            return handled
+        return _after(handled, delay)
+
+
+async def _after(handled, delay):
+    if handled is not None:
+        await handled
+    await asyncio.sleep(delay)
+
+
+class BridgeSocket(tornado.websocket.WebSocketHandler):
+    """One rosbridge client; a plain HTTP GET (or HEAD) of the same URL gets the index page instead."""
+
+    def initialize(self, bridge, index_page=None):
+        self.bridge, self.index_page = bridge, index_page
+        self.session = None
+        self.budget = None
+        self._close_reason = None
+
+    def set_default_headers(self):
+        for name, value in SECURITY_HEADERS.items():
+            self.set_header(name, value)
+
+    async def get(self, *args, **kwargs):
+        if self.request.headers.get("Upgrade", "").lower() != "websocket":
+            if self.index_page is None:
+                raise tornado.web.HTTPError(404)
+            self.set_header("Content-Type", "text/html; charset=UTF-8")
+            self.finish(self.index_page.read_bytes())
+            return
+        if len(self.bridge.clients) >= self.bridge.settings.max_clients:
+            self.bridge.log_refusal("max_clients", f"a client refused: {len(self.bridge.clients)} connected "
+                                    f"(max_clients {self.bridge.settings.max_clients})")
+            self.set_status(503)
+            self.finish("too many clients")
+            return
+        await super().get(*args, **kwargs)
+
+    def head(self, *args, **kwargs):
+        if self.index_page is None:
+            raise tornado.web.HTTPError(404)
+        self.set_header("Content-Type", "text/html; charset=UTF-8")
+        self.set_header("Content-Length", self.index_page.stat().st_size)
+        self.finish()
+
+    def get_websocket_protocol(self):
+        websocket = super().get_websocket_protocol()
+        if websocket is not None:
+            websocket.__class__ = FairProtocol  # same state and settings, fair reading (see FairProtocol)
+        return websocket
+
+    def check_origin(self, origin):
+        patterns = self.bridge.allowed_origins
+        if patterns is not None:
+            return any(fnmatch.fnmatchcase(origin.lower(), pattern.lower()) for pattern in patterns)
+        # Default: a page served by this bridge (same host as the socket's), and reached by an address or by
+        # this machine's own name: a page of another name that DNS re-points here (DNS rebinding) is refused.
+        return super().check_origin(origin) and is_local_name(urllib.parse.urlparse(origin).hostname or "")
+
+    def get_compression_options(self):
+        return {} if self.bridge.settings.use_compression else None
+
+    def open(self, *args):
+        loop = tornado.ioloop.IOLoop.current()
+        settings = self.bridge.settings
+        self.budget = ClientBudget(settings.max_frames_per_second, settings.max_bytes_per_second, time.monotonic)
+        self.session = protocol.Session(self.bridge.backend, self.bridge.config, time.time, loop.call_later,
+                                        self._wake, self._close_after_sending, name=self.request.remote_ip)
+        self.set_nodelay(True)
+        self.bridge.client_opened(self)
+
+    def on_message(self, message):
+        if isinstance(message, bytes):
+            self.session.handle_binary(message)
+        else:
+            self.session.handle_text(message)
+
+    def on_ping(self, data):
+        # Tornado has queued the pong: a client that pings but never reads would grow that buffer forever
+        stream = self.ws_connection.stream if self.ws_connection is not None else None
+        if stream is not None and len(stream._write_buffer) > self.bridge.config.max_queue_bytes:
+            self.close(1008, "not reading (pongs piling up)")
+
+    def on_close(self):
+        if self.session is not None:
+            self.session.closed()
+        self.bridge.client_closed(self)
+
+    def _wake(self):
+        tornado.ioloop.IOLoop.current().add_callback(self._flush)
+
+    def _close_after_sending(self, reason):
+        self._close_reason = reason
+        self._wake()
+
+    def _flush(self):
+        """Writes the session's queued frames until the socket is backed up, then resumes when it has
+        drained: a slow client's backlog stays in the session's bounded queue, not in Tornado's buffer."""
+        conn, session = self.ws_connection, self.session
+        while conn is not None and not conn.is_closing():
+            frame = session.take_frame()
+            if frame is None:
+                if self._close_reason is not None:
+                    self.close(1008, self._close_reason)
+                return
+            try:
+                written = self._write(conn, frame)
+            except (tornado.iostream.StreamClosedError, tornado.websocket.WebSocketClosedError):
+                return
+            if conn.stream.writing():
+                written.add_done_callback(self._drained)
+                return
+            if self.bridge.settings.delay_between_messages:
+                tornado.ioloop.IOLoop.current().call_later(self.bridge.settings.delay_between_messages,
+                                                           self._flush)
+                return
+
+    def _drained(self, written):
+        if not written.cancelled() and written.exception() is None:
+            self._flush()
+
+    def _write(self, conn, frame):
+        """Sends one frame; returns the stream's write future. Without permessage-deflate the frame goes
+        straight to the stream: the same bytes for every client, and none of the Task that write_message
+        wraps around each write."""
+        binary = not isinstance(frame, str) and not isinstance(frame, Utf8Text)
+        if self.bridge.settings.use_compression:
+            return self.write_message(frame, binary=binary)
+        payload = frame.encode() if isinstance(frame, str) else frame
+        return conn.stream.write(websocket_frame(payload, 0x2 if binary else 0x1))
+
+
+def is_local_name(host):
+    """An IP address, localhost, or this machine's host name."""
+    try:
+        ipaddress.ip_address(host)
+        return True
+    except ValueError:
+        return host.lower() in ("localhost", socket.gethostname().lower())
+
+
+def websocket_frame(payload, opcode):
+    """An unmasked, unfragmented server-to-client websocket frame (RFC 6455 section 5.2)."""
+    length = len(payload)
+    if length < 126:
+        header = struct.pack("!BB", 0x80 | opcode, length)
+    elif length <= 0xFFFF:
+        header = struct.pack("!BBH", 0x80 | opcode, 126, length)
+    else:
+        header = struct.pack("!BBQ", 0x80 | opcode, 127, length)
+    return header + payload
