@@ -1,9 +1,11 @@
 """The contract between the protocol (one Session per client) and the ROS side (ros_side.RosBackend).
 
 Every method runs on the event-loop thread. A method that refuses raises a ClientError whose text goes back
-to the client; any other exception is a bug. `session` is the calling client's Session: the ROS side hands
-messages back through `session.deliver(TopicMessage)` and calls of a client's service through
-`session.request_service(call_id, service, args)`, both on the loop."""
+to the client; any other exception is a bug. Work that can block (the master, making rospy objects) is done
+off the loop: a refusal found out there comes later, through `session.ros_refused(op, name, text)`.
+`session` is the calling client's Session: the ROS side hands messages back through
+`session.deliver(TopicMessage)` and calls of a client's service through
+`session.request_service(call_id, service, args)`, all on the loop."""
 import abc
 
 

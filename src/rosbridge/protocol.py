@@ -5,22 +5,21 @@ contract. Pure: no rospy, no tornado; the server gives it a clock, a timer and a
 The jobs around it have rooms of their own: reassembly.py (fragment and png ops), subscription.py (merging and
 throttling), outgoing.py (the bounded outgoing queue), frames.py (encoding what goes out), auth.py (rosauth)."""
 import json
-import logging
 import math
-import sys
-import time
 
 from rosbridge import globs as globs_module
 from rosbridge import settings
 from rosbridge.auth import mac_is_valid
 from rosbridge.convert import dumps
-from rosbridge.errors import ClientError, RequestError
+from rosbridge.errors import ClientError, RequestError, log_bug
 from rosbridge.frames import COMPRESSIONS, service_response_frames, status_frame
 from rosbridge.outgoing import FrameQueue
 from rosbridge.reassembly import Fragments, unpack_png
 from rosbridge.subscription import MAX_THROTTLE_RATE, Subscription
 
 STATUS_LEVELS = ("info", "warning", "error", "none")
+# ops the ROS side may refuse later, off the loop (see Session.ros_refused), and the field naming what they ask
+LATER_REFUSALS = {"subscribe": "topic", "advertise": "topic", "publish": "topic", "advertise_service": "service"}
 LARGEST_INT = 2**63 - 1  # the widest integer ROS has (int64/uint64 aside); any count or time fits
 
 
@@ -121,6 +120,7 @@ class Session:
         self._clock, self._call_later, self._wake, self._close = clock, call_later, wake, close
         self.subscriptions = {}
         self.advertised = set()
+        self._ids = {}  # (op, name) -> the id of the latest such request, for refusals that come later
         self.level = STATUS_LEVELS.index("error")
         self.authenticated = not config.authenticate
         self.is_closed = False
@@ -166,6 +166,8 @@ class Session:
             if depth > 2 and op in ("fragment", "png"):
                 raise RequestError(f"{op} nested too deeply")
             getattr(self, "_op_" + op)(request, depth)
+            if op in LATER_REFUSALS and request_id is not None:
+                self._remember_id(op, request[LATER_REFUSALS[op]], request_id)
         except ClientError as error:
             self.status("error", str(error), request_id)
             if op == "call_service" and isinstance(request.get("service"), str) and self.authenticated:
@@ -178,6 +180,13 @@ class Session:
             self.status("error", f"{op}: internal error (logged by the bridge)", request_id)
             if op == "auth" and not self.authenticated:
                 self.close("authentication failed")
+
+    def _remember_id(self, op, name, request_id):
+        ids = self._ids
+        ids.pop((op, name), None)
+        ids[(op, name)] = request_id
+        if len(ids) > 2 * self.config.max_topics_per_client:  # (a client's names are bounded; keep it so)
+            del ids[next(iter(ids))]
 
     def _check_topic(self, topic):
         if not globs_module.allowed(topic, self.config.globs.topics):
@@ -305,6 +314,17 @@ class Session:
         if subscription is not None:
             subscription.deliver(message)
 
+    def ros_refused(self, op, name, text):
+        """The ROS side could not do what an earlier `op` on `name` asked; it found out later, off the loop."""
+        request_id = self._ids.pop((op, name), None)
+        if op == "subscribe":
+            subscription = self.subscriptions.pop(name, None)
+            if subscription is not None:
+                subscription.close()
+        elif op in ("advertise", "publish"):
+            self.advertised.discard(name)
+        self.status("error", text, request_id)
+
     def request_service(self, call_id, service, args):
         """The ROS side forwards a call of a service this client advertised."""
         self.send(dumps({"op": "call_service", "id": call_id, "service": service, "args": args}))
@@ -368,20 +388,3 @@ def _compression(req):
     if compression not in COMPRESSIONS:
         raise RequestError(f"{req['op']}: compression must be one of {', '.join(COMPRESSIONS)}, got {compression!r}")
     return compression
-
-
-_bug_last_logged = {}
-
-
-def log_bug(what, every=60.0):
-    """Logs the exception being handled with its traceback, at most once per `every` seconds per kind (its
-    place and type), so that a client repeating a bad frame cannot fill the disk."""
-    error = sys.exc_info()[1]
-    tb = error.__traceback__
-    while tb.tb_next is not None:
-        tb = tb.tb_next
-    kind = (what, type(error).__name__, tb.tb_frame.f_code.co_filename, tb.tb_lineno)
-    now = time.monotonic()
-    if now - _bug_last_logged.get(kind, -every) >= every:
-        _bug_last_logged[kind] = now
-        logging.getLogger("rosbridge").exception("internal error: %s", what)

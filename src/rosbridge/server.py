@@ -21,6 +21,7 @@ from rosbridge import protocol
 from rosbridge.globs import Globs, parse_globs
 from rosbridge.pages import PageFiles
 from rosbridge.ros_side import RosBackend
+from rosbridge.ros_side.recovery import MasterWatch
 from rosbridge.rosapi import Rosapi
 from rosbridge.settings import Settings
 from rosbridge.websocket import BridgeSocket
@@ -150,6 +151,7 @@ def main():
     accept_connections(server, sockets, bridge, loop)
     port = sockets[0].getsockname()[1]
     rospy.set_param("~actual_port", port)
+    MasterWatch(after_recovery=lambda: rospy.set_param("~actual_port", port))
     scheme = "wss" if ssl_options else "ws"
     rospy.loginfo("Rosbridge WebSocket server started at %s://%s:%d (page: %s)", scheme,
                   current.address or "0.0.0.0", port, web_root or "off")

@@ -235,3 +235,51 @@ def test_roscore_restarted_under_the_bridge(tmp_path):
         assert proc.alive()
     finally:
         master.stop()
+
+
+def test_after_a_roscore_restart_the_connected_client_drives_again(tmp_path):
+    """A laptop's roscore restarts (and turtlesim with it) under a connected page: the bridge registers its
+    publisher, subscriber and /client_count with the new master, so the same connection's cmd_vel moves the new
+    turtle within 5 s and its pose subscription delivers again, to it and to new clients."""
+    master = RosMaster(tmp_path).start()
+    try:
+        proc, port = start_bridge(master, node_name="bridge_recovery")
+        turtle = master.spawn(["rosrun", "turtlesim", "turtlesim_node"], "turtle_before")
+        turtle.wait_output("Spawning turtle [turtle1]", timeout=30)
+        client = WsClient(f"ws://127.0.0.1:{port}/")
+        client.send({"op": "subscribe", "topic": "/turtle1/pose", "type": "turtlesim/Pose"})
+        client.send({"op": "advertise", "topic": "/turtle1/cmd_vel", "type": "geometry_msgs/Twist"})
+        client.recv_op("publish", timeout=30, topic="/turtle1/pose")
+
+        turtle.stop()
+        master.core.stop()
+        master.procs.remove(master.core)
+        master.start()  # same port, a new master that knows nobody
+        turtle = master.spawn(["rosrun", "turtlesim", "turtlesim_node"], "turtle_after")
+        turtle.wait_output("Spawning turtle [turtle1]", timeout=30)
+        started = time.monotonic()
+        forward = {"op": "publish", "topic": "/turtle1/cmd_vel",
+                   "msg": {"linear": {"x": 1.0, "y": 0, "z": 0}, "angular": {"x": 0, "y": 0, "z": 0}}}
+
+        def moving():
+            client.send(forward)
+            try:
+                client.recv_until(lambda f: f.get("topic") == "/turtle1/pose"
+                                  and f["msg"]["linear_velocity"] == pytest.approx(1.0), timeout=0.1, limit=10**6)
+                return True
+            except TimeoutError:
+                return False
+        wait_for(moving, 30, interval=0.01, what="the same connection driving the new turtle")
+        assert time.monotonic() - started < 5.0
+
+        newcomer = WsClient(f"ws://127.0.0.1:{port}/")
+        newcomer.send({"op": "subscribe", "topic": "/turtle1/pose"})
+        newcomer.recv_op("publish", timeout=10, topic="/turtle1/pose")
+        newcomer.send({"op": "subscribe", "topic": "/client_count"})
+        assert newcomer.recv_op("publish", timeout=10, topic="/client_count")["msg"]["data"] == 2
+        for each in (client, newcomer):
+            each.close()
+        turtle.stop()
+        assert proc.alive()
+    finally:
+        master.stop()

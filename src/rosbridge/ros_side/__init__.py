@@ -3,17 +3,23 @@ clients' requests need, shared by every client with reference counts (holders.py
 
 Files: backend.py (RosBackend, the protocol's backend: a short front over the rest), publishers.py (client ->
 ROS topics), subscribers.py (ROS -> client topics), services.py (calls out, and services that clients provide),
+worker.py (the thread for work that can block), recovery.py (registering again with a restarted master),
 holders.py (who holds what; pure).
 
 Threads, what each may touch, and how work crosses between them:
 - The event loop (one thread): every Session, RosBackend and the managers' tables; the subscribers' drain; every
-  timer. Nothing here blocks it except creating rospy objects and asking the master.
+  timer. Nothing here asks the master or makes a rospy object.
+- The worker (one thread, RosWorker): asks the master (GraphSnapshot, only it touches that) and makes and drops
+  rospy subscribers, publishers and services, in the order the loop submitted them. Each job's outcome goes
+  back to the loop (IOLoop.add_callback); an object's fields written by a job (`_subscriber`, `_publisher`,
+  `server`) are read only by later jobs or after the loop got the outcome.
 - rospy's receiving threads, one per connection to a publisher: TopicSubscriber.on_message only appends to
   the topic's inbox (a deque: append/popleft are atomic) and, if `wake_pending` is False, sets it and asks the
   loop (IOLoop.add_callback, thread-safe) to drain. The loop clears `wake_pending` before it reads how much to
   drain, so a message appended meanwhile is either drained now or wakes the loop again.
-- One publishing thread per client-advertised topic (ClientPublisher): the loop appends converted messages to
-  its queue (a deque) and sets an Event; the thread pops and publishes. `_closed` is written by the loop and
+- One publishing thread per client-advertised topic (ClientPublisher), started by the worker once the rospy
+  publisher exists: the loop appends converted messages to its queue (a deque) and sets an Event; the thread
+  pops and publishes. `_closed` is written by the loop and
   read by the thread after the Event: set once, never cleared.
 - rospy's subscriber-listener callbacks (peer_subscribe / peer_unsubscribe, on rospy's threads) and the
   publishing thread both use EarlyReplay's buffer: every read and write of it holds EarlyReplay's lock.

@@ -1,12 +1,12 @@
 """RosBackend: the protocol's backend (backend.Backend), a short front over publishers, subscribers and
 services, plus the bridge's own /client_count and the master look-ups they share."""
-import rosgraph
 import rospy
 
 from rosbridge.backend import Backend
 from rosbridge.ros_side.publishers import Publishers
 from rosbridge.ros_side.services import ProvidedServices, ServiceCalls
 from rosbridge.ros_side.subscribers import Subscribers
+from rosbridge.ros_side.worker import RosWorker
 from rosbridge.types import message_class
 
 MAX_CALLS_RUNNING_PER_CLIENT = 16  # service calls of one client running at once (each on a thread)
@@ -16,25 +16,17 @@ MAX_CALLS_PENDING_PER_CLIENT = 1000  # running or waiting
 
 class RosBackend(Backend):
     def __init__(self, loop, rosapi=None, unregister_timeout=10.0, service_timeout=60.0):
-        self._master = rosgraph.Master(rospy.get_name())
-        self._publishers = Publishers(loop, self._graph_type, unregister_timeout)
-        self._subscribers = Subscribers(loop, self._graph_type)
+        worker = RosWorker(loop)
+        self._publishers = Publishers(loop, worker, unregister_timeout)
+        self._subscribers = Subscribers(loop, worker)
         self._calls = ServiceCalls(loop, rosapi, MAX_CALLS_RUNNING_PER_CLIENT, MAX_CALLS_RUNNING,
                                    MAX_CALLS_PENDING_PER_CLIENT)
-        self._provided = ProvidedServices(loop, self._master, service_timeout)
+        self._provided = ProvidedServices(loop, worker, service_timeout)
         self._client_count = rospy.Publisher("/client_count", message_class("std_msgs/Int32"), latch=True,
                                              queue_size=1)
 
     def set_client_count(self, count):
         self._client_count.publish(message_class("std_msgs/Int32")(count))
-
-    def _graph_type(self, topic):
-        """The topic's type as the master knows it while someone publishes or subscribes to it, or None (the
-        master remembers the type of a topic nobody uses any more: that must not bind the next user)."""
-        publishers, subscribers, _ = self._master.getSystemState()
-        if not any(name == topic for name, _ in publishers) and not any(name == topic for name, _ in subscribers):
-            return None
-        return dict(self._master.getTopicTypes()).get(topic)
 
     def advertise(self, session, topic, type_name, latch=False, queue_size=100):
         self._publishers.advertise(session, topic, type_name, latch, queue_size)

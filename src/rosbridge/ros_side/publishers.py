@@ -8,7 +8,7 @@ import warnings
 import rospy
 
 from rosbridge.convert import from_json
-from rosbridge.errors import RequestError
+from rosbridge.errors import RequestError, refusal_text
 from rosbridge.ros_side.holders import Holders
 from rosbridge.types import message_class
 
@@ -18,6 +18,7 @@ from rosbridge.types import message_class
 # that the first Twist of a page is not lost. Never after a subscriber has left: a robot driver that restarts
 # must not receive stale commands.
 REPLAY_WINDOW = 1.0  # seconds after advertising
+INFERRING_LIMIT = 100  # messages kept per topic while the master is asked for its type
 
 
 class EarlyReplay:
@@ -65,25 +66,36 @@ class ClientPublisher:
     Not rospy's queued publisher on the loop: it yields the thread after every message (time.sleep(0)), which
     on a busy machine costs the loop far more than the publishing itself (client -> ROS: 4x fewer msg/s). Not
     a synchronous publisher on the loop either: one stalled subscriber would then freeze every client. The
-    queue keeps rospy's queue_size meaning: when full, the oldest message is dropped (0 = unbounded)."""
+    queue keeps rospy's queue_size meaning: when full, the oldest message is dropped (0 = unbounded).
+
+    The loop puts messages from the start; the worker makes the rospy publisher (a master call) and only then
+    starts the thread, which publishes what waits."""
 
     def __init__(self, topic, cls, latch, queue_size):
+        self.topic, self._cls, self._latch = topic, cls, latch
         maxlen = queue_size if 0 < queue_size < sys.maxsize else None
-        # (a latched publisher already sends its last message to every new subscriber)
-        self._early = None if latch else EarlyReplay(maxlen or 100)
-        with warnings.catch_warnings():  # rospy warns about queue_size=None: synchronous is meant here
-            warnings.simplefilter("ignore")
-            self._publisher = rospy.Publisher(topic, cls, latch=latch, queue_size=None,
-                                              subscriber_listener=self._early)
         self._queue = collections.deque(maxlen=maxlen)
         self._ready = threading.Event()
         self._closed = False
-        threading.Thread(target=self._run, name=f"publish {topic}", daemon=True).start()
+        self._publisher = self._early = None  # made on the worker before the thread starts
+
+    def make(self, graph, type_name):
+        """On the worker: check the graph's type, make the rospy publisher, start publishing."""
+        graph_type = graph.topic_type(self.topic)
+        if graph_type not in (None, type_name):
+            raise RequestError(f"advertise {self.topic}: the topic already has type {graph_type}, not {type_name}")
+        # (a latched publisher already sends its last message to every new subscriber)
+        self._early = None if self._latch else EarlyReplay(self._queue.maxlen or 100)
+        with warnings.catch_warnings():  # rospy warns about queue_size=None: synchronous is meant here
+            warnings.simplefilter("ignore")
+            self._publisher = rospy.Publisher(self.topic, self._cls, latch=self._latch, queue_size=None,
+                                              subscriber_listener=self._early)
+        threading.Thread(target=self._run, name=f"publish {self.topic}", daemon=True).start()
 
     def put(self, msg):
         self._queue.append(msg)
         self._ready.set()
-        if self._queue.maxlen and len(self._queue) * 2 > self._queue.maxlen:
+        if self._queue.maxlen and len(self._queue) * 2 > self._queue.maxlen and self._publisher is not None:
             time.sleep(0)  # the publishing thread falls behind: let it have the GIL before the queue overflows
 
     def close(self):
@@ -100,7 +112,7 @@ class ClientPublisher:
                 try:
                     self._publisher.publish(msg)
                 except Exception as error:  # a broken connection: rospy drops it; keep publishing to the others
-                    rospy.logwarn("publishing on %s failed: %s", self._publisher.resolved_name, error)
+                    rospy.logwarn("publishing on %s failed: %s", self.topic, error)
                 if self._early is not None:
                     self._early.record(msg, self._publisher.get_num_connections)
             if self._closed:
@@ -109,36 +121,53 @@ class ClientPublisher:
 
 
 class _Entry:
-    __slots__ = ("type", "cls", "publisher", "unregister_timer")
+    __slots__ = ("type", "cls", "publisher", "ready", "unregister_timer")
 
     def __init__(self, type_name, cls, publisher):
         self.type, self.cls, self.publisher = type_name, cls, publisher
+        self.ready = False
         self.unregister_timer = None
 
 
 class Publishers:
-    """The topics clients publish. A topic's publisher outlives its last client by unregister_timeout seconds,
-    so that a page reload finds its subscribers still connected."""
+    """The topics clients publish. A topic's publisher is made on the worker, and outlives its last client by
+    unregister_timeout seconds, so that a page reload finds its subscribers still connected. A client learns of
+    a failure on the worker through session.ros_refused."""
 
-    def __init__(self, loop, graph_type, unregister_timeout):
-        self._loop, self._graph_type, self._unregister_timeout = loop, graph_type, unregister_timeout
+    def __init__(self, loop, worker, unregister_timeout):
+        self._loop, self._worker, self._unregister_timeout = loop, worker, unregister_timeout
         self._entries = {}
         self._holders = Holders()
+        self._inferring = {}  # topic -> [(session, msg, latch, queue_size)] waiting for the graph's type
 
     def advertise(self, session, topic, type_name, latch, queue_size):
         entry = self._entries.get(topic)
         if entry is None:
             cls = message_class(type_name)
-            graph_type = self._graph_type(topic)
-            if graph_type not in (None, type_name):
-                raise RequestError(f"advertise {topic}: the topic already has type {graph_type}, not {type_name}")
             entry = self._entries[topic] = _Entry(type_name, cls, ClientPublisher(topic, cls, latch, queue_size))
+            self._worker.submit(lambda: entry.publisher.make(self._worker.graph, type_name),
+                                lambda error, _: self._made(topic, entry, error))
         elif entry.type != type_name:
             raise RequestError(f"advertise {topic}: the bridge already publishes it as {entry.type}, not {type_name}")
         if entry.unregister_timer is not None:  # a client came back in time (page reload): keep the publisher
             self._loop.remove_timeout(entry.unregister_timer)
             entry.unregister_timer = None
         self._holders.add(topic, session)
+
+    def _made(self, topic, entry, error):
+        if error is None:
+            entry.ready = True
+            if self._entries.get(topic) is not entry:  # dropped while it was being made
+                entry.publisher.close()
+            return
+        if self._entries.get(topic) is entry:
+            del self._entries[topic]
+            if entry.unregister_timer is not None:
+                self._loop.remove_timeout(entry.unregister_timer)
+        text = refusal_text(error, f"advertising {topic}")
+        for session in self._holders.holders(topic):
+            self._holders.discard(topic, session)
+            session.ros_refused("advertise", topic, text)
 
     def unadvertise(self, session, topic):
         if not self._holders.holds(topic, session):
@@ -147,13 +176,34 @@ class Publishers:
 
     def publish(self, session, topic, msg, latch, queue_size):
         entry = self._entries.get(topic)
-        if entry is None or not self._holders.holds(topic, session):
-            type_name = entry.type if entry is not None else self._graph_type(topic)
-            if type_name is None:
-                raise RequestError(f"publish {topic}: cannot infer the topic's type; advertise it first")
-            self.advertise(session, topic, type_name, latch, queue_size)
-            entry = self._entries[topic]
-        entry.publisher.put(from_json(entry.cls, msg, now=rospy.Time.now))
+        if entry is not None:
+            if not self._holders.holds(topic, session):
+                self.advertise(session, topic, entry.type, latch, queue_size)
+            entry.publisher.put(from_json(entry.cls, msg, now=rospy.Time.now))
+            return
+        waiting = self._inferring.get(topic)
+        if waiting is None:  # ask the master for the topic's type, off the loop
+            waiting = self._inferring[topic] = []
+            self._worker.submit(lambda: self._worker.graph.topic_type(topic),
+                                lambda error, type_name: self._inferred(topic, error, type_name))
+        if len(waiting) >= INFERRING_LIMIT:
+            raise RequestError(f"publish {topic}: {INFERRING_LIMIT} messages already wait for the topic's type")
+        waiting.append((session, msg, latch, queue_size))
+
+    def _inferred(self, topic, error, type_name):
+        for session, msg, latch, queue_size in self._inferring.pop(topic, ()):
+            if session.is_closed:
+                continue
+            if error is None and type_name is None:
+                error = RequestError(f"publish {topic}: cannot infer the topic's type; advertise it first")
+            try:
+                if error is not None:
+                    raise error
+                if topic not in self._entries:
+                    self.advertise(session, topic, type_name, latch, queue_size)
+                self.publish(session, topic, msg, latch, queue_size)
+            except Exception as refused:
+                session.ros_refused("publish", topic, refusal_text(refused, f"publishing {topic}"))
 
     def release(self, session):
         for topic in self._holders.names_of(session):
@@ -169,4 +219,5 @@ class Publishers:
         entry.unregister_timer = None
         if not self._holders.holders(topic) and self._entries.get(topic) is entry:
             del self._entries[topic]
-            entry.publisher.close()
+            if entry.ready:
+                entry.publisher.close()

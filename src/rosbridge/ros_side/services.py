@@ -5,11 +5,12 @@ import functools
 import itertools
 import threading
 
+import rosgraph
 import rospy
 import rosservice
 
 from rosbridge.convert import ConversionError, from_json, request_from_args, to_json
-from rosbridge.errors import RequestError
+from rosbridge.errors import RequestError, refusal_text
 from rosbridge.types import service_class
 
 
@@ -136,10 +137,10 @@ class _ProvidedService:
 
 class ProvidedServices:
     """ROS services provided by clients: a ROS call is forwarded to the client (call_service op) and answered
-    with its service_response."""
+    with its service_response. The rospy service is made and shut down on the worker."""
 
-    def __init__(self, loop, master, service_timeout):
-        self._loop, self._master, self._service_timeout = loop, master, service_timeout
+    def __init__(self, loop, worker, service_timeout):
+        self._loop, self._worker, self._service_timeout = loop, worker, service_timeout
         self._services = {}
         self._call_ids = itertools.count(1)
 
@@ -150,13 +151,26 @@ class ProvidedServices:
             if entry.session is session and entry.type == type_name:
                 return
             self._shutdown(entry, "advertised again by another client")
-        else:
-            me = rospy.get_name()
-            for name, providers in self._master.getSystemState()[2]:
-                if name == service and any(p != me for p in providers):
-                    raise RequestError(f"advertise_service {service}: already provided by {', '.join(providers)}")
         entry = self._services[service] = _ProvidedService(service, type_name, cls, session)
-        entry.server = rospy.Service(service, cls, lambda request: self._serve(entry, request))
+        self._worker.submit(lambda: self._make(entry), lambda error, _: self._made(entry, error))
+
+    def _make(self, entry):
+        """On the worker: refuse a service another node provides, then make ours."""
+        me = rospy.get_name()
+        for name, providers in rosgraph.Master(me).getSystemState()[2]:
+            if name == entry.name and any(p != me for p in providers):
+                raise RequestError(f"advertise_service {entry.name}: already provided by {', '.join(providers)}")
+        entry.server = rospy.Service(entry.name, entry.cls, lambda request: self._serve(entry, request))
+
+    def _made(self, entry, error):
+        if error is None:
+            if self._services.get(entry.name) is not entry:  # unadvertised while it was being made
+                self._worker.submit(lambda: entry.server.shutdown("unadvertised by its client"))
+            return
+        if self._services.get(entry.name) is entry:
+            del self._services[entry.name]
+        entry.session.ros_refused("advertise_service", entry.name,
+                                  refusal_text(error, f"advertising service {entry.name}"))
 
     def unadvertise(self, session, service):
         entry = self._services.get(service)
@@ -166,7 +180,9 @@ class ProvidedServices:
 
     def _shutdown(self, entry, why):
         del self._services[entry.name]
-        entry.server.shutdown(why)
+        server = entry.server
+        if server is not None:  # (else it is still being made: _made shuts it down)
+            self._worker.submit(lambda: server.shutdown(why))
         for future in entry.pending.values():
             if not future.done():
                 future.set_exception(rospy.ServiceException(f"service {entry.name} {why}"))

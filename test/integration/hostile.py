@@ -1,0 +1,119 @@
+"""Hostile websocket clients, one abuse each, run as a process of their own (so that they compete with the
+bridge, not with the test's measuring client, for the CPU and the GIL):
+
+    python3 hostile.py ws://127.0.0.1:PORT/ ABUSE SECONDS
+
+Each abuse runs for at most SECONDS (or until done) and the process exits; it prints one line of what it did."""
+import asyncio
+import json
+import socket
+import struct
+import sys
+import time
+import urllib.parse
+
+from tornado.websocket import WebSocketClosedError, websocket_connect
+
+
+async def flood(ws, seconds):
+    """Cheap frames as fast as the socket takes them (each one answered with an error)."""
+    sent, end = 0, time.monotonic() + seconds
+    while time.monotonic() < end:
+        for _ in range(100):
+            ws.write_message('{"op":"no_such_op"}')  # (not awaited: as fast as the socket takes them)
+        sent += 100
+        await asyncio.sleep(0)
+    return f"{sent} frames"
+
+
+async def subscribe_many(ws, seconds):
+    for i in range(2000):
+        await ws.write_message(json.dumps({"op": "subscribe", "topic": f"/hostile/s{i}", "type": "std_msgs/String"}))
+    return "2000 subscribes"
+
+
+async def advertise_many(ws, seconds):
+    for i in range(1000):
+        await ws.write_message(json.dumps({"op": "advertise", "topic": f"/hostile/a{i}", "type": "std_msgs/String"}))
+    return "1000 advertises"
+
+
+async def publish_unknown(ws, seconds):
+    sent, end = 0, time.monotonic() + seconds
+    while time.monotonic() < end:
+        await ws.write_message(json.dumps({"op": "publish", "topic": f"/hostile/p{sent}", "msg": {}}))
+        sent += 1
+    return f"{sent} publishes to unknown topics"
+
+
+async def huge_throttle(ws, seconds):
+    await ws.write_message('{"op":"subscribe","topic":"/turtle1/pose","throttle_rate":1' + "0" * 400 + "}")
+    await asyncio.sleep(seconds)
+    return "one subscribe with a 401-digit throttle_rate"
+
+
+async def silent_service(ws, seconds):
+    """Provides a service, calls it many times and never answers."""
+    await ws.write_message(json.dumps({"op": "advertise_service", "service": "/hostile/silent",
+                                       "type": "std_srvs/Empty"}))
+    await asyncio.sleep(1)
+    for i in range(100):
+        await ws.write_message(json.dumps({"op": "call_service", "service": "/hostile/silent", "id": f"c{i}"}))
+    await asyncio.sleep(seconds)
+    return "100 calls of its own silent service"
+
+
+async def auth_flood(ws, seconds):
+    sent, end = 0, time.monotonic() + seconds
+    while time.monotonic() < end:
+        await ws.write_message(json.dumps({"op": "auth", "mac": "x", "client": "c", "dest": "d", "rand": "r",
+                                           "t": int("9" * 400), "level": "admin", "end": 0}))
+        sent += 1
+    return f"{sent} auth frames"
+
+
+def pings_never_read(url, seconds):
+    """A raw socket: the handshake, then masked pings of 60 KB as fast as the bridge takes them, never reading."""
+    parts = urllib.parse.urlparse(url)
+    sock = socket.create_connection((parts.hostname, parts.port))
+    sock.sendall(f"GET / HTTP/1.1\r\nHost: {parts.hostname}:{parts.port}\r\nUpgrade: websocket\r\n"
+                 "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+                 "Sec-WebSocket-Version: 13\r\n\r\n".encode())
+    payload = bytes(60_000)
+    frame = struct.pack("!BBH", 0x89, 0x80 | 126, len(payload)) + bytes(4) + payload  # mask key 0: as is
+    sock.settimeout(1.0)
+    sent, end = 0, time.monotonic() + seconds
+    while time.monotonic() < end:
+        try:
+            sock.sendall(frame)
+            sent += 1
+        except OSError:  # the bridge closed us (or our send buffer stays full)
+            break
+    return f"{sent} pings of 60 KB"
+
+
+ABUSES = {f.__name__: f for f in (flood, subscribe_many, advertise_many, publish_unknown, huge_throttle,
+                                  silent_service, auth_flood)}
+
+
+async def main(url, abuse, seconds):
+    """Runs one abuse, again and again on a new connection when the bridge closes it, for `seconds`."""
+    end, done = time.monotonic() + seconds, []
+    while time.monotonic() < end:
+        ws = await websocket_connect(url)
+        try:
+            done.append(await asyncio.wait_for(ABUSES[abuse](ws, end - time.monotonic()), seconds + 60))
+        except WebSocketClosedError:
+            done.append("closed by the bridge")
+            continue
+        ws.close()
+        break
+    return "; ".join(done[:3]) + (f" (and {len(done) - 3} more connections)" if len(done) > 3 else "")
+
+
+if __name__ == "__main__":
+    url, abuse, seconds = sys.argv[1], sys.argv[2], float(sys.argv[3])
+    if abuse == "pings_never_read":
+        print(pings_never_read(url, seconds), flush=True)
+    else:
+        print(asyncio.run(main(url, abuse, seconds)), flush=True)
