@@ -35,7 +35,7 @@ SETTINGS = (
             "in its socket; 0 = no limit. Clients are served in turns whatever this is", ours=True),
     Setting("max_bytes_per_second", int, 100_000_000, "bytes one client may send per second, likewise",
             ours=True),
-    Setting("max_topics_per_client", int, 500,
+    Setting("max_topics_per_client", int, 200,
             "topics one client may subscribe to, and topics it may advertise (each)", ours=True),
     Setting("unregister_timeout", float, 10.0,
             "seconds a topic's publisher outlives its last client (a page reload reuses it)"),

@@ -6,6 +6,8 @@ import socket
 import ssl
 import subprocess
 import time
+import urllib.error
+import urllib.request
 
 import pytest
 import roslibpy
@@ -122,6 +124,52 @@ def test_the_page_server_serves_nothing_outside_web_root(default_bridge, path):
     status = answer.split(b"\r\n", 1)[0]
     assert b"root:" not in answer and b"<package" not in answer, status
     assert status.split()[1] in (b"400", b"403", b"404"), status
+
+
+@pytest.fixture(scope="module")
+def page_bridge(ros, tmp_path_factory):
+    """A web_root laid out as the demo's is, with a symlink pointing out of it and the npm tree beside the page."""
+    root = tmp_path_factory.mktemp("web_root")
+    (root / "index.html").write_text("<canvas></canvas>")
+    (root / "app.js").write_text("export const page = 1;")
+    (root / "leak.js").symlink_to("/etc/passwd")
+    (root / "node_modules" / "roslib").mkdir(parents=True)
+    (root / "node_modules" / "roslib" / "index.js").write_text("module.exports = 1;")
+    (root / "package.json").write_text('{"name": "page"}')
+    (root / ".hidden.js").write_text("secret")
+    proc, port = start_bridge(ros, node_name="security_page_bridge", web_root=root)
+    yield f"http://127.0.0.1:{port}"
+    proc.stop()
+
+
+def http(url, method="GET"):
+    """(status, headers, body) of one request."""
+    request = urllib.request.Request(url, method=method)
+    try:
+        with urllib.request.urlopen(request, timeout=10) as answer:
+            return answer.status, answer.headers, answer.read()
+    except urllib.error.HTTPError as error:
+        return error.code, error.headers, b""
+
+
+@pytest.mark.parametrize("path", ["/", "/app.js"])
+def test_page_files_are_served_with_nosniff_and_no_framing(page_bridge, path):
+    status, headers, body = http(page_bridge + path)
+    assert status == 200 and body
+    assert headers["X-Content-Type-Options"] == "nosniff"
+    assert headers["X-Frame-Options"] == "DENY"
+    assert "frame-ancestors 'none'" in headers["Content-Security-Policy"]
+
+
+def test_head_of_the_page(page_bridge):
+    status, headers, body = http(page_bridge + "/", method="HEAD")
+    assert (status, body) == (200, b"") and headers["Content-Type"].startswith("text/html")
+
+
+@pytest.mark.parametrize("path", ["/leak.js", "/node_modules/roslib/index.js", "/package.json", "/.hidden.js"])
+def test_only_the_pages_own_files_are_served(page_bridge, path):
+    status, _, body = http(page_bridge + path)
+    assert status == 404 and b"root:" not in body
 
 
 # ---- globs ------------------------------------------------------------------------------------------------
