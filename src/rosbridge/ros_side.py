@@ -336,9 +336,14 @@ class RosBackend:
         if future is None or future.done():
             raise RequestError(f"service_response {service}: no call with id {call_id!r} is waiting")
         if not result:
-            future.set_exception(rospy.ServiceException(f"service {service}: the client answered result=false: "
-                                                        f"{values}"))
-            return
+            # As the reference: an object still answers the ROS caller (roslibpy's examples return False from
+            # handlers that fill the response); anything else fails the call, an error text as the reason.
+            if not isinstance(values, dict):
+                reason = values if isinstance(values, str) else f"the client answered result=false: {values}"
+                future.set_exception(rospy.ServiceException(f"service {service}: {reason}"))
+                return
+            session.status("warning", f"service_response {service}: result is false, but its values are an "
+                                      "object: they are the ROS caller's response", call_id)
         try:
             response = from_json(entry.cls._response_class, {} if values is None else values)
         except ConversionError as error:
