@@ -10,6 +10,8 @@ RequestError / ValueError with a message for the client when it refuses):
     call_service(session, service, args, type, timeout, reply)  reply(ok, values) is called later on the loop
     advertise_service(session, service, type)                unadvertise_service(session, service)
     service_response(session, service, id, result, values)
+    resolve_name(name)   a client's (maybe relative) service name as ROS resolves it; the service methods
+                         take the client's spelling and resolve it themselves
 """
 import base64
 import collections
@@ -292,6 +294,7 @@ class Session:
             raise RequestError(f"topic {topic!r} is not allowed by topics_glob {self.config.globs.topics}")
 
     def _check_service(self, service):
+        service = self.backend.resolve_name(service)  # the globs name ROS names: "clear" is checked as "/clear"
         if not service.startswith("/rosapi/") and not globs_module.allowed(service, self.config.globs.services):
             raise RequestError(f"service {service!r} is not allowed by services_glob {self.config.globs.services}")
 

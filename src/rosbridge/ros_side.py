@@ -114,10 +114,11 @@ class _Subscriber:
 
 class _ProvidedService:
     """A ROS service whose answers come from one websocket client."""
-    __slots__ = ("name", "type", "cls", "session", "server", "pending")
+    __slots__ = ("name", "client_name", "type", "cls", "session", "server", "pending")
 
-    def __init__(self, name, type_name, cls, session):
+    def __init__(self, name, client_name, type_name, cls, session):
         self.name, self.type, self.cls, self.session = name, type_name, cls, session
+        self.client_name = client_name  # as the client spelled it: its library routes our calls by that name
         self.pending = {}  # call id -> concurrent.futures.Future waited on by a rospy thread
         self.server = None
 
@@ -137,6 +138,12 @@ class RosBackend:
 
     def set_client_count(self, count):
         self._client_count.publish(message_class("std_msgs/Int32")(count))
+
+    @staticmethod
+    def resolve_name(name):
+        """A client's service name as ROS resolves it in the bridge node's namespace, like the reference
+        (rospy.resolve_name): roslib 2.x calls rosapi by relative names ("rosapi/topics")."""
+        return rospy.resolve_name(name)
 
     def _graph_type(self, topic):
         """The topic's type as the master knows it, or None."""
@@ -242,6 +249,7 @@ class RosBackend:
 
     # ---- services called by a client --------------------------------------------------------------
     def call_service(self, session, service, args, type_name, timeout, reply):
+        service = self.resolve_name(service)
         if self._rosapi is not None and self._rosapi.handles(service):
             future = self._executor.submit(self._rosapi.call, service, args)
         else:
@@ -281,6 +289,7 @@ class RosBackend:
 
     # ---- services provided by a client ------------------------------------------------------------
     def advertise_service(self, session, service, type_name):
+        client_name, service = service, self.resolve_name(service)
         cls = service_class(type_name)
         entry = self._services.get(service)
         if entry is not None:
@@ -292,11 +301,11 @@ class RosBackend:
             for name, providers in self._master.getSystemState()[2]:
                 if name == service and any(p != me for p in providers):
                     raise RequestError(f"advertise_service {service}: already provided by {', '.join(providers)}")
-        entry = self._services[service] = _ProvidedService(service, type_name, cls, session)
+        entry = self._services[service] = _ProvidedService(service, client_name, type_name, cls, session)
         entry.server = rospy.Service(service, cls, lambda request: self._serve(entry, request))
 
     def unadvertise_service(self, session, service):
-        entry = self._services.get(service)
+        entry = self._services.get(self.resolve_name(service))
         if entry is None or entry.session is not session:
             raise RequestError(f"unadvertise_service {service}: not advertised by this client")
         self._shutdown_service(entry, "unadvertised by its client")
@@ -326,10 +335,10 @@ class RosBackend:
         call_id = f"service_request:{entry.name}:{next(self._call_ids)}"
         entry.pending[call_id] = future
         future.add_done_callback(lambda _: self._loop.add_callback(entry.pending.pop, call_id, None))
-        entry.session.request_service(call_id, entry.name, to_json(request))
+        entry.session.request_service(call_id, entry.client_name, to_json(request))
 
     def service_response(self, session, service, call_id, result, values):
-        entry = self._services.get(service)
+        entry = self._services.get(self.resolve_name(service))
         if entry is None or entry.session is not session:
             raise RequestError(f"service_response {service}: not advertised by this client")
         future = entry.pending.pop(call_id, None)

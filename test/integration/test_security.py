@@ -164,6 +164,14 @@ def test_hidden_names_are_refused(glob_client, frame):
     assert ping(glob_client)
 
 
+def test_relative_service_names_meet_the_globs_as_ros_resolves_them(glob_client):
+    """roslib 2.x calls "rosapi/topics": resolved in the bridge's namespace ("/"), as rospy does."""
+    reply = glob_client.request({"op": "call_service", "service": "rosapi/topics", "id": "relative rosapi"})
+    assert reply["op"] == "service_response" and reply["result"] is True, reply
+    assert refused(glob_client.request({"op": "call_service", "service": "sec/hidden/reset", "id": "r"}),
+                   "/sec/hidden/reset")
+
+
 def test_a_library_call_of_a_hidden_service_fails_at_once(glob_bridge):
     """roslibjs and roslibpy match a call by its service_response; the spec answers failures with
     result:false, so the caller's error callback runs instead of waiting forever."""

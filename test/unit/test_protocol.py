@@ -17,6 +17,10 @@ class RecordingBackend:
         self.calls = []
         self.refuse = {}
 
+    @staticmethod
+    def resolve_name(name):
+        return name if name.startswith("/") else "/" + name  # (the bridge's namespace is "/")
+
     def __getattr__(self, name):
         def record(session, *args):
             if name in self.refuse:
