@@ -26,6 +26,7 @@ from rosbridge.ros_side import RosBackend
 from rosbridge.rosapi import Rosapi
 
 DEFAULT_WEB_ROOT = Path(__file__).resolve().parents[2] / "web"
+MAX_LOGGED_ORIGINS = 1000
 
 
 class Bridge:
@@ -33,10 +34,23 @@ class Bridge:
 
     def __init__(self, backend, config, allowed_origins=None, delay_between_messages=0.0, use_compression=False):
         self.backend, self.config = backend, config
-        self.allowed_origins = allowed_origins  # None: same host only (and clients that send no Origin)
+        self.allowed_origins = allowed_origins  # None: this machine's pages only (see origin_allowed)
         self.delay_between_messages = delay_between_messages
         self.use_compression = use_compression
         self.clients = set()
+        self.refused_origins = set()  # logged once each (at most MAX_LOGGED_ORIGINS: the log stays bounded)
+
+    def log_refusal(self, origin, peer):
+        if origin in self.refused_origins or len(self.refused_origins) >= MAX_LOGGED_ORIGINS:
+            return
+        self.refused_origins.add(origin)
+        listed = ", ".join([*(self.allowed_origins or []), origin])
+        why = "it is not in allowed_origins" if self.allowed_origins else (
+            "a page opened from disk in a browser on another machine (or a sandboxed frame)" if origin == "null"
+            else "only pages of this machine may connect by default")
+        rospy.logwarn('Refused a websocket from the web page at origin %s (browser at %s): %s. To allow it: '
+                      'roslaunch turtlesim rosbridge_websocket.launch allowed_origins:="[%s]"', origin, peer, why,
+                      listed)
 
     def client_opened(self, handler):
         self.clients.add(handler)
@@ -64,12 +78,11 @@ class BridgeSocket(tornado.websocket.WebSocketHandler):
         await super().get(*args, **kwargs)
 
     def check_origin(self, origin):
-        patterns = self.bridge.allowed_origins
-        if patterns is not None:
-            return any(fnmatch.fnmatchcase(origin.lower(), pattern.lower()) for pattern in patterns)
-        # Default: a page served by this bridge (same host as the socket's), and reached by an address or by
-        # this machine's own name: a page of another name that DNS re-points here (DNS rebinding) is refused.
-        return super().check_origin(origin) and is_local_name(urllib.parse.urlparse(origin).hostname or "")
+        peer = self.request.remote_ip
+        if origin_allowed(origin, super().check_origin(origin), peer, self.bridge.allowed_origins):
+            return True
+        self.bridge.log_refusal(origin, peer)
+        return False
 
     def get_compression_options(self):
         return {} if self.bridge.use_compression else None
@@ -136,13 +149,47 @@ class BridgeSocket(tornado.websocket.WebSocketHandler):
         return conn.stream.write(websocket_frame(payload, 0x2 if binary else 0x1))
 
 
-def is_local_name(host):
-    """An IP address, localhost, or this machine's host name."""
+def origin_allowed(origin, same_origin, peer, patterns):
+    """Whether a browser page of `origin` may open a websocket (clients that send no Origin are not browsers
+    and are not asked). `same_origin`: the page came from this bridge (its Host); `peer`: the browser's address;
+    `patterns`: the allowed_origins launch arg, None when empty.
+
+    The bridge's own page, reached by a name of this machine, is always allowed. Otherwise allowed_origins
+    decides when it is set; by default pages of this machine on any port (by localhost, its name or one of its
+    addresses: a DNS-rebinding name is refused), and pages opened from disk (Origin "null") when the browser
+    runs on this machine (README, Security: a sandboxed frame sends "null" too)."""
+    origin = origin.lower()
     try:
-        ipaddress.ip_address(host)
+        url = urllib.parse.urlsplit(origin)
+    except ValueError:  # e.g. an unbalanced "[": no page has that origin
+        return False
+    if same_origin and is_this_machine(url.hostname or ""):
         return True
+    if patterns is not None:
+        return any(fnmatch.fnmatchcase(origin, pattern.lower()) for pattern in patterns)
+    if origin == "null":
+        return is_this_machine(peer)
+    return url.scheme in ("http", "https") and is_this_machine(url.hostname or "")
+
+
+def is_this_machine(host):
+    """localhost, this machine's host name, or one of its addresses (loopback included)."""
+    if host in ("localhost", socket.gethostname().lower()):
+        return True
+    try:
+        address = ipaddress.ip_address(host)
     except ValueError:
-        return host.lower() in ("localhost", socket.gethostname().lower())
+        return False
+    address = getattr(address, "ipv4_mapped", None) or address  # ::ffff:a.b.c.d from a dual-stack socket
+    if address.is_loopback:
+        return True
+    family = socket.AF_INET if address.version == 4 else socket.AF_INET6
+    with socket.socket(family, socket.SOCK_DGRAM) as probe:
+        try:
+            probe.bind((str(address), 0))  # only this machine's own addresses can be bound
+        except OSError:
+            return False
+    return True
 
 
 def websocket_frame(payload, opcode):
