@@ -72,3 +72,27 @@ def test_roslibjs_provides_a_service_to_ros(ros, roslib, url, step, service):
     assert "success: False" in reply and "flipped by roslibjs" in reply
     assert proc.popen.wait(30) == 0, proc.output()
     assert results(proc)[step]["request"] == {"data": True}
+
+
+def test_roslibjs_simple_example(ros, roslib, url, node):
+    """roslibjs's examples/simple.html, against rospy stand-ins for `rostopic pub /listener`, `rostopic echo
+    /cmd_vel` and the add_two_ints server."""
+    from geometry_msgs.msg import Twist
+    from std_msgs.msg import String
+    from std_srvs.srv import SetBool, SetBoolResponse
+    twists = []
+    echo = node.Subscriber("/cmd_vel", Twist, twists.append)
+    talker = node.Publisher("/listener", String, latch=True, queue_size=1)
+    talker.publish(String("Hello, World!"))
+    server = node.Service("/add_two_ints", SetBool, lambda request: SetBoolResponse(True, "3"))
+    try:
+        out = run_roslibjs(ros, roslib, url, "simple-example")["simple-example"]
+        assert (out["heard"], out["sum"]) == ("Hello, World!", {"success": True, "message": "3"})
+        assert (out["max_vel_y"], out["favorite_color"]) == (0.8, "red")
+        assert "/rosdistro" in out["params"] and node.get_param("/favorite_color") == "red"
+        wait_for(lambda: twists, 10, what="the Twist on /cmd_vel")
+        assert (twists[0].linear.x, twists[0].angular.z) == (0.1, -0.3)
+    finally:
+        echo.unregister()
+        talker.unregister()
+        server.shutdown()

@@ -51,6 +51,25 @@ const STEPS = {
     const param = new ROSLIB.Param({ros, name: '/js_test/answer'});
     param.set({answer: 42, list: [1, 'two']}, () => param.get((value) => resolve({value}), reject), reject);
   }),
+  // roslibjs's examples/simple.html in order: publish a Twist on /cmd_vel, hear /listener once, call
+  // /add_two_ints (std_srvs/SetBool here: rospy_tutorials is not packaged by Debian), list the params, set and
+  // read max_vel_y and favorite_color (relative names)
+  'simple-example': async () => {
+    new ROSLIB.Topic({ros, name: '/cmd_vel', messageType: 'geometry_msgs/Twist'})
+      .publish({linear: {x: 0.1, y: 0.2, z: 0.3}, angular: {x: -0.1, y: -0.2, z: -0.3}});
+    const heard = await new Promise((resolve) => {
+      const listener = new ROSLIB.Topic({ros, name: '/listener', messageType: 'std_msgs/String'});
+      listener.subscribe((message) => { listener.unsubscribe(); resolve(message.data); });
+    });
+    const sum = await call('/add_two_ints', {data: true});
+    const params = await new Promise((resolve, reject) => ros.getParams(resolve, reject));
+    const setThenGet = (name, value) => new Promise((resolve, reject) => {
+      const param = new ROSLIB.Param({ros, name});
+      param.set(value, () => param.get(resolve, reject), reject);
+    });
+    return {heard, sum, params, max_vel_y: await setThenGet('max_vel_y', 0.8),
+            favorite_color: await setThenGet('favorite_color', 'red')};
+  },
   serve: serve('/js_test/flip'),
   'serve-relative': serve('js_test/relative_flip'),
 };
