@@ -348,8 +348,9 @@ class RosBackend:
             # As the reference: an object still answers the ROS caller (roslibpy's examples return False from
             # handlers that fill the response); anything else fails the call, an error text as the reason.
             if not isinstance(values, dict):
-                reason = values if isinstance(values, str) else f"the client answered result=false: {values}"
-                future.set_exception(rospy.ServiceException(f"service {service}: {reason}"))
+                reason = values if isinstance(values, str) else \
+                    f"service {service}: the client answered result=false: {values}"
+                future.set_exception(rospy.ServiceException(reason))
                 return
             session.status("warning", f"service_response {service}: result is false, but its values are an "
                                       "object: they are the ROS caller's response", call_id)
