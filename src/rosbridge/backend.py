@@ -48,5 +48,10 @@ class Backend(abc.ABC):
         """The client's answer to a call forwarded with request_service."""
 
     @abc.abstractmethod
+    def resolve_name(self, name):
+        """A client's (maybe relative) service name as ROS resolves it in the bridge's namespace. The service
+        methods take the client's spelling and resolve it themselves."""
+
+    @abc.abstractmethod
     def release(self, session):
         """The client left: release everything it held."""

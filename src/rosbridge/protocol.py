@@ -193,6 +193,7 @@ class Session:
             raise RequestError(f"topic {topic!r} is not allowed by topics_glob {self.config.globs.topics}")
 
     def _check_service(self, service):
+        service = self.backend.resolve_name(service)  # the globs name ROS names: "clear" is checked as "/clear"
         if not service.startswith("/rosapi/") and not globs_module.allowed(service, self.config.globs.services):
             raise RequestError(f"service {service!r} is not allowed by services_glob {self.config.globs.services}")
 

@@ -26,6 +26,7 @@ from rosbridge.rosapi import Rosapi
 from rosbridge.settings import Settings
 from rosbridge.websocket import BridgeSocket
 
+MAX_LOGGED_KINDS = 1000  # kinds of refusal remembered for rate limiting (refused origins are kinds)
 FDS_KEPT_FREE = 64  # file descriptors left to rospy (subscribers, service calls) when clients are accepted
 
 
@@ -48,11 +49,22 @@ class Bridge:
             self.backend.set_client_count(len(self.clients))
 
     def log_refusal(self, kind, text, every=60.0):
-        """Logs a refused connection, at most once a minute per kind."""
+        """Logs a refusal at most once a minute per kind (and of at most MAX_LOGGED_KINDS kinds)."""
         now = time.monotonic()
-        if now - self._logged.get(kind, -every) >= every:
-            self._logged[kind] = now
-            rospy.logwarn("%s", text)
+        if now - self._logged.get(kind, -every) < every or (
+                kind not in self._logged and len(self._logged) >= MAX_LOGGED_KINDS):
+            return
+        self._logged[kind] = now
+        rospy.logwarn("%s", text)
+
+    def refused_origin(self, origin, peer):
+        listed = ", ".join([*(self.allowed_origins or []), origin])
+        why = "it is not in allowed_origins" if self.allowed_origins else (
+            "a page opened from disk in a browser on another machine (or a sandboxed frame)" if origin == "null"
+            else "only pages of this machine may connect by default")
+        self.log_refusal(("origin", origin), f"Refused a websocket from the web page at origin {origin} (browser at "
+                         f"{peer}): {why}. To allow it: roslaunch turtlesim rosbridge_websocket.launch "
+                         f'allowed_origins:="[{listed}]"')
 
 
 def routes(bridge, web_root):

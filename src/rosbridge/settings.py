@@ -46,8 +46,8 @@ SETTINGS = (
     Setting("services_glob", str, "", "services clients may call or provide; empty = all"),
     Setting("params_glob", str, "", "parameters clients may read or write; empty = all"),
     Setting("allowed_origins", str, "",
-            'other web pages allowed to connect, e.g. `"[http://*.lan:*]"`; `"[*]"` = any; empty = same host '
-            "only (the bridge's own page is always allowed)", ours=True),
+            'web pages allowed to connect, e.g. `"[http://*.lan:*]"`; `"[*]"` = any; empty = this machine\'s '
+            "pages (see Security); the bridge's own page is always allowed", ours=True),
     Setting("web_root", str, "", "folder served over HTTP; empty = the package's `web/`; `none` = no page",
             ours=True),
 )

@@ -1,12 +1,8 @@
 """One websocket client on the event loop: reads its frames in turns with the other clients (budget.py), feeds
 them to its protocol Session, and writes the Session's frames as fast as the client reads them."""
 import asyncio
-import fnmatch
-import ipaddress
-import socket
 import struct
 import time
-import urllib.parse
 
 import tornado.ioloop
 import tornado.iostream
@@ -16,6 +12,7 @@ import tornado.websocket
 from rosbridge import protocol
 from rosbridge.budget import ClientBudget
 from rosbridge.frames import Utf8Text
+from rosbridge.origins import origin_allowed
 from rosbridge.pages import SECURITY_HEADERS
 
 
@@ -80,12 +77,11 @@ class BridgeSocket(tornado.websocket.WebSocketHandler):
         return websocket
 
     def check_origin(self, origin):
-        patterns = self.bridge.allowed_origins
-        if patterns is not None:
-            return any(fnmatch.fnmatchcase(origin.lower(), pattern.lower()) for pattern in patterns)
-        # Default: a page served by this bridge (same host as the socket's), and reached by an address or by
-        # this machine's own name: a page of another name that DNS re-points here (DNS rebinding) is refused.
-        return super().check_origin(origin) and is_local_name(urllib.parse.urlparse(origin).hostname or "")
+        peer = self.request.remote_ip
+        if origin_allowed(origin, super().check_origin(origin), peer, self.bridge.allowed_origins):
+            return True
+        self.bridge.refused_origin(origin, peer)
+        return False
 
     def get_compression_options(self):
         return {} if self.bridge.settings.use_compression else None
@@ -158,15 +154,6 @@ class BridgeSocket(tornado.websocket.WebSocketHandler):
             return self.write_message(frame, binary=binary)
         payload = frame.encode() if isinstance(frame, str) else frame
         return conn.stream.write(websocket_frame(payload, 0x2 if binary else 0x1))
-
-
-def is_local_name(host):
-    """An IP address, localhost, or this machine's host name."""
-    try:
-        ipaddress.ip_address(host)
-        return True
-    except ValueError:
-        return host.lower() in ("localhost", socket.gethostname().lower())
 
 
 def websocket_frame(payload, opcode):

@@ -186,14 +186,18 @@ class World:
 
     def _color_under(self, x, qy):
         """The trail pixel at the position rounded to whole pixels."""
-        px = min(max(math.floor(x * METER + 0.5), 0), SIZE_PX - 1)
-        py = min(max(math.floor(qy * METER + 0.5), 0), SIZE_PX - 1)
+        px = min(max(round_half_up(x * METER), 0), SIZE_PX - 1)
+        py = min(max(round_half_up(qy * METER), 0), SIZE_PX - 1)
         return self._pixels[px, py]
 
     def _stroke(self, a, b, color, width):
         """Paints segment a-b (metres) like the reference's aliased painter with a square-capped pen: the
         rectangle of that width, extended by width/2 beyond both ends; a pixel is painted when its centre
-        is inside (pixel n spans [n, n+1)). A zero-length segment paints a width x width square."""
+        is inside (pixel n spans [n, n+1)). A zero-length segment paints a width x width square.
+        A pen of width 1 or less is drawn the way the reference's library draws thin lines instead."""
+        if width <= 1:
+            self._thin_line(a, b, color)
+            return
         ax, ay, bx, by = a[0] * METER, a[1] * METER, b[0] * METER, b[1] * METER
         length = math.hypot(bx - ax, by - ay)
         ux, uy = ((bx - ax) / length, (by - ay) / length) if length else (1.0, 0.0)
@@ -202,6 +206,37 @@ class World:
         nx, ny = -ey, ex  # across it
         self._fill_convex([(ax - ex + nx, ay - ey + ny), (bx + ex + nx, by + ey + ny),
                            (bx + ex - nx, by + ey - ny), (ax - ex - nx, ay - ey - ny)], color)
+
+    def _thin_line(self, a, b, color):
+        """A one-pixel line as Qt 5's raster engine draws it with an aliased, square-capped pen of width <= 1
+        (its "cosmetic stroker"): one pixel per column (or row, for steep lines) of the major axis, in 1/64
+        pixel fixed point, both ends extended by half a pixel; a point when both ends are one. Unlike the
+        area rule above it paints the pixel the line ends in (x.5 rounds up), e.g. where the sensor reads."""
+        ends = [(math.trunc(x * METER * 64), math.trunc(y * METER * 64)) for x, y in (a, b)]
+        if a == b:
+            self._paint(round_half_up(a[0] * METER), round_half_up(a[1] * METER), color)
+            return
+        (x1, y1), (x2, y2) = ends
+        steep = abs(x2 - x1) < abs(y2 - y1)
+        if steep:  # walk along y: the same rule with the axes swapped
+            (x1, y1), (x2, y2) = (y1, x1), (y2, x2)
+        if x1 > x2:
+            (x1, y1), (x2, y2) = (x2, y2), (x1, y1)
+        if x1 == x2:
+            return
+        slope = _fixed_div(y2 - y1, x2 - x1)  # minor-axis step per pixel, 16.16 fixed point
+        x1, x2 = x1 - 32, x2 + 32  # the square caps: half a pixel beyond each end
+        minor = (y1 << 10) - (slope >> 1)
+        first, end = (x1 + 32) >> 6, (x2 + 32) >> 6
+        sample = 32 if slope > 0 else 0  # where in the first pixel the minor axis is taken (Qt 5.15)
+        minor += (((first << 6) + sample - x1) * slope) >> 6
+        for major in range(first, end):
+            self._paint(*((minor >> 16, major) if steep else (major, minor >> 16)), color)
+            minor += slope
+
+    def _paint(self, x, y, color):
+        if 0 <= x < SIZE_PX and 0 <= y < SIZE_PX:
+            self._pixels[x, y] = color
 
     def _fill_convex(self, corners, color):
         """Scanline fill of a convex polygon in pixel coordinates, sampling pixel centres with the
@@ -242,6 +277,17 @@ class World:
     def _fail(self, text):
         self._log("error", text)
         raise TurtlesimError(text)
+
+
+def round_half_up(value):
+    """Rounds to the nearest integer, halves up (Qt's qRound for positive values)."""
+    return math.floor(value + 0.5)
+
+
+def _fixed_div(numerator, denominator):
+    """numerator / denominator in 16.16 fixed point, truncated toward zero like C integer division."""
+    quotient = abs(numerator << 16) // abs(denominator)
+    return quotient if (numerator < 0) == (denominator < 0) else -quotient
 
 
 def _require_finite(**values):

@@ -23,6 +23,12 @@ def decode(byte):
     return MOVES.get(byte)
 
 
+def decode_keys(data):
+    """The moves and QUITs in a chunk of terminal input, in order: keys typed (or pasted) quickly arrive
+    together in one read, and each one counts."""
+    return [key for key in map(decode, data) if key is not None]
+
+
 def raw_mode(attrs):
     """The reference's keyboard mode: no line editing and no echo, but Ctrl-C still signals; reads
     return every single byte as soon as it is typed."""
@@ -54,7 +60,9 @@ def _drive():
     # Public names (/scale_linear), as the reference: a private ~scale_linear is not read.
     scale_linear = rospy.get_param("scale_linear", 2.0)
     scale_angular = rospy.get_param("scale_angular", 2.0)
-    publisher = rospy.Publisher("turtle1/cmd_vel", Twist, queue_size=1)
+    # An unbounded queue (0): rospy's queue of 1 drops all but the last of keys published together, where
+    # the reference publishes every key.
+    publisher = rospy.Publisher("turtle1/cmd_vel", Twist, queue_size=0)
 
     saved = termios.tcgetattr(0)
     termios.tcsetattr(0, termios.TCSANOW, raw_mode(saved))
@@ -62,14 +70,13 @@ def _drive():
         print(BANNER, flush=True)
         while True:
             try:
-                data = os.read(0, 1)
+                data = os.read(0, 1024)
             except OSError as error:
                 print(f"read():: {error.strerror}", file=sys.stderr)
                 return
-            key = decode(data[0]) if data else QUIT  # (end of input: nothing more to read)
-            if key == QUIT:
-                return
-            if key is not None:
+            for key in decode_keys(data) if data else [QUIT]:  # (end of input: nothing more to read)
+                if key == QUIT:
+                    return
                 linear, angular = key
                 twist = Twist()
                 twist.linear.x = scale_linear * linear

@@ -134,6 +134,21 @@ def test_client_advertised_service_answers_rosservice(client, ros):
     wait_for(lambda: "/bridge_test/flip" not in ros.run(["rosservice", "list"]).stdout, 20, what="unadvertised")
 
 
+def test_a_handler_returning_false_still_answers_its_values(client, ros):
+    """roslibpy's own add_two_ints example fills the response and returns False: the ROS caller still gets it."""
+    service = roslibpy.Service(client, "/bridge_test/add_two_ints", "std_srvs/SetBool")
+
+    def handler(request, response):
+        response.update(success=True, message="sum 42")
+        return False
+
+    service.advertise(handler)
+    wait_for(lambda: "/bridge_test/add_two_ints" in ros.run(["rosservice", "list"]).stdout, 20, what="the service")
+    out = ros.run(["rosservice", "call", "/bridge_test/add_two_ints", "data: true"]).stdout
+    assert "success: True" in out and 'message: "sum 42"' in out
+    service.unadvertise()
+
+
 def test_rosapi_is_answered_inside_the_bridge(client, turtlesim):
     reply = call(client, "/rosapi/topics")
     assert "/turtle1/pose" in reply["topics"]

@@ -124,7 +124,8 @@ def test_origin_allow_list(ros):
         assert ping(WsClient(url, headers={"Origin": "http://good.example"}))
         assert ping(WsClient(url, headers={"Origin": "https://robot.lan"}))
         assert ping(WsClient(url))  # not a browser
-        for origin in ("http://evil.example", f"http://127.0.0.1:{port}"):
+        assert ping(WsClient(url, headers={"Origin": f"http://127.0.0.1:{port}"}))  # the bridge's own page
+        for origin in ("http://evil.example", f"http://127.0.0.1:{port + 1}", "null"):
             with pytest.raises(tornado.httpclient.HTTPClientError, match="403"):
                 WsClient(url, headers={"Origin": origin})
     finally:

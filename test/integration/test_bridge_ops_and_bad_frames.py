@@ -300,6 +300,27 @@ def test_client_service_gets_calls_and_bad_responses_are_refused(ws, ros):
              what="service gone")
 
 
+def test_result_false_answers_object_values_with_a_warning_and_fails_with_a_text(ws, ros):
+    ws.send({"op": "set_level", "level": "warning"})  # (errors only by default)
+    ws.send({"op": "advertise_service", "service": "/bridge_test/false_srv", "type": "std_srvs/SetBool"})
+    wait_for(lambda: "/bridge_test/false_srv" in ros.run(["rosservice", "list"]).stdout, 20, what="service")
+    caller = ros.spawn(["rosservice", "call", "/bridge_test/false_srv", "data: true"], "caller")
+    call = ws.recv_op("call_service")
+    warning = ws.request({"op": "service_response", "service": "/bridge_test/false_srv", "id": call["id"],
+                          "result": False, "values": {"success": True, "message": "answered anyway"}})
+    assert warning["level"] == "warning" and "result" in warning["msg"]
+    caller.popen.wait(20)
+    assert caller.popen.returncode == 0 and "answered anyway" in caller.output()
+
+    caller = ros.spawn(["rosservice", "call", "/bridge_test/false_srv", "data: true"], "caller")
+    call = ws.recv_op("call_service")
+    ws.send({"op": "service_response", "service": "/bridge_test/false_srv", "id": call["id"],
+             "result": False, "values": "the motor is off"})
+    caller.popen.wait(20)
+    assert caller.popen.returncode != 0 and "the motor is off" in caller.output()
+    ws.send({"op": "unadvertise_service", "service": "/bridge_test/false_srv"})
+
+
 def test_leaving_client_fails_the_pending_ros_call(bridge, ros):
     ws = WsClient(f"ws://127.0.0.1:{bridge}/")
     ws.send({"op": "advertise_service", "service": "/bridge_test/leaver", "type": "std_srvs/Trigger"})

@@ -7,6 +7,7 @@ import ssl
 import subprocess
 import time
 import urllib.error
+import urllib.parse
 import urllib.request
 
 import pytest
@@ -66,10 +67,15 @@ def origin_bridge(ros):
 
 
 @pytest.fixture(scope="module")
-def default_bridge(ros):
+def default_bridge_proc(ros):
     proc, port = start_bridge(ros, node_name="security_default_origin_bridge")
-    yield port
+    yield proc, port
     proc.stop()
+
+
+@pytest.fixture(scope="module")
+def default_bridge(default_bridge_proc):
+    return default_bridge_proc[1]
 
 
 def refused_with_403(port, origin, host_header=None):
@@ -94,6 +100,13 @@ def test_other_origins_are_refused_with_403(origin_bridge, origin):
     assert refused_with_403(origin_bridge, origin)
 
 
+def test_the_bridges_own_page_connects_to_an_allow_list_bridge(origin_bridge):
+    for own in (f"http://127.0.0.1:{origin_bridge}", f"http://localhost:{origin_bridge}"):
+        client = WsClient(f"ws://{urllib.parse.urlsplit(own).netloc}/", headers={"Origin": own})
+        assert ping(client)
+        client.close()
+
+
 def test_roslibpy_sends_no_origin_and_connects_to_an_allow_list_bridge(origin_bridge):
     ros = roslibpy.Ros(host="127.0.0.1", port=origin_bridge)
     ros.run(timeout=20)
@@ -101,9 +114,29 @@ def test_roslibpy_sends_no_origin_and_connects_to_an_allow_list_bridge(origin_br
     ros.close()
 
 
+@pytest.mark.parametrize("origin", ["http://localhost:8765", "http://127.0.0.1:3000", "null"])
+def test_default_allows_this_machines_pages_on_any_port_and_from_disk(default_bridge, origin):
+    """The tutorial's page served from another port, or opened from disk (Origin "null") by a browser on this
+    machine (the test connects from 127.0.0.1)."""
+    client = WsClient(f"ws://127.0.0.1:{default_bridge}/", headers={"Origin": origin})
+    assert ping(client)
+    client.close()
+
+
 def test_default_refuses_look_alike_origins(default_bridge):
-    for origin in ("http://localhost.evil.example", f"http://127.0.0.1.evil.example:{default_bridge}", "null"):
+    for origin in ("http://localhost.evil.example", f"http://127.0.0.1.evil.example:{default_bridge}",
+                   "http://192.0.2.7:8000"):
         assert refused_with_403(default_bridge, origin)
+
+
+def test_a_refused_origin_is_logged_once_with_the_launch_arg_that_allows_it(default_bridge_proc):
+    proc, port = default_bridge_proc
+    origin = "http://once.example:8000"
+    for _ in range(3):
+        assert refused_with_403(port, origin)
+    advice = f'allowed_origins:="[{origin}]"'
+    proc.wait_output(advice)
+    assert proc.output().count(advice) == 1
 
 
 def test_default_refuses_a_dns_rebinding_page(default_bridge):
@@ -210,6 +243,14 @@ def test_hidden_names_are_refused(glob_client, frame):
     reply = glob_client.request({**frame, "id": "hidden"})
     assert refused(reply, name), reply
     assert ping(glob_client)
+
+
+def test_relative_service_names_meet_the_globs_as_ros_resolves_them(glob_client):
+    """roslib 2.x calls "rosapi/topics": resolved in the bridge's namespace ("/"), as rospy does."""
+    reply = glob_client.request({"op": "call_service", "service": "rosapi/topics", "id": "relative rosapi"})
+    assert reply["op"] == "service_response" and reply["result"] is True, reply
+    assert refused(glob_client.request({"op": "call_service", "service": "sec/hidden/reset", "id": "r"}),
+                   "/sec/hidden/reset")
 
 
 def test_a_library_call_of_a_hidden_service_fails_at_once(glob_bridge):

@@ -96,3 +96,17 @@ def test_without_a_terminal_it_says_so_and_exits_1(ros):
     assert res.stderr.strip() == ("turtle_teleop_key: standard input is not a terminal; "
                                   "run it in a terminal to drive the turtle with the arrow keys")
     assert res.stdout == ""
+
+
+def test_keys_arriving_together_publish_one_twist_each(ros, pty, twists):
+    controller, terminal = pty
+    start_teleop(ros, terminal, twists)
+    received = twists[0]
+
+    def moves(count):
+        return [(twist.linear.x, twist.angular.z) for twist in (received.get(timeout=10) for _ in range(count))]
+
+    os.write(controller, b"\x1b[A\x1b[A")  # two keys in one write: the teleop reads them together
+    assert moves(2) == [(2.0, 0.0), (2.0, 0.0)]
+    os.write(controller, b"\x1b[A" * 1000 + b"\x1b[D")  # a burst: rospy must not drop any
+    assert moves(1001) == [(2.0, 0.0)] * 1000 + [(0.0, 2.0)]

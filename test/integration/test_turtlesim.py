@@ -160,6 +160,16 @@ def test_set_pen_clear_and_reset(ros, turtlesim, node):
     assert ros.run(["rosservice", "call", "/spawn", "1", "1", "0", ""]).stdout.strip() == 'name: "turtle2"'
 
 
+def test_a_width_0_pen_line_ends_under_the_sensor(ros, turtlesim, node):
+    ros.run(["rosservice", "call", "/turtle1/set_pen", "0", "0", "0", "0", "1"])
+    ros.run(["rosservice", "call", "/turtle1/teleport_absolute", "1", "1", "0"])
+    wait_for(lambda: pose_of(node).x == 1.0, 10, what="the absolute teleport")
+    ros.run(["rosservice", "call", "/turtle1/set_pen", "0", "255", "0", "0", "0"])
+    ros.run(["rosservice", "call", "/turtle1/teleport_relative", "2.0", "0"])
+    wait_for(lambda: pose_of(node).x == 3.0, 10, what="the relative teleport")
+    assert color_of(node) == (0, 255, 0)  # Qt paints the 1-pixel line's end pixel, where the sensor reads
+
+
 def assert_alive_and_publishing(proc, rospy):
     assert proc.alive()
     pose_of(rospy)

@@ -30,6 +30,10 @@ class MemoryBackend(Backend):
         self.calls.append((name,) + args)
 
     @staticmethod
+    def resolve_name(name):
+        return name if name.startswith("/") else "/" + name  # (the bridge's namespace is "/")
+
+    @staticmethod
     def _check_type(type_name):
         if type_name is not None and (type_name.count("/") != 1 or not all(type_name.split("/"))):
             raise protocol.RequestError(f"unknown type {type_name!r}")

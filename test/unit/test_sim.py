@@ -242,6 +242,59 @@ def test_set_pen_off_keeps_colour_and_width_and_width_0_means_1(sim):
     assert green == 90 + 1
 
 
+def painted(world, color):
+    pixels = world.trail.load()
+    return sorted((x, y) for y in range(500) for x in range(500) if pixels[x, y] == color)
+
+
+def test_a_width_0_pen_ends_its_line_in_the_pixel_the_sensor_reads(sim):
+    sim.world.set_pen("turtle1", 0, 0, 0, 0, 1)
+    sim.world.teleport_absolute("turtle1", 1.0, 1.0, 0.0)
+    sim.tick()
+    sim.world.set_pen("turtle1", 0, 255, 0, 0, 0)
+    sim.world.teleport_relative("turtle1", 2.0, 0.0)
+    assert sim.tick()["turtle1"].color == (0, 255, 0)
+    assert painted(sim.world, (0, 255, 0)) == [(x, 454) for x in range(45, 136)]  # as Qt 5.15 paints it
+
+
+# Pixels Qt 5.15 paints for QPainter.drawLine(new * 45, old * 45) with QPen(QColor) (width 1) on an ARGB32 image
+QT_THIN_LINES = [
+    ((2.0, 2.0), (2.3, 1.9), [(90, 90), (91, 89), (92, 89), (93, 88), (94, 88), (95, 88), (96, 87), (97, 87),
+                              (98, 87), (99, 86), (100, 86), (101, 86), (102, 85), (103, 85)]),
+    ((3.0, 3.0), (3.1, 3.4), [(135 + n // 4, 135 + n) for n in range(19)]),
+    ((6.0, 6.0), (6.0, 6.0), [(270, 270)]),
+]
+
+
+@pytest.mark.parametrize("old, new, pixels", QT_THIN_LINES)
+def test_thin_lines_are_the_pixels_qt_paints(old, new, pixels):
+    world = World(lambda level, text: None)
+    world._stroke(old, new, (0, 255, 0), 1)
+    assert painted(world, (0, 255, 0)) == pixels
+
+
+def test_thin_lines_match_qt_itself():
+    """Against the reference's drawing library (Debian's PyQt5), on lines in every direction."""
+    import random
+    qt_gui = pytest.importorskip("PyQt5.QtGui")  # (painting on a QImage needs no QApplication)
+    from PyQt5.QtCore import QPointF
+    shuffle = random.Random(7)
+    for _ in range(40):
+        old = (shuffle.uniform(0, WIDTH), shuffle.uniform(0, HEIGHT))
+        new = (min(max(old[0] + shuffle.uniform(-2, 2), 0), WIDTH),
+               min(max(old[1] + shuffle.uniform(-2, 2) * shuffle.choice([0, 0.02, 1]), 0), HEIGHT))
+        image = qt_gui.QImage(500, 500, qt_gui.QImage.Format_ARGB32)
+        image.fill(qt_gui.qRgb(*BACKGROUND))
+        painter = qt_gui.QPainter(image)
+        painter.setPen(qt_gui.QPen(qt_gui.QColor(0, 255, 0)))
+        painter.drawLine(QPointF(new[0] * 45, new[1] * 45), QPointF(old[0] * 45, old[1] * 45))
+        painter.end()
+        expected = [(x, y) for y in range(500) for x in range(500) if image.pixel(x, y) & 0xFFFFFF == 0x00FF00]
+        world = World(lambda level, text: None)
+        world._stroke(old, new, (0, 255, 0), 1)
+        assert painted(world, (0, 255, 0)) == sorted(expected), (old, new)
+
+
 def test_teleport_draws_with_the_pen_across_the_screen(sim):
     sim.world.teleport_absolute("turtle1", 0.5, 0.5, 0.0)
     sim.world.teleport_absolute("turtle1", 10.5, 10.5, 0.0)

@@ -3,7 +3,7 @@ import termios
 
 import pytest
 
-from turtlesim.teleop import BANNER, QUIT, decode, raw_mode
+from turtlesim.teleop import BANNER, QUIT, decode, decode_keys, raw_mode
 
 
 @pytest.mark.parametrize("byte, expected", [
@@ -19,6 +19,12 @@ def test_an_arrow_key_is_one_move_whatever_its_prefix(sequence):
 
 def test_every_other_byte_is_ignored():
     assert [b for b in range(256) if decode(b) is not None] == [0x41, 0x42, 0x43, 0x44, 0x71]
+
+
+def test_keys_read_together_each_count_in_order_up_to_quit():
+    assert decode_keys(b"\x1b[A\x1b[A") == [(1, 0), (1, 0)]
+    assert decode_keys(b"\x1bOD\x1b[Bx\x1b[Cq\x1b[A") == [(0, 1), (-1, 0), (0, -1), QUIT, (1, 0)]
+    assert decode_keys(b"") == []
 
 
 def test_raw_mode_keeps_signals_and_reads_single_bytes():

@@ -43,17 +43,21 @@ class RosBackend(Backend):
     def unsubscribe(self, session, topic):
         self._subscribers.unsubscribe(session, topic)
 
+    def resolve_name(self, name):
+        """As the reference (rospy.resolve_name): roslib 2.x calls rosapi by relative names ("rosapi/topics")."""
+        return rospy.resolve_name(name)
+
     def call_service(self, session, service, args, type_name, timeout, reply):
-        self._calls.call(session, service, args, type_name, timeout, reply)
+        self._calls.call(session, self.resolve_name(service), args, type_name, timeout, reply)
 
     def advertise_service(self, session, service, type_name):
-        self._provided.advertise(session, service, type_name)
+        self._provided.advertise(session, self.resolve_name(service), service, type_name)
 
     def unadvertise_service(self, session, service):
-        self._provided.unadvertise(session, service)
+        self._provided.unadvertise(session, self.resolve_name(service))
 
     def service_response(self, session, service, call_id, result, values):
-        self._provided.respond(session, service, call_id, result, values)
+        self._provided.respond(session, self.resolve_name(service), call_id, result, values)
 
     def release(self, session):
         self._publishers.release(session)

@@ -127,10 +127,11 @@ def _call_ros_service(service, args, type_name):
 
 class _ProvidedService:
     """A ROS service whose answers come from one websocket client."""
-    __slots__ = ("name", "type", "cls", "session", "server", "pending")
+    __slots__ = ("name", "client_name", "type", "cls", "session", "server", "pending")
 
-    def __init__(self, name, type_name, cls, session):
+    def __init__(self, name, client_name, type_name, cls, session):
         self.name, self.type, self.cls, self.session = name, type_name, cls, session
+        self.client_name = client_name  # as the client spelled it: its library routes our calls by that name
         self.pending = {}  # call id -> concurrent.futures.Future waited on by a rospy thread
         self.server = None
 
@@ -144,14 +145,15 @@ class ProvidedServices:
         self._services = {}
         self._call_ids = itertools.count(1)
 
-    def advertise(self, session, service, type_name):
+    def advertise(self, session, service, client_name, type_name):
+        """service: the resolved name; client_name: as the client wrote it."""
         cls = service_class(type_name)
         entry = self._services.get(service)
         if entry is not None:
             if entry.session is session and entry.type == type_name:
                 return
             self._shutdown(entry, "advertised again by another client")
-        entry = self._services[service] = _ProvidedService(service, type_name, cls, session)
+        entry = self._services[service] = _ProvidedService(service, client_name, type_name, cls, session)
         self._worker.submit(lambda: self._make(entry), lambda error, _: self._made(entry, error))
 
     def _make(self, entry):
@@ -205,7 +207,7 @@ class ProvidedServices:
         call_id = f"service_request:{entry.name}:{next(self._call_ids)}"
         entry.pending[call_id] = future
         future.add_done_callback(lambda _: self._loop.add_callback(entry.pending.pop, call_id, None))
-        entry.session.request_service(call_id, entry.name, to_json(request))
+        entry.session.request_service(call_id, entry.client_name, to_json(request))
 
     def respond(self, session, service, call_id, result, values):
         entry = self._services.get(service)
@@ -215,9 +217,15 @@ class ProvidedServices:
         if future is None or future.done():
             raise RequestError(f"service_response {service}: no call with id {call_id!r} is waiting")
         if not result:
-            future.set_exception(rospy.ServiceException(f"service {service}: the client answered result=false: "
-                                                        f"{values}"))
-            return
+            # As the reference: an object still answers the ROS caller (roslibpy's examples return False from
+            # handlers that fill the response); anything else fails the call, an error text as the reason.
+            if not isinstance(values, dict):
+                reason = values if isinstance(values, str) else \
+                    f"service {service}: the client answered result=false: {values}"
+                future.set_exception(rospy.ServiceException(reason))
+                return
+            session.status("warning", f"service_response {service}: result is false, but its values are an "
+                                      "object: they are the ROS caller's response", call_id)
         try:
             response = from_json(entry.cls._response_class, {} if values is None else values)
         except ConversionError as error:
