@@ -64,6 +64,15 @@ def publish_frame(kind, topic, seq=0):
     return json.dumps({"op": "publish", "topic": topic, "msg": json_msg(kind, seq)}, separators=(",", ":"))
 
 
+def cbor_frame(kind, topic, seq=0):
+    """The same `publish` op as CBOR, binary fields as byte strings (what a CBOR subscriber gets)."""
+    import cbor2
+    msg = json_msg(kind, seq)
+    if kind == "image":
+        msg = {**msg, "data": _cached("image", _image_bytes)}
+    return cbor2.dumps({"op": "publish", "topic": topic, "msg": msg})
+
+
 def ros_msg(kind, seq=0):
     """The same message as a rospy message object (imports ROS message packages, so only in ROS processes)."""
     if kind == "twist":

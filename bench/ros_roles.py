@@ -26,6 +26,8 @@ def main():
     p.add_argument("--kind", default="twist", choices=sorted(payloads.TYPES))
     p.add_argument("--count", type=int, default=1000)
     p.add_argument("--rate", type=float, default=0.0, help="Hz; 0 = as fast as possible")
+    p.add_argument("--queue-size", type=int, default=100,
+                   help="pub: rospy's queue_size (100: what roslibjs asks the bridge for); 0 = synchronous publisher")
     p.add_argument("--subscribers", type=int, default=1, help="pub: connections to wait for before READY")
     p.add_argument("--warmup", action="store_true",
                    help="pub: publish seq -1 at --rate until told to go (lets websocket clients see the topic live)")
@@ -41,8 +43,8 @@ def msg_class(kind):
 
 
 def pub(a):
-    # queue_size=100: what roslibjs asks the bridge for, so the baseline publishes the way the bridge does
-    publisher = rospy.Publisher(a.topic, msg_class(a.kind), queue_size=100)
+    # queued (rospy's writer thread sleeps after each message) or synchronous (publish() writes to the socket)
+    publisher = rospy.Publisher(a.topic, msg_class(a.kind), queue_size=a.queue_size or None)
     go = threading.Event()
     threading.Thread(target=lambda: (sys.stdin.readline(), go.set()), daemon=True).start()
     period = 1.0 / a.rate if a.rate else 0.0

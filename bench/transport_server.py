@@ -4,7 +4,8 @@ must do (parse each incoming frame, JSON-encode each outgoing message) and nothi
 It speaks just enough of the rosbridge protocol for the bench clients in ws_roles.py:
   publish    counted (the count is reported when the connection closes) and echoed back to its sender
   subscribe  the connection gets the pushed messages: on a line on stdin, `--count` publish ops of `--kind`
-             (sequence numbers 0..count-1), as fast as each socket takes them, or at `--rate` Hz"""
+             (sequence numbers 0..count-1), as fast as each socket takes them, or at `--rate` Hz; JSON text, or
+             CBOR with `--cbor` (each message encoded for each push, as a bridge must)"""
 import argparse
 import asyncio
 import json
@@ -46,8 +47,11 @@ async def push(a):
     loop = asyncio.get_running_loop()
     start = loop.time()
     for seq in range(a.count):
-        frame = payloads.publish_frame(a.kind, "/bench/data", seq)
-        writes = [ws.write_message(frame) for ws in list(Bench.subscribers)]
+        if a.cbor:
+            frame = payloads.cbor_frame(a.kind, "/bench/data", seq)
+        else:
+            frame = payloads.publish_frame(a.kind, "/bench/data", seq)
+        writes = [ws.write_message(frame, binary=a.cbor) for ws in list(Bench.subscribers)]
         for w in writes:
             try:
                 await w
@@ -63,6 +67,7 @@ async def main():
     p.add_argument("--kind", default="twist", choices=sorted(payloads.TYPES))
     p.add_argument("--count", type=int, default=1000)
     p.add_argument("--rate", type=float, default=0.0)
+    p.add_argument("--cbor", action="store_true", help="push CBOR (binary) frames instead of JSON text")
     p.add_argument("--no-echo", action="store_true", help="count published frames without echoing them")
     a = p.parse_args()
     Bench.echo = not a.no_echo

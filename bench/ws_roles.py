@@ -30,6 +30,7 @@ def main():
     p.add_argument("--kind", default="twist", choices=sorted(payloads.TYPES))
     p.add_argument("--count", type=int, default=1000)
     p.add_argument("--rate", type=float, default=100.0, help="rtt: pings per second")
+    p.add_argument("--publish-rate", type=float, default=0.0, help="publish: Hz; 0 = as fast as possible")
     p.add_argument("--compression", default="none", choices=["none", "png", "cbor"])
     p.add_argument("--clients", type=int, default=1)
     p.add_argument("--idle", type=float, default=2.0)
@@ -62,9 +63,12 @@ async def publish(a):
     frame = payloads.publish_frame(a.kind, a.topic)
     print("READY", flush=True)
     await stats.cue()
+    period = 1.0 / a.publish_rate if a.publish_rate else 0.0
     start = time.monotonic()
-    for _ in range(a.count):
+    for i in range(a.count):
         await ws.write_message(frame)
+        if period:
+            await asyncio.sleep(max(0.0, start + (i + 1) * period - time.monotonic()))
     elapsed = time.monotonic() - start
     stats.result(sent=a.count, seconds=elapsed, frame_bytes=len(frame))
     await stats.cue()  # stay connected until the suite has counted (closing early could cut the bridge's backlog)

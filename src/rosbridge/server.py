@@ -27,7 +27,8 @@ from rosbridge.settings import Settings
 from rosbridge.websocket import BridgeSocket
 
 MAX_LOGGED_KINDS = 1000  # kinds of refusal remembered for rate limiting (refused origins are kinds)
-FDS_KEPT_FREE = 64  # file descriptors left to rospy (subscribers, service calls) when clients are accepted
+FDS_KEPT_FREE = 64
+IDLE_TIMEOUT = 10.0  # seconds  # file descriptors left to rospy (subscribers, service calls) when clients are accepted
 
 
 class Bridge:
@@ -159,7 +160,9 @@ def main():
         websocket_ping_timeout=current.websocket_ping_timeout)
     ssl_options = {"certfile": current.certfile, "keyfile": current.keyfile} if current.ssl else None
     sockets = tornado.netutil.bind_sockets(current.port, current.address or None)
-    server = tornado.httpserver.HTTPServer(app, ssl_options=ssl_options, max_buffer_size=max_frame)
+    # a connection that sends no request within IDLE_TIMEOUT is closed: idle sockets must not hold descriptors
+    server = tornado.httpserver.HTTPServer(app, ssl_options=ssl_options, max_buffer_size=max_frame,
+                                           idle_connection_timeout=IDLE_TIMEOUT)
     accept_connections(server, sockets, bridge, loop)
     port = sockets[0].getsockname()[1]
     rospy.set_param("~actual_port", port)

@@ -2,6 +2,7 @@
 send any frame, including broken ones, and read exactly what the server answers."""
 import asyncio
 import json
+import time
 
 import cbor2
 from tornado.httpclient import HTTPRequest
@@ -40,9 +41,11 @@ class WsClient:
         return cbor2.loads(frame) if isinstance(frame, bytes) else json.loads(frame)
 
     def recv_until(self, predicate, timeout=10.0, limit=1000):
-        """Reads frames until one satisfies predicate; returns it (AssertionError if the socket closes)."""
+        """Reads frames until one satisfies predicate; returns it. TimeoutError once `timeout` seconds have
+        passed in all, AssertionError if the socket closes or `limit` frames did not match."""
+        deadline = time.monotonic() + timeout
         for _ in range(limit):
-            frame = self.recv(timeout)
+            frame = self.recv(max(0.0, deadline - time.monotonic()))
             assert frame is not None, "connection closed while waiting"
             if predicate(frame):
                 return frame

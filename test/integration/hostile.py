@@ -1,14 +1,16 @@
 """Hostile websocket clients, one abuse each, run as a process of their own (so that they compete with the
-bridge, not with the test's measuring client, for the CPU and the GIL):
+bridge, not with the measuring client, for the CPU and the GIL):
 
     python3 hostile.py ws://127.0.0.1:PORT/ ABUSE SECONDS
 
-Each abuse runs for at most SECONDS (or until done) and the process exits; it prints one line of what it did."""
+Each abuse runs for at most SECONDS (or until done) and the process exits; it prints one line of what it did.
+`measure` runs one beside a well-behaved Victim (used by test_isolation.py and bench/suite.py)."""
 import asyncio
 import json
 import socket
 import struct
 import sys
+import threading
 import time
 import urllib.parse
 
@@ -92,7 +94,7 @@ def pings_never_read(url, seconds):
     return f"{sent} pings of 60 KB"
 
 
-ABUSES = {f.__name__: f for f in (flood, subscribe_many, advertise_many, publish_unknown, huge_throttle,
+ABUSES_IN_PROCESS = {f.__name__: f for f in (flood, subscribe_many, advertise_many, publish_unknown, huge_throttle,
                                   silent_service, auth_flood)}
 
 
@@ -102,13 +104,80 @@ async def main(url, abuse, seconds):
     while time.monotonic() < end:
         ws = await websocket_connect(url)
         try:
-            done.append(await asyncio.wait_for(ABUSES[abuse](ws, end - time.monotonic()), seconds + 60))
+            done.append(await asyncio.wait_for(ABUSES_IN_PROCESS[abuse](ws, end - time.monotonic()), seconds + 60))
         except WebSocketClosedError:
             done.append("closed by the bridge")
             continue
         ws.close()
         break
     return "; ".join(done[:3]) + (f" (and {len(done) - 3} more connections)" if len(done) > 3 else "")
+
+
+class Victim:
+    """A well-behaved client on a thread of its own: the largest gap between poses, the slowest get_time."""
+
+    def __init__(self, url, auth=None):
+        self.url, self.auth = url, auth
+        self.arrivals, self.call_times = [], []
+        self.ready, self._stop = threading.Event(), threading.Event()
+        self._thread = threading.Thread(target=lambda: asyncio.run(self._run()), daemon=True)
+        self._thread.start()
+        assert self.ready.wait(30), "the victim could not start"
+
+    async def _run(self):
+        ws = await websocket_connect(self.url)
+        if self.auth is not None:
+            await ws.write_message(json.dumps(self.auth))
+        await ws.write_message(json.dumps({"op": "subscribe", "topic": "/turtle1/pose", "type": "turtlesim/Pose"}))
+        calls = {}
+
+        async def reader():
+            while True:
+                frame = await ws.read_message()
+                if frame is None:
+                    return
+                message, now = json.loads(frame), time.monotonic()
+                if message.get("topic") == "/turtle1/pose":
+                    self.arrivals.append(now)
+                    self.ready.set()
+                elif message.get("op") == "service_response" and message.get("id") in calls:
+                    self.call_times.append(now - calls.pop(message["id"]))
+        reading = asyncio.ensure_future(reader())
+        n = 0
+        while not self._stop.is_set():
+            n += 1
+            calls[n] = time.monotonic()
+            await ws.write_message(json.dumps({"op": "call_service", "service": "/rosapi/get_time", "id": n}))
+            await asyncio.sleep(0.25)
+        self.unanswered = [time.monotonic() - sent for sent in calls.values()]
+        ws.close()
+        reading.cancel()
+
+    def largest_gap(self, since):
+        times = [t for t in self.arrivals if t >= since]
+        return max((b - a for a, b in zip(times, times[1:])), default=float("inf"))
+
+    def stop(self):
+        self._stop.set()
+        self._thread.join(10)
+
+
+ABUSES = [*ABUSES_IN_PROCESS, "pings_never_read"]
+
+
+def measure(ros, url, server, abuse, seconds, auth=None):
+    """Runs `abuse` for `seconds` beside a Victim (sending `auth` first if given) on the bridge at `url` whose
+    server process is `server` (a ProcStat); returns what the attacker did and what the victim saw."""
+    victim = Victim(url, auth)
+    time.sleep(1.0)
+    rss_before, started = server.rss_mb(), time.monotonic()
+    attacker = ros.spawn([sys.executable, __file__, url, abuse, str(seconds)], f"hostile_{abuse}")
+    code = attacker.popen.wait(seconds + 90)
+    time.sleep(0.5)
+    victim.stop()
+    return {"attacker": attacker.output().strip(), "attacker_exit": code, "gap": victim.largest_gap(started),
+            "slowest_call": max(victim.call_times + victim.unanswered, default=float("inf")),
+            "rss_growth": server.rss_mb() - rss_before}
 
 
 if __name__ == "__main__":
