@@ -237,7 +237,8 @@ class Session:
         subscription = self.subscriptions.get(topic)
         if subscription is None:
             subscription = self.subscriptions[topic] = Subscription(
-                self._send_frames, self._clock, self._call_later, self.config.max_queue_bytes)
+                self._send_frames, self._clock, self._call_later, self.config.max_queue_bytes,
+                backlogged=lambda: len(self._outgoing) > 0)
         subscription.add(req.get("id"), {"throttle_rate": throttle_rate, "queue_length": queue_length,
                                          "fragment_size": fragment_size, "compression": compression})
 

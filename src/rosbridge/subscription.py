@@ -2,6 +2,7 @@
 import collections
 
 MAX_THROTTLE_RATE = 86_400_000  # ms: a day; beyond that a client means "never", which unsubscribe says better
+BACKLOG_RETRY = 0.02  # s: how soon a throttled message waiting for a slow client looks again
 
 
 class Subscription:
@@ -9,14 +10,17 @@ class Subscription:
     fragment_size, longest queue_length, the latest compression.
 
     With a throttle_rate, messages wait (at most queue_length of them and max_bytes encoded, the oldest
-    dropped) and leave one per throttle period; the latest is kept (not dropped as the reference does), so a
-    throttled stream ends on the last value. send(frames) sends; clock() and call_later(delay, fn) come from
-    the server."""
+    dropped) and leave one per throttle period, and only while the client has read what it was sent before
+    (backlogged() is false): so a slow client gets the newest message, not a growing backlog (a camera picture
+    never lags behind). The latest is kept (not dropped as the reference does), so a throttled stream ends on
+    the last value. send(frames) sends; clock() and call_later(delay, fn) come from the server."""
     __slots__ = ("requests", "throttle_rate", "queue_length", "fragment_size", "compression", "_last_sent",
-                 "_pending", "_pending_bytes", "_max_bytes", "_timer", "_send", "_clock", "_call_later", "_active")
+                 "_pending", "_pending_bytes", "_max_bytes", "_timer", "_send", "_clock", "_call_later", "_active",
+                 "_backlogged")
 
-    def __init__(self, send, clock, call_later, max_bytes):
+    def __init__(self, send, clock, call_later, max_bytes, backlogged=lambda: False):
         self._send, self._clock, self._call_later, self._max_bytes = send, clock, call_later, max_bytes
+        self._backlogged = backlogged
         self.requests = {}  # subscribe id (None when the client gave none) -> its options
         self._last_sent = float("-inf")
         self._pending = collections.deque()  # frames of one message each, oldest first
@@ -77,7 +81,9 @@ class Subscription:
         if not self._active or not self._pending:
             return
         wait = self._last_sent + self.throttle_rate - self._clock()
-        if wait <= 0:
+        if wait <= 0 and self._backlogged():
+            wait = max(self.throttle_rate, BACKLOG_RETRY)
+        elif wait <= 0:
             frames = self._pending.popleft()
             self._pending_bytes -= sum(map(len, frames))
             self._send(frames)

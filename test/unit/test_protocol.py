@@ -199,9 +199,25 @@ def test_throttle_keeps_the_latest_and_queue_length_keeps_more(h):
     q.send({"op": "subscribe", "topic": "/t", "throttle_rate": 1000, "queue_length": 2})
     for n in range(5):
         q.session.deliver(message(data=n))
-    q.advance(1.0)
-    q.advance(1.0)
-    assert [r["msg"]["data"] for r in q.replies()] == [0, 3, 4]
+    received = [r["msg"]["data"] for r in q.replies()]
+    for _ in range(2):  # a client that reads what it is sent
+        q.advance(1.0)
+        received += [r["msg"]["data"] for r in q.replies()]
+    assert received == [0, 3, 4]
+
+
+def test_a_throttled_subscription_waits_for_a_slow_client_and_sends_the_newest():
+    """A camera to a client that reads slowly: nothing piles up for it, and when it has read, it gets the newest
+    picture, not the ones it missed."""
+    h = Harness()
+    h.send({"op": "subscribe", "topic": "/camera", "throttle_rate": 10, "queue_length": 1})
+    h.session.deliver(message("/camera", data=0))
+    for n in range(1, 100):  # the client reads nothing meanwhile
+        h.session.deliver(message("/camera", data=n))
+        h.advance(0.05)
+    assert [r["msg"]["data"] for r in h.replies()] == [0]  # what was queued before it fell behind
+    h.advance(0.05)
+    assert [r["msg"]["data"] for r in h.replies()] == [99]
 
 
 def test_slow_client_drops_oldest_and_is_told():

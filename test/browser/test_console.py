@@ -1,0 +1,260 @@
+"""The console: the tutorial's terminal windows in the page (rostopic, rosmsg, rosservice, rosparam, rosnode,
+rqt_console), driven in headless Chromium against a real bridge, turtlesim and the stock CLI tools."""
+import threading
+
+import pytest
+from selenium.webdriver.common.by import By
+from selenium.webdriver.support.ui import Select
+
+from harness import ARTIFACTS, wait_for
+
+
+def tab(page, name):
+    page.el(f"tab-button-{name}").click()
+    return page.el(f"tab-{name}")
+
+
+def options(page, select_id):
+    return page.js(f"return [...document.getElementById('{select_id}').options].map(o => o.value)")
+
+
+def press(page, selector):
+    """A pointer press on the first element matching selector (looked up at that moment)."""
+    page.js("arguments[0].dispatchEvent(new PointerEvent('pointerdown', {bubbles: true}))",
+            page.driver.find_element(By.CSS_SELECTOR, selector))
+
+
+def text_of(page, selector):
+    found = page.driver.find_elements(By.CSS_SELECTOR, selector)
+    return found[0].text if found else ""
+
+
+@pytest.fixture
+def chatter(node):
+    """A test topic at 20 Hz, published by the test process."""
+    from std_msgs.msg import String
+    publisher = node.Publisher("/console/chatter", String, queue_size=10)
+    stop = threading.Event()
+
+    def talk():
+        n = 0
+        while not stop.wait(0.05):
+            n += 1
+            publisher.publish(String(f"hello {n}"))
+    threading.Thread(target=talk, daemon=True).start()
+    yield "/console/chatter"
+    stop.set()
+    publisher.unregister()
+
+
+def bridge_subscribes(ros, topic):
+    _, subscribers, _ = ros.master().getSystemState()
+    return any(name == topic and "/rosbridge_websocket" in nodes for name, nodes in subscribers)
+
+
+def test_a_topic_opened_shows_its_messages_rate_and_definition_and_closing_unsubscribes(open_page, ros, chatter):
+    page = open_page()
+    tab(page, "topics")
+    button = f'#tab-topics tr[data-topic="{chatter}"] button'
+    wait_for(lambda: page.driver.find_elements(By.CSS_SELECTOR, button), 20, what=f"{chatter} listed")
+    page.driver.find_element(By.CSS_SELECTOR, button).click()
+    opened = f'.open-topic[data-topic="{chatter}"]'
+    wait_for(lambda: "hello" in text_of(page, f"{opened} .message"), 15, what="the latest message")
+    wait_for(lambda: "Hz" in text_of(page, f"{opened} .stats"), 15, what="the rate")
+    rate = float(text_of(page, f"{opened} .stats").split("average rate: ")[1].split(" Hz")[0].lstrip("≥ "))
+    assert 15 < rate < 25  # published at 20 Hz
+    assert "bandwidth" in text_of(page, f"{opened} .stats")
+    page.driver.find_element(By.CSS_SELECTOR, f"{opened} .definition summary").click()
+    assert text_of(page, f"{opened} .definition pre") == "string data"
+    assert "/rosbridge_websocket" in text_of(page, f"{opened} .info")
+    assert bridge_subscribes(ros, chatter)
+    page.driver.find_element(By.CSS_SELECTOR, f"{opened} .pause").click()
+    frozen = text_of(page, f"{opened} .message")
+    wait_for(lambda: text_of(page, f"{opened} .stats") != "", 2)
+    threading.Event().wait(0.6)
+    assert text_of(page, f"{opened} .message") == frozen  # paused: the tree holds still
+    page.driver.find_element(By.CSS_SELECTOR, f"{opened} .close").click()
+    wait_for(lambda: not bridge_subscribes(ros, chatter), 20, what="the bridge to unsubscribe")
+
+
+def test_turtle_pose_rate_is_turtlesims(open_page):
+    page = open_page()
+    tab(page, "topics")
+    button = '#tab-topics tr[data-topic="/turtle1/pose"] button'
+    wait_for(lambda: page.driver.find_elements(By.CSS_SELECTOR, button), 20, what="/turtle1/pose listed")
+    page.driver.find_element(By.CSS_SELECTOR, button).click()
+    stats = '.open-topic[data-topic="/turtle1/pose"] .stats'
+    wait_for(lambda: "Hz" in text_of(page, stats) and "5 s" in text_of(page, stats), 15)
+    threading.Event().wait(3)
+    rate = float(text_of(page, stats).split("average rate: ")[1].split(" Hz")[0].lstrip("≥ "))
+    assert 55 < rate < 70  # 62.5 Hz, as `rostopic hz /turtle1/pose` says
+    assert "float32 x" in page.js(
+        "return document.querySelector('.open-topic[data-topic=\"/turtle1/pose\"] .definition pre').textContent")
+
+
+def test_a_service_called_from_its_generated_form(open_page, ros):
+    page = open_page()
+    tab(page, "services")
+    select = Select(page.el("service-name"))
+    wait_for(lambda: "/spawn" in options(page, "service-name"), 20, what="/spawn listed")
+    select.select_by_value("/spawn")
+    field = '#tab-services input[data-path="{}"]'
+    wait_for(lambda: page.driver.find_elements(By.CSS_SELECTOR, field.format("name")), 10, what="the form")
+    for path, value in (("x", "3"), ("y", "2"), ("theta", "0.5"), ("name", "console_turtle")):
+        box = page.driver.find_element(By.CSS_SELECTOR, field.format(path))
+        box.clear()
+        box.send_keys(value)
+    page.driver.find_element(By.CSS_SELECTOR, "#tab-services button[type=submit]").click()
+    wait_for(lambda: "answered" in text_of(page, ".service-result"), 15, what="the response")
+    assert "console_turtle" in text_of(page, ".service-result")
+    assert "/console_turtle/pose" in ros.run(["rostopic", "list"]).stdout
+
+    box = page.driver.find_element(By.CSS_SELECTOR, field.format("x"))
+    box.clear()
+    box.send_keys("left")
+    page.driver.find_element(By.CSS_SELECTOR, "#tab-services button[type=submit]").click()
+    wait_for(lambda: "fix the highlighted" in text_of(page, ".service-result"), 5)
+    assert "is not a number" in page.js("return document.querySelector('#tab-services .err:not([hidden])').textContent")
+
+    select.select_by_value("/kill")
+    wait_for(lambda: page.driver.find_elements(By.CSS_SELECTOR, field.format("name")), 10, what="the kill form")
+    page.driver.find_element(By.CSS_SELECTOR, field.format("name")).send_keys("nobody")
+    page.driver.find_element(By.CSS_SELECTOR, "#tab-services button[type=submit]").click()
+    wait_for(lambda: "failed" in text_of(page, ".service-result"), 15, what="the error")
+
+
+def test_parameters_are_listed_edited_with_their_type_and_deleted(open_page, ros):
+    ros.run(["rosparam", "set", "/console_gain", "7"])
+    page = open_page()
+    tab(page, "params")
+    row = '#tab-params tr[data-param="/console_gain"]'
+    wait_for(lambda: page.driver.find_elements(By.CSS_SELECTOR, row), 20, what="/console_gain listed")
+    value = page.driver.find_element(By.CSS_SELECTOR, f"{row} input")
+    assert value.get_attribute("value") == "7"
+    value.clear()
+    value.send_keys("abc")
+    page.driver.find_element(By.CSS_SELECTOR, f"{row} button[type=submit]").click()
+    wait_for(lambda: "not a number" in text_of(page, f"{row} .err"), 5, what="the inline type error")
+    assert ros.run(["rosparam", "get", "/console_gain"]).stdout.strip() == "7"
+    value.clear()
+    value.send_keys("42")
+    page.driver.find_element(By.CSS_SELECTOR, f"{row} button[type=submit]").click()
+    wait_for(lambda: ros.run(["rosparam", "get", "/console_gain"]).stdout.strip() == "42", 10, what="42 set")
+    wait_for(lambda: page.driver.find_elements(By.CSS_SELECTOR, f"{row} .delete"), 10)
+    page.driver.find_element(By.CSS_SELECTOR, f"{row} .delete").click()
+    wait_for(lambda: ros.run(["rosparam", "get", "/console_gain"], check=False).returncode != 0, 10,
+             what="the parameter deleted")
+
+
+def test_a_nodes_publications_subscriptions_and_services(open_page):
+    page = open_page()
+    tab(page, "nodes")
+    select = Select(page.el("node-name"))
+    wait_for(lambda: "/turtlesim" in options(page, "node-name"), 20, what="/turtlesim")
+    select.select_by_value("/turtlesim")
+    wait_for(lambda: "/turtle1/pose" in text_of(page, ".node-details"), 10, what="its publications")
+    details = text_of(page, ".node-details")
+    assert "/turtle1/cmd_vel" in details and "/spawn" in details
+
+
+def test_log_lines_arrive_and_filter(open_page, node):
+    page = open_page()
+    tab(page, "logs")
+    wait_for(lambda: (node.loginfo("console says hello"), "console says hello" in text_of(page, ".log-lines"))[1],
+             20, interval=0.5, what="the log line")
+    Select(page.driver.find_element(By.CSS_SELECTOR, "select.log-level")).select_by_value("4")
+    wait_for(lambda: "console says hello" not in text_of(page, ".log-lines"), 5, what="info lines hidden")
+    Select(page.driver.find_element(By.CSS_SELECTOR, "select.log-level")).select_by_value("2")
+    search = page.driver.find_element(By.CSS_SELECTOR, "input.log-search")
+    search.send_keys("no such text")
+    wait_for(lambda: text_of(page, ".log-lines") == "", 5, what="text search")
+
+
+@pytest.mark.parametrize("screen", ["desktop", "phone"])
+def test_console_screenshots(open_page, screen):
+    page = open_page(screen)
+    tab(page, "topics")
+    button = '#tab-topics tr[data-topic="/turtle1/pose"] button'
+    wait_for(lambda: page.driver.find_elements(By.CSS_SELECTOR, button), 20, what="/turtle1/pose listed")
+    page.driver.find_element(By.CSS_SELECTOR, button).click()
+    wait_for(lambda: "Hz" in text_of(page, '.open-topic .stats'), 15)
+    page.js("document.querySelector('.console').scrollIntoView()")
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    page.driver.save_screenshot(str(ARTIFACTS / f"console-{screen}.png"))
+    assert page.console_errors() == []
+
+
+def test_publish_any_type_from_its_generated_form(open_page, listen):
+    from std_msgs.msg import Float64
+    received = listen("/console/level", Float64)
+    page = open_page()
+    tab(page, "publish")
+    for selector, value in ((".publish-topic", "/console/level"), (".publish-type", "std_msgs/Float64")):
+        box = page.driver.find_element(By.CSS_SELECTOR, f"#tab-publish {selector}")
+        box.clear()
+        box.send_keys(value)
+    page.driver.find_element(By.CSS_SELECTOR, "#tab-publish .publish-load").click()
+    data = '#tab-publish input[data-path="data"]'
+    wait_for(lambda: page.driver.find_elements(By.CSS_SELECTOR, data), 10, what="the Float64 form")
+    page.driver.find_element(By.CSS_SELECTOR, data).clear()
+    page.driver.find_element(By.CSS_SELECTOR, data).send_keys("2.5")
+    page.driver.find_element(By.CSS_SELECTOR, "#tab-publish .publish-repeat").click()
+    wait_for(lambda: received.count() >= 5, 15, what="messages at the rate")
+    assert received.last.data == 2.5
+    page.driver.find_element(By.CSS_SELECTOR, "#tab-publish .publish-repeat").click()  # stop
+    count = received.count()
+    threading.Event().wait(1.0)
+    assert received.count() <= count + 1
+
+
+@pytest.fixture(scope="module")
+def camera(ros, sim):
+    proc = ros.spawn(["rosrun", "turtlesim", "turtle_camera"], "turtle_camera")
+    wait_for(lambda: "/turtle_camera/image_raw" in dict(ros.master().getTopicTypes()), 30, what="the camera")
+    yield
+    proc.stop()
+
+
+@pytest.mark.parametrize("topic", ["/turtle_camera/image_raw", "/turtle_camera/image_raw/compressed"])
+def test_the_camera_panel_shows_the_demo_camera_live(open_page, camera, topic):
+    page = open_page()
+    tab(page, "camera")
+    select = Select(page.el("camera-topic"))
+    wait_for(lambda: topic in options(page, "camera-topic"), 20, what=f"{topic} listed")
+    select.select_by_value(topic)
+    wait_for(lambda: "fps" in text_of(page, ".camera-stats") and not text_of(page, ".camera-stats").startswith("0"),
+             15, what="frames arriving")
+    fps = int(text_of(page, ".camera-stats").split(" fps")[0])
+    assert 5 <= fps <= 12  # the demo camera publishes at 10 Hz
+    # the picture: turtlesim's blue with turtle1 (green) in the middle
+    colours = page.js("""const c = document.querySelector('canvas.camera');
+        const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+        let blue = 0, green = 0;
+        for (let i = 0; i < d.length; i += 4) {
+          if (d[i + 2] > 200 && d[i] < 120) blue++;
+          if (d[i + 1] > 150 && d[i] < 120 && d[i + 2] < 160) green++;
+        }
+        return [c.width, blue, green];""")
+    assert colours[0] == 320 and colours[1] > 50_000 and colours[2] > 50
+
+
+def test_clicking_a_number_plots_it_live(open_page):
+    page = open_page()
+    tab(page, "topics")
+    button = '#tab-topics tr[data-topic="/turtle1/pose"] button'
+    wait_for(lambda: page.driver.find_elements(By.CSS_SELECTOR, button), 20, what="/turtle1/pose listed")
+    page.driver.find_element(By.CSS_SELECTOR, button).click()
+    leaf = '.open-topic[data-topic="/turtle1/pose"] li.plottable'
+    wait_for(lambda: page.driver.find_elements(By.CSS_SELECTOR, leaf), 15, what="the pose's numbers")
+    press(page, leaf)  # x, the first number
+    wait_for(lambda: "/turtle1/pose x" in text_of(page, ".plot-series"), 5, what="the series")
+    assert page.js("return document.querySelector('.plot').hidden") is False
+    line = """const c = document.querySelector('.plot-area canvas');
+        if (!c) return 0;
+        const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+        let n = 0;
+        for (let i = 0; i < d.length; i += 4) {
+          if (Math.abs(d[i] - 63) + Math.abs(d[i + 1] - 214) + Math.abs(d[i + 2] - 140) < 60) n++;
+        }
+        return n;"""
+    wait_for(lambda: page.js(line) > 50, 10, what="the x series drawn in its colour")

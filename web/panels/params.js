@@ -1,0 +1,118 @@
+// Parameters (rosparam list / get / set / delete): every parameter with its value; editing keeps its type
+// (a number stays a number, a list a list) unless the new text is JSON of another type on purpose.
+export class ParamsPanel {
+  constructor(root) {
+    this.root = root;
+    this.list = root.querySelector('.param-list tbody');
+    this.count = root.querySelector('.param-count');
+    this.status = root.querySelector('.panel-status');
+    this.session = null;
+  }
+
+  attach(session) {
+    this.session = session;
+    this.refresh();
+  }
+
+  detach() {
+    this.session = null;
+  }
+
+  show(visible) {
+    if (visible) this.refresh();
+  }
+
+  async refresh() {
+    const session = this.session;
+    if (!session) return;
+    try {
+      const { names } = await session.rosapi('get_param_names');
+      const sorted = [...names].sort();
+      const values = await Promise.all(sorted.map(name =>
+        session.rosapi('get_param', { name }).then(r => JSON.parse(r.value), () => undefined)));
+      if (session !== this.session) return;
+      const key = JSON.stringify([sorted, values]);
+      if (key === this.shown) return;  // unchanged: leave what a person is typing alone
+      this.shown = key;
+      this.count.textContent = `(${sorted.length})`;
+      this.list.replaceChildren(...sorted.map((name, i) => this.row(name, values[i])));
+      this.status.textContent = '';
+    } catch (error) {
+      this.status.textContent = `Could not list parameters: ${error.message}`;
+    }
+  }
+
+  row(name, value) {
+    const row = document.createElement('tr');
+    row.dataset.param = name;
+    row.innerHTML = `<td><code></code></td><td><form class="param-edit" novalidate>
+        <input autocomplete="off" spellcheck="false" aria-label="value"><button type="submit">Set</button>
+        <button type="button" class="delete">Delete</button><p class="err" hidden></p></form></td>`;
+    row.querySelector('code').textContent = name;
+    const input = row.querySelector('input');
+    input.value = typeof value === 'string' ? value : JSON.stringify(value);
+    row.querySelector('form').addEventListener('submit', e => {
+      e.preventDefault();
+      this.set(name, value, input, row.querySelector('.err'));
+    });
+    row.querySelector('.delete').addEventListener('click', () => this.remove(name));
+    return row;
+  }
+
+  async set(name, current, input, error) {
+    const [value, problem] = typedValue(input.value, current);
+    error.textContent = problem;
+    error.hidden = !problem;
+    input.toggleAttribute('aria-invalid', Boolean(problem));
+    if (problem || !this.session) return;
+    try {
+      await this.session.rosapi('set_param', { name, value: JSON.stringify(value) });
+      this.status.textContent = `Set ${name} = ${JSON.stringify(value)}.`;
+      this.refresh();
+    } catch (err) {
+      error.textContent = `Not set: ${err.message}`;
+      error.hidden = false;
+    }
+  }
+
+  async remove(name) {
+    if (!this.session) return;
+    try {
+      await this.session.rosapi('delete_param', { name });
+      this.status.textContent = `Deleted ${name}.`;
+      this.refresh();
+    } catch (err) {
+      this.status.textContent = `Could not delete ${name}: ${err.message}`;
+    }
+  }
+}
+
+// [value, error]: the text as a value of the current value's type (a string parameter takes the text as is).
+export function typedValue(text, current) {
+  if (typeof current === 'string') return [text, ''];
+  let value;
+  try {
+    value = JSON.parse(text.trim());
+  } catch {
+    return [undefined, `“${text.trim()}” is not ${describe(current)}.`];
+  }
+  if (current !== undefined && kind(value) !== kind(current)) {
+    return [undefined, `${name(kind(current))} expected (the parameter holds ${describe(current)}).`];
+  }
+  return [value, ''];
+}
+
+function kind(value) {
+  if (Array.isArray(value)) return 'list';
+  if (value === null) return 'null';
+  return typeof value;
+}
+
+function name(k) {
+  return { number: 'A number', boolean: 'true or false', list: 'A JSON list', object: 'A JSON object' }[k] ?? k;
+}
+
+function describe(value) {
+  return { number: 'a number', boolean: 'true or false', list: 'a list', object: 'a dictionary' }[kind(value)]
+    ?? 'valid JSON';
+}

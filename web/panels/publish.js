@@ -1,0 +1,105 @@
+// Publish anything (rostopic pub): a topic and a message type; a form generated from the type's definition;
+// publish once, or at a rate until stopped.
+import { messageForm } from './messages.js';
+
+const MAX_RATE_HZ = 100;
+
+export class PublishPanel {
+  constructor(root) {
+    this.root = root;
+    this.topicInput = root.querySelector('input.publish-topic');
+    this.typeInput = root.querySelector('input.publish-type');
+    this.formArea = root.querySelector('.publish-form');
+    this.rateInput = root.querySelector('input.publish-rate');
+    this.status = root.querySelector('.publish-status');
+    this.session = null;
+    this.form = null;
+    this.publisher = null;  // {topic, type, publish, close} on the current session
+    this.timer = null;
+    root.querySelector('button.publish-load').addEventListener('click', () => this.load());
+    root.querySelector('button.publish-once').addEventListener('click', () => this.publish());
+    root.querySelector('button.publish-repeat').addEventListener('click', () => this.toggleRepeat());
+    this.topicInput.addEventListener('change', () => this.guessType());
+  }
+
+  attach(session) {
+    this.session = session;
+  }
+
+  detach() {
+    this.stopRepeat();
+    this.session = null;
+    this.publisher = null;  // (gone with the socket)
+  }
+
+  show() {}
+
+  // A topic someone already publishes has a type: fill it in.
+  async guessType() {
+    if (!this.session || this.typeInput.value.trim()) return;
+    try {
+      const { type } = await this.session.rosapi('topic_type', { topic: this.topicInput.value.trim() });
+      if (type && !this.typeInput.value.trim()) this.typeInput.value = type;
+    } catch {
+      // no such topic yet: the person types the type
+    }
+  }
+
+  async load() {
+    const type = this.typeInput.value.trim();
+    if (!this.session) return this.say('Not connected.', 'error');
+    if (!/^[A-Za-z][\w]*\/[A-Za-z]\w*$/.test(type)) return this.say('Type a message type like geometry_msgs/Twist.', 'error');
+    try {
+      const { typedefs } = await this.session.rosapi('message_details', { type });
+      if (!typedefs.length) return this.say(`Unknown message type ${type}.`, 'error');
+      this.form = messageForm(typedefs);
+      this.formType = type;
+      this.formArea.replaceChildren(this.form.element);
+      this.say(`A ${type}: fill it in, then publish.`, 'info');
+    } catch (error) {
+      this.say(`Unknown message type ${type}: ${error.message}`, 'error');
+    }
+  }
+
+  publish() {
+    const topic = this.topicInput.value.trim();
+    if (!this.session) return this.say('Not connected: nothing published.', 'error');
+    if (!this.form) return this.say('Load a message type first.', 'error');
+    if (!/^\/?[A-Za-z~][\w/]*$/.test(topic)) return this.say(`“${topic}” is not a topic name.`, 'error');
+    const message = this.form.read();
+    if (message === null) return this.say('Nothing published: fix the highlighted fields.', 'error');
+    if (this.publisher?.topic !== topic || this.publisher?.type !== this.formType) {
+      this.publisher?.close();
+      this.publisher = { topic, type: this.formType, ...this.session.advertise(topic, this.formType) };
+    }
+    this.publisher.publish(message);
+    this.say(`Published on ${topic}.`, 'ok');
+    return true;
+  }
+
+  toggleRepeat() {
+    if (this.timer) {
+      this.stopRepeat();
+      return;
+    }
+    const rate = Number(this.rateInput.value.replace(',', '.'));
+    if (!(rate > 0 && rate <= MAX_RATE_HZ)) {
+      this.say(`Rate: a number of Hz, up to ${MAX_RATE_HZ}.`, 'error');
+    } else if (this.publish()) {
+      this.timer = setInterval(() => this.publish() || this.stopRepeat(), 1000 / rate);
+      this.root.querySelector('button.publish-repeat').textContent = 'Stop';
+    }
+  }
+
+  stopRepeat() {
+    clearInterval(this.timer);
+    this.timer = null;
+    this.root.querySelector('button.publish-repeat').textContent = 'Publish at rate';
+  }
+
+  say(text, kind) {  // (false: so that `return this.say(...)` says nothing was done)
+    this.status.textContent = text;
+    this.status.className = `publish-status ${kind}`;
+    return false;
+  }
+}

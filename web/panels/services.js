@@ -1,0 +1,111 @@
+// Services (rosservice list / info / call, rossrv show): every service with its type; choosing one shows a
+// form generated from its request definition; calling it shows the response, or the error.
+import { definitionText, messageForm, messageTree } from './messages.js';
+
+export class ServicesPanel {
+  constructor(root) {
+    this.root = root;
+    this.select = root.querySelector('select.service-name');
+    this.count = root.querySelector('.service-count');
+    this.formArea = root.querySelector('.service-form');
+    this.result = root.querySelector('.service-result');
+    this.status = root.querySelector('.panel-status');
+    this.session = null;
+    this.form = null;
+    this.select.addEventListener('change', () => this.choose(this.select.value));
+    root.querySelector('form').addEventListener('submit', e => {
+      e.preventDefault();
+      this.callChosen();
+    });
+  }
+
+  attach(session) {
+    this.session = session;
+    this.refresh();
+  }
+
+  detach() {
+    this.session = null;
+  }
+
+  show(visible) {
+    if (visible) this.refresh();
+  }
+
+  async refresh() {
+    const session = this.session;
+    if (!session) return;
+    try {
+      const { services } = await session.rosapi('services');
+      if (session !== this.session) return;
+      const chosen = this.select.value;
+      const names = [...services].sort();
+      this.status.textContent = '';
+      if (JSON.stringify(names) === this.shown) return;  // unchanged: leave the choice alone
+      this.shown = JSON.stringify(names);
+      this.count.textContent = `(${names.length})`;
+      this.select.replaceChildren(new Option('Choose a service…', ''), ...names.map(n => new Option(n, n)));
+      this.select.value = names.includes(chosen) ? chosen : '';
+      this.status.textContent = '';
+    } catch (error) {
+      this.status.textContent = `Could not list services: ${error.message}`;
+    }
+  }
+
+  async choose(name) {
+    this.formArea.replaceChildren();
+    this.result.replaceChildren();
+    this.chosen = null;
+    if (!name || !this.session) return;
+    try {
+      const { type } = await this.session.rosapi('service_type', { service: name });
+      const [request, response] = await Promise.all([
+        this.session.rosapi('service_request_details', { type }),
+        this.session.rosapi('service_response_details', { type })]);
+      if (this.select.value !== name) return;
+      this.chosen = { name, type };
+      this.form = messageForm(request.typedefs);
+      const heading = document.createElement('p');
+      heading.className = 'muted';
+      heading.innerHTML = 'Type <code></code>';
+      heading.lastChild.textContent = type;
+      const definition = document.createElement('details');
+      definition.className = 'definition';
+      definition.innerHTML = '<summary>Definition <small>(rossrv show)</small></summary><pre></pre>';
+      definition.lastChild.textContent = `${definitionText(request.typedefs)}\n---\n${definitionText(response.typedefs)}`;
+      this.formArea.append(heading, definition, this.form.element);
+    } catch (error) {
+      this.showError(`Could not read ${name}'s type: ${error.message}`);
+    }
+  }
+
+  async callChosen() {
+    if (!this.chosen || !this.session) {
+      this.showError(this.session ? 'Choose a service first.' : 'Not connected.');
+      return;
+    }
+    const request = this.form.read();
+    if (request === null) {
+      this.showError('Not called: fix the highlighted fields.');
+      return;
+    }
+    const { name, type } = this.chosen;
+    this.result.textContent = `Calling ${name}…`;
+    try {
+      const response = await this.session.call(name, type, request);
+      const title = document.createElement('p');
+      title.className = 'ok';
+      title.textContent = `${name} answered:`;
+      this.result.replaceChildren(title, messageTree(response));
+    } catch (error) {
+      this.showError(`${name} failed: ${error.message}`);
+    }
+  }
+
+  showError(text) {
+    const line = document.createElement('p');
+    line.className = 'error';
+    line.textContent = text;
+    this.result.replaceChildren(line);
+  }
+}

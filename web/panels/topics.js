@@ -1,0 +1,246 @@
+// Topics (rostopic list / info / echo / hz / bw, rosmsg show): the list with types, publisher and subscriber
+// counts; an opened topic shows its info, its definition and its latest message as a live tree (pausable),
+// with its rate and bandwidth. Several can be open; closing one unsubscribes.
+import { definitionText, messageTree } from './messages.js';
+import { Plot } from './plot.js';
+
+const REFRESH_MS = 3000;
+const WINDOW_S = 5;  // rate and bandwidth over the last seconds, as rostopic hz/bw's window
+const FAST_HZ = 200;  // above this the bridge throttles what it sends this page (the rate shown is then a floor)
+const THROTTLE_MS = 50;
+const RENDER_MS = 150;
+const INFO_EVERY_S = 3;  // the tree is redrawn at most this often, whatever the topic's rate
+
+export class TopicsPanel {
+  constructor(root) {
+    this.root = root;
+    this.list = root.querySelector('.topic-list tbody');
+    this.count = root.querySelector('.topic-count');
+    this.openArea = root.querySelector('.open-topics');
+    this.status = root.querySelector('.panel-status');
+    this.plot = new Plot(root.querySelector('.plot'));
+    this.session = null;
+    this.visible = false;
+    this.open = new Map();  // topic name -> OpenTopic (kept across reconnections)
+    this.types = new Map();
+    this.timer = null;
+  }
+
+  attach(session) {
+    this.session = session;
+    for (const topic of this.open.values()) topic.attach(session);
+    this.refresh();
+    this.timer = setInterval(() => this.visible && this.refresh(), REFRESH_MS);
+  }
+
+  detach() {
+    this.session = null;
+    clearInterval(this.timer);
+    for (const topic of this.open.values()) topic.detach();
+  }
+
+  show(visible) {
+    this.visible = visible;
+    if (visible) this.refresh();
+  }
+
+  async refresh() {
+    const session = this.session;
+    if (!session) return;
+    try {
+      const { topics, types } = await session.rosapi('topics');
+      const entries = topics.map((name, i) => [name, types[i]]).sort(([a], [b]) => a.localeCompare(b));
+      this.types = new Map(entries);
+      const counts = await Promise.all(entries.map(([name]) => Promise.all([
+        session.rosapi('publishers', { topic: name }).then(r => r.publishers.length, () => '?'),
+        session.rosapi('subscribers', { topic: name }).then(r => r.subscribers.length, () => '?'),
+      ])));
+      if (session !== this.session) return;
+      this.showList(entries, counts);
+      this.status.textContent = '';
+    } catch (error) {
+      this.status.textContent = `Could not list topics: ${error.message}`;
+    }
+  }
+
+  showList(entries, counts) {
+    const key = JSON.stringify([entries, counts, [...this.open.keys()].map(name => this.open.get(name).rateText())]);
+    if (key === this.shown) return;  // a list that did not change is left alone (a click or a scroll in it too)
+    this.shown = key;
+    this.count.textContent = `(${entries.length})`;
+    this.list.replaceChildren(...entries.map(([name, type], i) => {
+      const row = document.createElement('tr');
+      row.dataset.topic = name;
+      row.innerHTML = '<td><button type="button" class="link"></button></td><td><code></code></td>' +
+        '<td class="num"></td><td class="num"></td><td class="num rate"></td>';
+      const [nameCell, typeCell, pubs, subs, rate] = row.children;
+      nameCell.firstChild.textContent = name;
+      nameCell.firstChild.addEventListener('click', () => this.openTopic(name, type));
+      typeCell.firstChild.textContent = type;
+      [pubs.textContent, subs.textContent] = counts[i].map(String);
+      rate.textContent = this.open.get(name)?.rateText() ?? '';
+      return row;
+    }));
+  }
+
+  openTopic(name, type) {
+    if (this.open.has(name)) {
+      this.open.get(name).element.scrollIntoView({ block: 'nearest' });
+      return;
+    }
+    const topic = new OpenTopic(name, type, this.plot, () => {
+      this.open.delete(name);
+      topic.element.remove();
+    });
+    this.open.set(name, topic);
+    this.openArea.prepend(topic.element);
+    if (this.session) topic.attach(this.session);
+  }
+}
+
+class OpenTopic {
+  constructor(name, type, plot, onClose) {
+    this.name = name;
+    this.plot = plot;
+    this.type = type;
+    this.paused = false;
+    this.arrivals = [];  // [time s, bytes]
+    this.latest = null;
+    this.openBranches = new Set();
+    this.subscription = null;
+    this.throttled = false;
+    this.element = document.createElement('article');
+    this.element.className = 'open-topic';
+    this.element.dataset.topic = name;
+    this.element.innerHTML = `
+      <header><h3><code class="name"></code> <small class="type"></small></h3>
+        <div class="buttons"><button type="button" class="pause">Pause</button>
+          <button type="button" class="close" aria-label="Close">Close</button></div></header>
+      <p class="stats" aria-live="off">waiting for a message…</p>
+      <p class="info muted"></p>
+      <details class="definition"><summary>Definition <small>(rosmsg show)</small></summary><pre></pre></details>
+      <div class="message"></div>`;
+    this.$ = selector => this.element.querySelector(selector);
+    this.$('.name').textContent = name;
+    this.$('.type').textContent = type;
+    this.$('.pause').addEventListener('click', () => this.togglePause());
+    // on the container, at pointerdown: the tree is redrawn several times a second, so a leaf may be replaced
+    // between a press and its release
+    this.$('.message').addEventListener('pointerdown', event => {
+      const leaf = event.target.closest('li.plottable');
+      if (leaf) this.plot.add(this.name, JSON.parse(leaf.dataset.path));
+    });
+    this.$('.close').addEventListener('click', () => {
+      this.detach();
+      onClose();
+    });
+    this.ticks = 0;
+    this.statsTimer = setInterval(() => this.showStats(), 1000);
+  }
+
+  attach(session) {
+    this.session = session;
+    this.subscribe();
+    this.showInfo();
+  }
+
+  // Who publishes and subscribes changes (this page's own subscription appears a moment after opening).
+  async showInfo() {
+    const session = this.session;
+    if (!session) return;
+    try {
+      const [pubs, subs, details] = await Promise.all([
+        session.rosapi('publishers', { topic: this.name }), session.rosapi('subscribers', { topic: this.name }),
+        session.rosapi('message_details', { type: this.type })]);
+      this.$('.info').textContent = `Publishers: ${pubs.publishers.join(', ') || 'none'} · ` +
+        `Subscribers: ${subs.subscribers.join(', ') || 'none'}`;
+      if (session !== this.session) return;
+      this.$('.definition pre').textContent = definitionText(details.typedefs);
+    } catch (error) {
+      this.$('.info').textContent = `Could not read the topic's details: ${error.message}`;
+    }
+  }
+
+  subscribe() {
+    this.subscription?.close();
+    const options = this.throttled ? { throttle_rate: THROTTLE_MS, queue_length: 1 } : {};
+    this.subscription = this.session.subscribe(this.name, this.type, message => this.receive(message), options);
+  }
+
+  detach() {
+    this.subscription?.close();
+    this.subscription = null;
+    this.session = null;
+    clearTimeout(this.renderTimer);
+    this.renderTimer = null;
+  }
+
+  receive(message) {
+    const now = performance.now() / 1000;
+    this.arrivals.push([now, JSON.stringify(message).length]);
+    while (this.arrivals.length && this.arrivals[0][0] < now - WINDOW_S) this.arrivals.shift();
+    this.latest = message;
+    this.plot.push(this.name, message);
+    if (!this.throttled && this.hz() > FAST_HZ) {  // too fast to show: let the bridge send a sample
+      this.throttled = true;
+      this.subscribe();
+    }
+    if (!this.paused && !this.renderTimer) {
+      this.renderTimer = setTimeout(() => {
+        this.renderTimer = null;
+        this.render();
+      }, RENDER_MS);
+    }
+  }
+
+  hz() {
+    const a = this.arrivals;
+    if (a.length < 2) return 0;
+    return (a.length - 1) / Math.max(a[a.length - 1][0] - a[0][0], 1e-6);
+  }
+
+  rateText() {
+    if (this.arrivals.length < 2) return '';
+    return `${this.throttled ? '≥ ' : ''}${this.hz().toFixed(1)} Hz`;
+  }
+
+  showStats() {
+    if (!this.element.isConnected) {
+      clearInterval(this.statsTimer);
+      return;
+    }
+    if (++this.ticks % INFO_EVERY_S === 0) this.showInfo();
+    const a = this.arrivals;
+    if (!a.length) return;
+    const seconds = Math.max(performance.now() / 1000 - a[0][0], 1e-3);
+    const bytes = a.reduce((sum, [, size]) => sum + size, 0);
+    const note = this.throttled ? ` (fast topic: the bridge sends this page one every ${THROTTLE_MS} ms)` : '';
+    this.$('.stats').textContent = `average rate: ${this.rateText() || '—'} · bandwidth: ` +
+      `${formatBytes(bytes / seconds)}/s · ${a.length} messages in the last ${WINDOW_S} s${note}`;
+  }
+
+  togglePause() {
+    this.paused = !this.paused;
+    this.$('.pause').textContent = this.paused ? 'Resume' : 'Pause';
+    if (!this.paused) this.render();
+  }
+
+  render() {
+    if (this.latest === null || this.paused) return;
+    this.$('.message').replaceChildren(messageTree(this.latest, {
+      open: this.openBranches,
+      onLeaf: (path, item, value) => {
+        if (typeof value !== 'number') return;
+        item.classList.add('plottable');
+        item.title = 'Plot it';
+        item.dataset.path = JSON.stringify(path);
+      },
+    }));
+  }
+}
+
+function formatBytes(perSecond) {
+  if (perSecond >= 1e6) return `${(perSecond / 1e6).toFixed(2)} MB`;
+  if (perSecond >= 1e3) return `${(perSecond / 1e3).toFixed(2)} KB`;
+  return `${perSecond.toFixed(0)} B`;
+}

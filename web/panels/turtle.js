@@ -1,0 +1,251 @@
+// The turtle panel, the first thing one sees: the live world, driving (keys, joystick, the tutorial's Twist
+// form), the world's services (clear, reset, spawn, teleport). It holds no connection state of its own
+// beyond what the current RosSession gave it, all dropped in detach().
+import { WorldView, WORLD_M } from './world.js';
+import { Driver } from './drive.js';
+
+const DISCOVERY_MS = 2000;  // how often the set of turtles is refreshed
+const $ = id => document.getElementById(id);
+
+const view = new WorldView($('world'));
+window.turtleView = view.debugHook();
+
+let session = null;  // the connected RosSession, or null
+let poses = new Map();  // turtle name -> its pose subscription
+let cmdVel = null;  // {name, publisher} advertised on the current session
+let discoveryTimer = null;
+
+// ---- numbers typed by people -------------------------------------------------------------------
+
+// Accepts "1.5", "-2", ".5", "1e-3" and a decimal comma ("1,5", what phone keypads in many locales
+// type); anything else is an inline error on the field. Returns the number, null for a blank
+// optional field, or undefined when invalid.
+function readNumber(input, { optional = false } = {}) {
+  const text = input.value.trim().replace(',', '.');
+  let error = '';
+  if (text === '') {
+    if (!optional) error = 'Enter a number.';
+  } else if (!/^[+-]?(\d+\.?\d*|\.\d+)(e[+-]?\d+)?$/i.test(text) || !Number.isFinite(Number(text))) {
+    error = `“${input.value.trim()}” is not a number.`;
+  }
+  showFieldError(input, error);
+  if (error) return undefined;
+  return text === '' ? null : Number(text);
+}
+
+function showFieldError(input, message) {
+  const out = $(`${input.id}-err`);
+  out.textContent = message;
+  out.hidden = !message;
+  input.toggleAttribute('aria-invalid', Boolean(message));
+}
+
+// Reads several fields at once (so every bad one is marked); undefined if any is invalid.
+function readNumbers(ids, options) {
+  const values = ids.map(id => readNumber($(id), options));
+  return values.includes(undefined) ? undefined : values;
+}
+
+// ---- feedback ----------------------------------------------------------------------------------
+
+export function feedback(text, kind = 'info') {
+  const list = $('feedback');
+  const item = document.createElement('li');
+  item.className = kind;
+  const time = new Date().toLocaleTimeString([], { hour12: false });
+  item.innerHTML = '<time></time> <span></span>';
+  item.firstChild.textContent = time;
+  item.lastChild.textContent = text;
+  list.prepend(item);
+  while (list.children.length > 6) list.lastChild.remove();
+}
+
+function serviceStatus(text, kind = 'info') {
+  const out = $('service-status');
+  out.textContent = text;
+  out.className = `status ${kind}`;
+}
+
+// ---- the session ------------------------------------------------------------------------------
+
+export function attach(connected) {
+  session = connected;
+  session.onStatus(status => status.level === 'error' && feedback(`Bridge: ${status.msg}`, 'error'));
+  commandTopic();
+  discoverTurtles();
+  discoveryTimer = setInterval(discoverTurtles, DISCOVERY_MS);
+}
+
+export function detach() {
+  session = null;
+  cmdVel = null;
+  poses = new Map();  // their subscriptions died with the socket
+  clearInterval(discoveryTimer);
+  view.breakTrails();
+  driver.stop();  // nothing can be sent now; the turtle stops 1 s after its last command
+}
+
+// ---- discovery: the turtles ------------------------------------------------------------------
+
+async function discoverTurtles() {
+  const asked = session;
+  if (!asked) return;
+  try {
+    const { topics, types } = await asked.rosapi('topics');
+    if (asked !== session) return;
+    trackTurtles(topics.filter((name, i) => types[i] === 'turtlesim/Pose' && /^\/[^/]+\/pose$/.test(name))
+      .map(name => name.split('/')[1]));
+  } catch (error) {
+    feedback(`Could not list topics: ${error.message}`, 'error');
+  }
+}
+
+function trackTurtles(names) {
+  for (const [name, subscription] of poses) {
+    if (names.includes(name)) continue;
+    subscription.close();
+    poses.delete(name);
+  }
+  for (const name of view.names) {
+    if (!names.includes(name)) view.remove(name);
+  }
+  for (const name of names) {
+    if (poses.has(name)) continue;
+    poses.set(name, session.subscribe(`/${name}/pose`, 'turtlesim/Pose', pose => view.setPose(name, pose)));
+  }
+  showTargets(names);
+}
+
+function showTargets(names) {
+  const select = $('target');
+  const current = select.value;
+  const wanted = names.length ? [...names].sort() : [current];
+  if ([...select.options].map(o => o.value).join() === wanted.join()) return;
+  select.replaceChildren(...wanted.map(name => new Option(name, name)));
+  select.value = wanted.includes(current) ? current : wanted[0];
+  if (select.value !== current) switchTarget();
+}
+
+function target() {
+  return $('target').value || 'turtle1';
+}
+
+function showTarget() {
+  $('cmd-vel-name').textContent = `/${target()}/cmd_vel`;
+  for (const el of document.querySelectorAll('.target-name')) el.textContent = target();
+}
+
+// ---- publishing Twists -------------------------------------------------------------------------
+
+// The cmd_vel publisher of the driven turtle, advertised ahead of the first command (on connect and on
+// a change of turtle) so that turtlesim is already subscribed when the first Twist goes out.
+function commandTopic() {
+  const name = `/${target()}/cmd_vel`;
+  if (cmdVel?.name !== name) {
+    cmdVel?.publisher.close();
+    cmdVel = { name, publisher: session.advertise(name, 'geometry_msgs/Twist', { queue_size: 1 }) };
+  }
+  return cmdVel.publisher;
+}
+
+// Never queued while disconnected: a stale command must not move the turtle after a reconnect.
+function publishTwist(linear, angular) {
+  if (!session) return false;
+  (cmdVel?.publisher ?? commandTopic()).publish({
+    linear: { x: linear, y: 0, z: 0 },
+    angular: { x: 0, y: 0, z: angular },
+  });
+  return true;
+}
+
+function tutorialSpeeds() {
+  const values = readNumbers(['linear', 'angular']);
+  return values && { linear: values[0], angular: values[1] };
+}
+
+$('twist-form').addEventListener('submit', e => {
+  e.preventDefault();
+  const speeds = tutorialSpeeds();
+  if (!speeds) {
+    feedback('Nothing published: fix the highlighted number.', 'error');
+    return;
+  }
+  if (publishTwist(speeds.linear, speeds.angular)) {
+    feedback(`Published linear.x = ${speeds.linear}, angular.z = ${speeds.angular} on /${target()}/cmd_vel.`, 'ok');
+  } else {
+    feedback('Nothing published: not connected to the bridge.', 'error');
+  }
+});
+
+const driver = new Driver({
+  publish: publishTwist,
+  // Full stick = the tutorial speeds' magnitudes; the keys give the direction.
+  speeds: () => {
+    const speeds = tutorialSpeeds();
+    return speeds && { linear: Math.abs(speeds.linear), angular: Math.abs(speeds.angular) };
+  },
+  joystick: $('joystick'),
+});
+
+// The driven turtle is stopped first: its zero Twist still goes to the publisher of the old name.
+function switchTarget() {
+  driver.stop();
+  showTarget();
+  if (session) commandTopic();
+}
+
+$('target').addEventListener('change', switchTarget);
+
+// ---- services ----------------------------------------------------------------------------------
+
+async function callService(name, type, args, done) {
+  if (!session) {
+    serviceStatus(`Not connected: ${name} was not called.`, 'error');
+    return;
+  }
+  serviceStatus(`Calling ${name}…`);
+  try {
+    serviceStatus(done(await session.call(name, type, args)), 'ok');
+    discoverTurtles();
+  } catch (error) {
+    serviceStatus(`${name} failed: ${error.message || 'the service reported an error'}`, 'error');
+  }
+}
+
+$('clear').addEventListener('click', () => callService('/clear', 'std_srvs/Empty', {}, () => {
+  view.clearTrails();
+  return 'Trails cleared.';
+}));
+
+$('reset').addEventListener('click', () => callService('/reset', 'std_srvs/Empty', {}, () => {
+  view.forgetTurtles();
+  return 'World reset: turtle1 is back in the centre.';
+}));
+
+$('spawn-form').addEventListener('submit', e => {
+  e.preventDefault();
+  const values = readNumbers(['spawn-x', 'spawn-y', 'spawn-theta'], { optional: true });
+  if (!values) return;
+  const margin = 1;  // keep random turtles off the walls
+  const random = (lo, hi) => lo + Math.random() * (hi - lo);
+  const [x, y, theta] = values;
+  const args = {
+    x: x ?? random(margin, WORLD_M - margin),
+    y: y ?? random(margin, WORLD_M - margin),
+    theta: theta ?? random(-Math.PI, Math.PI),
+    name: $('spawn-name').value.trim(),
+  };
+  callService('/spawn', 'turtlesim/Spawn', args,
+    result => `Spawned ${result.name} at (${args.x.toFixed(2)}, ${args.y.toFixed(2)}).`);
+});
+
+$('teleport-form').addEventListener('submit', e => {
+  e.preventDefault();
+  const values = readNumbers(['tp-x', 'tp-y', 'tp-theta']);
+  if (!values) return;
+  const [x, y, theta] = values;
+  const name = target();
+  callService(`/${name}/teleport_absolute`, 'turtlesim/TeleportAbsolute', { x, y, theta },
+    () => `Teleported ${name} to (${x}, ${y}, ${theta}).`);
+});
+
