@@ -2,60 +2,43 @@
 // sensor_msgs/Image (rgb8, bgr8, mono8, 16UC1 depth as grey), carried as binary CBOR frames. The bridge sends
 // the newest frame only once the page has read the last (throttle_rate with queue_length 1), so the picture
 // never lags behind on a slow link; the panel shows frames per second and the age of the frame.
+import { Panel, fillSelect } from './panel.js';
+
 const IMAGE_TYPES = ['sensor_msgs/CompressedImage', 'sensor_msgs/Image'];
 const FRAME_MS = 33;  // at most ~30 frames per second to this page
 const STATS_MS = 1000;
 
-export class CameraPanel {
+export class CameraPanel extends Panel {
   constructor(root) {
-    this.root = root;
+    super(root, 'Could not list topics');
     this.select = root.querySelector('select.camera-topic');
     this.canvas = root.querySelector('canvas.camera');
     this.stats = root.querySelector('.camera-stats');
-    this.status = root.querySelector('.panel-status');
-    this.session = null;
     this.subscription = null;
+    this.types = new Map();
     this.frames = [];  // arrival times, last second
     this.age = null;
     this.select.addEventListener('change', () => this.watch(this.select.value));
     setInterval(() => this.showStats(), STATS_MS);
   }
 
-  attach(session) {
-    this.session = session;
-    this.refresh();
-  }
-
   detach() {
-    this.session = null;
-    this.subscription = null;  // (gone with the socket; watched again on the next session)
+    super.detach();
+    this.subscription = null;  // (gone with the socket)
+    this.shown = null;  // so that the next session watches the chosen camera again
   }
 
-  show(visible) {
-    if (visible) this.refresh();
+  async load(session) {
+    const { topics, types } = await session.rosapi('topics');
+    return topics.map((name, i) => [name, types[i]]).filter(([, type]) => IMAGE_TYPES.includes(type))
+      .sort(([a], [b]) => a.localeCompare(b));
   }
 
-  async refresh() {
-    const session = this.session;
-    if (!session) return;
-    try {
-      const { topics, types } = await session.rosapi('topics');
-      if (session !== this.session) return;
-      const cameras = topics.map((name, i) => [name, types[i]]).filter(([, type]) => IMAGE_TYPES.includes(type))
-        .sort(([a], [b]) => a.localeCompare(b));
-      const chosen = this.select.value;
-      this.types = new Map(cameras);
-      this.status.textContent = '';
-      if (JSON.stringify(cameras) === this.shown) return;  // unchanged: leave the choice alone
-      this.shown = JSON.stringify(cameras);
-      this.select.replaceChildren(new Option(cameras.length ? 'Choose a camera…' : 'No image topics', ''),
-        ...cameras.map(([name, type]) => new Option(`${name} (${type.split('/')[1]})`, name)));
-      this.select.value = this.types.has(chosen) ? chosen : '';
-      if (this.select.value && !this.subscription) this.watch(this.select.value);
-      this.status.textContent = '';
-    } catch (error) {
-      this.status.textContent = `Could not list topics: ${error.message}`;
-    }
+  render(cameras) {
+    this.types = new Map(cameras);
+    fillSelect(this.select, cameras.length ? 'Choose a camera…' : 'No image topics',
+      cameras.map(([name, type]) => [name, `${name} (${type.split('/')[1]})`]));
+    if (this.select.value && !this.subscription) this.watch(this.select.value);
   }
 
   watch(topic) {

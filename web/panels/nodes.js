@@ -1,46 +1,23 @@
 // Nodes (rosnode list / info): every node; choosing one shows what it publishes, subscribes to and provides.
-export class NodesPanel {
+import { Panel, fillSelect } from './panel.js';
+
+export class NodesPanel extends Panel {
   constructor(root) {
-    this.root = root;
+    super(root, 'Could not list nodes');
     this.select = root.querySelector('select.node-name');
     this.count = root.querySelector('.node-count');
     this.details = root.querySelector('.node-details');
-    this.status = root.querySelector('.panel-status');
-    this.session = null;
     this.select.addEventListener('change', () => this.showNode(this.select.value));
   }
 
-  attach(session) {
-    this.session = session;
-    this.refresh();
+  async load(session) {
+    return (await session.rosapi('nodes')).nodes;
   }
 
-  detach() {
-    this.session = null;
-  }
-
-  show(visible) {
-    if (visible) this.refresh();
-  }
-
-  async refresh() {
-    const session = this.session;
-    if (!session) return;
-    try {
-      const { nodes } = await session.rosapi('nodes');
-      if (session !== this.session) return;
-      const chosen = this.select.value;
-      this.status.textContent = '';
-      if (JSON.stringify(nodes) === this.shown) return;  // unchanged: leave the choice alone
-      this.shown = JSON.stringify(nodes);
-      this.count.textContent = `(${nodes.length})`;
-      this.select.replaceChildren(new Option('Choose a node…', ''), ...nodes.map(n => new Option(n, n)));
-      this.select.value = nodes.includes(chosen) ? chosen : '';
-      if (this.select.value) this.showNode(this.select.value);
-      this.status.textContent = '';
-    } catch (error) {
-      this.status.textContent = `Could not list nodes: ${error.message}`;
-    }
+  render(nodes) {
+    this.count.textContent = `(${nodes.length})`;
+    fillSelect(this.select, 'Choose a node…', nodes.map(n => [n, n]));
+    if (this.select.value) this.showNode(this.select.value);
   }
 
   async showNode(node) {

@@ -1,45 +1,24 @@
 // Parameters (rosparam list / get / set / delete): every parameter with its value; editing keeps its type
-// (a number stays a number, a list a list) unless the new text is JSON of another type on purpose.
-export class ParamsPanel {
+// (a number stays a number, a list a list); a value that does not fit is flagged under its field.
+import { Panel } from './panel.js';
+
+export class ParamsPanel extends Panel {
   constructor(root) {
-    this.root = root;
+    super(root, 'Could not list parameters');
     this.list = root.querySelector('.param-list tbody');
     this.count = root.querySelector('.param-count');
-    this.status = root.querySelector('.panel-status');
-    this.session = null;
   }
 
-  attach(session) {
-    this.session = session;
-    this.refresh();
+  async load(session) {
+    const names = [...(await session.rosapi('get_param_names')).names].sort();
+    const values = await Promise.all(names.map(name =>
+      session.rosapi('get_param', { name }).then(r => JSON.parse(r.value), () => undefined)));
+    return names.map((name, i) => [name, values[i]]);
   }
 
-  detach() {
-    this.session = null;
-  }
-
-  show(visible) {
-    if (visible) this.refresh();
-  }
-
-  async refresh() {
-    const session = this.session;
-    if (!session) return;
-    try {
-      const { names } = await session.rosapi('get_param_names');
-      const sorted = [...names].sort();
-      const values = await Promise.all(sorted.map(name =>
-        session.rosapi('get_param', { name }).then(r => JSON.parse(r.value), () => undefined)));
-      if (session !== this.session) return;
-      const key = JSON.stringify([sorted, values]);
-      if (key === this.shown) return;  // unchanged: leave what a person is typing alone
-      this.shown = key;
-      this.count.textContent = `(${sorted.length})`;
-      this.list.replaceChildren(...sorted.map((name, i) => this.row(name, values[i])));
-      this.status.textContent = '';
-    } catch (error) {
-      this.status.textContent = `Could not list parameters: ${error.message}`;
-    }
+  render(params) {
+    this.count.textContent = `(${params.length})`;
+    this.list.replaceChildren(...params.map(([name, value]) => this.row(name, value)));
   }
 
   row(name, value) {

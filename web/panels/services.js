@@ -1,16 +1,15 @@
 // Services (rosservice list / info / call, rossrv show): every service with its type; choosing one shows a
 // form generated from its request definition; calling it shows the response, or the error.
 import { definitionText, messageForm, messageTree } from './messages.js';
+import { Panel, fillSelect } from './panel.js';
 
-export class ServicesPanel {
+export class ServicesPanel extends Panel {
   constructor(root) {
-    this.root = root;
+    super(root, 'Could not list services');
     this.select = root.querySelector('select.service-name');
     this.count = root.querySelector('.service-count');
     this.formArea = root.querySelector('.service-form');
     this.result = root.querySelector('.service-result');
-    this.status = root.querySelector('.panel-status');
-    this.session = null;
     this.form = null;
     this.select.addEventListener('change', () => this.choose(this.select.value));
     root.querySelector('form').addEventListener('submit', e => {
@@ -19,37 +18,13 @@ export class ServicesPanel {
     });
   }
 
-  attach(session) {
-    this.session = session;
-    this.refresh();
+  async load(session) {
+    return [...(await session.rosapi('services')).services].sort();
   }
 
-  detach() {
-    this.session = null;
-  }
-
-  show(visible) {
-    if (visible) this.refresh();
-  }
-
-  async refresh() {
-    const session = this.session;
-    if (!session) return;
-    try {
-      const { services } = await session.rosapi('services');
-      if (session !== this.session) return;
-      const chosen = this.select.value;
-      const names = [...services].sort();
-      this.status.textContent = '';
-      if (JSON.stringify(names) === this.shown) return;  // unchanged: leave the choice alone
-      this.shown = JSON.stringify(names);
-      this.count.textContent = `(${names.length})`;
-      this.select.replaceChildren(new Option('Choose a service…', ''), ...names.map(n => new Option(n, n)));
-      this.select.value = names.includes(chosen) ? chosen : '';
-      this.status.textContent = '';
-    } catch (error) {
-      this.status.textContent = `Could not list services: ${error.message}`;
-    }
+  render(names) {
+    this.count.textContent = `(${names.length})`;
+    fillSelect(this.select, 'Choose a service…', names.map(n => [n, n]));
   }
 
   async choose(name) {

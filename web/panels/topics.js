@@ -2,6 +2,7 @@
 // counts; an opened topic shows its info, its definition and its latest message as a live tree (pausable),
 // with its rate and bandwidth. Several can be open; closing one unsubscribes.
 import { definitionText, messageTree } from './messages.js';
+import { Panel } from './panel.js';
 import { Plot } from './plot.js';
 
 const REFRESH_MS = 3000;
@@ -11,74 +12,58 @@ const THROTTLE_MS = 50;
 const RENDER_MS = 150;
 const INFO_EVERY_S = 3;  // the tree is redrawn at most this often, whatever the topic's rate
 
-export class TopicsPanel {
+export class TopicsPanel extends Panel {
   constructor(root) {
-    this.root = root;
+    super(root, 'Could not list topics');
     this.list = root.querySelector('.topic-list tbody');
     this.count = root.querySelector('.topic-count');
     this.openArea = root.querySelector('.open-topics');
-    this.status = root.querySelector('.panel-status');
     this.plot = new Plot(root.querySelector('.plot'));
-    this.session = null;
     this.visible = false;
     this.open = new Map();  // topic name -> OpenTopic (kept across reconnections)
-    this.types = new Map();
     this.timer = null;
   }
 
   attach(session) {
-    this.session = session;
+    super.attach(session);
     for (const topic of this.open.values()) topic.attach(session);
-    this.refresh();
     this.timer = setInterval(() => this.visible && this.refresh(), REFRESH_MS);
   }
 
   detach() {
-    this.session = null;
+    super.detach();
     clearInterval(this.timer);
     for (const topic of this.open.values()) topic.detach();
   }
 
   show(visible) {
     this.visible = visible;
-    if (visible) this.refresh();
+    super.show(visible);
   }
 
-  async refresh() {
-    const session = this.session;
-    if (!session) return;
-    try {
-      const { topics, types } = await session.rosapi('topics');
-      const entries = topics.map((name, i) => [name, types[i]]).sort(([a], [b]) => a.localeCompare(b));
-      this.types = new Map(entries);
-      const counts = await Promise.all(entries.map(([name]) => Promise.all([
+  // [[name, type, publishers, subscribers, rate]], rates of the open topics included (they change too)
+  async load(session) {
+    const { topics, types } = await session.rosapi('topics');
+    return Promise.all(topics.map(async (name, i) => [name, types[i],
+      ...(await Promise.all([
         session.rosapi('publishers', { topic: name }).then(r => r.publishers.length, () => '?'),
-        session.rosapi('subscribers', { topic: name }).then(r => r.subscribers.length, () => '?'),
-      ])));
-      if (session !== this.session) return;
-      this.showList(entries, counts);
-      this.status.textContent = '';
-    } catch (error) {
-      this.status.textContent = `Could not list topics: ${error.message}`;
-    }
+        session.rosapi('subscribers', { topic: name }).then(r => r.subscribers.length, () => '?')])),
+      this.open.get(name)?.rateText() ?? '']))
+      .then(rows => rows.sort(([a], [b]) => a.localeCompare(b)));
   }
 
-  showList(entries, counts) {
-    const key = JSON.stringify([entries, counts, [...this.open.keys()].map(name => this.open.get(name).rateText())]);
-    if (key === this.shown) return;  // a list that did not change is left alone (a click or a scroll in it too)
-    this.shown = key;
-    this.count.textContent = `(${entries.length})`;
-    this.list.replaceChildren(...entries.map(([name, type], i) => {
+  render(rows) {
+    this.count.textContent = `(${rows.length})`;
+    this.list.replaceChildren(...rows.map(([name, type, pubs, subs, rate]) => {
       const row = document.createElement('tr');
       row.dataset.topic = name;
       row.innerHTML = '<td><button type="button" class="link"></button></td><td><code></code></td>' +
         '<td class="num"></td><td class="num"></td><td class="num rate"></td>';
-      const [nameCell, typeCell, pubs, subs, rate] = row.children;
-      nameCell.firstChild.textContent = name;
-      nameCell.firstChild.addEventListener('click', () => this.openTopic(name, type));
-      typeCell.firstChild.textContent = type;
-      [pubs.textContent, subs.textContent] = counts[i].map(String);
-      rate.textContent = this.open.get(name)?.rateText() ?? '';
+      const cells = row.children;
+      cells[0].firstChild.textContent = name;
+      cells[0].firstChild.addEventListener('click', () => this.openTopic(name, type));
+      cells[1].firstChild.textContent = type;
+      [cells[2].textContent, cells[3].textContent, cells[4].textContent] = [String(pubs), String(subs), rate];
       return row;
     }));
   }
@@ -179,6 +164,7 @@ class OpenTopic {
     const now = performance.now() / 1000;
     this.arrivals.push([now, JSON.stringify(message).length]);
     while (this.arrivals.length && this.arrivals[0][0] < now - WINDOW_S) this.arrivals.shift();
+    if (this.latest === null) this.showInfo();  // subscribed by now: this page is among the subscribers
     this.latest = message;
     this.plot.push(this.name, message);
     if (!this.throttled && this.hz() > FAST_HZ) {  // too fast to show: let the bridge send a sample
