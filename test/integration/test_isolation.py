@@ -3,6 +3,7 @@ a well-behaved client subscribed to turtlesim's 62.5 Hz pose keeps receiving it 
 /rosapi/get_time calls are answered within 1 s; the bridge's memory stays bounded and it keeps running."""
 import socket
 import time
+from pathlib import Path
 
 import pytest
 
@@ -76,3 +77,46 @@ def connects(url):
         return WsClient(url, timeout=2)
     except (OSError, TimeoutError):
         return None
+
+
+def test_a_departed_clients_type_does_not_bind_the_topic(ros, node):
+    """A client subscribes to /squat/cmd_vel as std_msgs/String and leaves; the master still remembers that type,
+    but nobody uses the topic any more: another client may advertise it as a Twist (a turtle spawned there)."""
+    from geometry_msgs.msg import Twist
+    proc, port = start_bridge(ros, node_name="isolation_squat", unregister_timeout=1)
+    try:
+        squatter = WsClient(f"ws://127.0.0.1:{port}/")
+        squatter.send({"op": "subscribe", "topic": "/squat/cmd_vel", "type": "std_msgs/String"})
+        wait_for(lambda: "/squat/cmd_vel" in dict(ros.master().getTopicTypes()), 10, what="the squatted type")
+        squatter.close()
+        wait_for(lambda: not any(t == "/squat/cmd_vel" for t, _ in ros.master().getSystemState()[1]), 10,
+                 what="the squatter's subscription gone")
+        got = []
+        sub = node.Subscriber("/squat/cmd_vel", Twist, got.append)
+        driver = WsClient(f"ws://127.0.0.1:{port}/")
+        driver.send({"op": "advertise", "topic": "/squat/cmd_vel", "type": "geometry_msgs/Twist", "id": "adv"})
+        forward = {"op": "publish", "topic": "/squat/cmd_vel", "msg": {"linear": {"x": 1.0}}}
+        wait_for(lambda: (driver.send(forward), got)[1], 10, interval=0.2, what="the Twist through the topic")
+        with pytest.raises(TimeoutError):  # and no refusal came
+            driver.recv_until(lambda f: f.get("op") == "status", timeout=1)
+        driver.close()
+        sub.unregister()
+    finally:
+        proc.stop()
+
+
+def test_a_client_leaving_releases_its_descriptors(ros):
+    proc, port = start_bridge(ros, node_name="isolation_fds_release")
+    pid = node_pid(ros, "/isolation_fds_release")
+    count = lambda: len(list(Path(f"/proc/{pid}/fd").iterdir()))  # noqa: E731
+    client = WsClient(f"ws://127.0.0.1:{port}/")
+    time.sleep(1)
+    before = count()
+    for i in range(150):
+        client.send({"op": "subscribe", "topic": f"/isolation/fd{i}", "type": "std_msgs/String"})
+    wait_for(lambda: sum(t.startswith("/isolation/fd") for t, _ in ros.master().getSystemState()[1]) == 150, 30,
+             what="150 subscriptions")
+    assert count() > before
+    client.close()
+    wait_for(lambda: count() <= before + 5, 30, what=f"the descriptors back to {before} (now {count()})")
+    proc.stop()

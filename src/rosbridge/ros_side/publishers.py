@@ -81,9 +81,9 @@ class ClientPublisher:
 
     def make(self, graph, type_name):
         """On the worker: check the graph's type, make the rospy publisher, start publishing."""
-        graph_type = graph.topic_type(self.topic)
+        graph_type = graph.topic_type(self.topic, published=True)
         if graph_type not in (None, type_name):
-            raise RequestError(f"advertise {self.topic}: the topic already has type {graph_type}, not {type_name}")
+            raise RequestError(f"advertise {self.topic}: the topic is published as {graph_type}, not {type_name}")
         # (a latched publisher already sends its last message to every new subscriber)
         self._early = None if self._latch else EarlyReplay(self._queue.maxlen or 100)
         with warnings.catch_warnings():  # rospy warns about queue_size=None: synchronous is meant here

@@ -30,14 +30,16 @@ class TopicSubscriber:
 
     def make(self, graph, asked_type):
         """On the worker: the topic's type (asked_type, or the graph's), and its rospy subscriber."""
-        graph_type = graph.topic_type(self.topic)
         if asked_type is None:
-            if graph_type is None:
+            asked_type = graph.topic_type(self.topic)
+            if asked_type is None:
                 raise RequestError(f"subscribe {self.topic}: cannot infer the topic's type (nobody publishes it "
                                    "yet); give 'type'")
-            asked_type = graph_type
-        elif graph_type not in (None, asked_type):
-            raise RequestError(f"subscribe {self.topic}: the topic has type {graph_type}, not {asked_type}")
+        else:
+            published_type = graph.topic_type(self.topic, published=True)
+            if published_type not in (None, asked_type):
+                raise RequestError(f"subscribe {self.topic}: the topic is published as {published_type}, "
+                                   f"not {asked_type}")
         self._subscriber = rospy.Subscriber(self.topic, message_class(asked_type), self._on_message)
         return asked_type
 
@@ -101,7 +103,7 @@ class Subscribers:
         topic = entry.topic
         if self._entries.get(topic) is not entry:  # everyone left meanwhile
             if error is None:
-                self._worker.submit(entry.unregister)
+                self._worker.submit(self._unregister(entry))
             return
         if error is not None:
             del self._entries[topic]
@@ -128,8 +130,15 @@ class Subscribers:
         if self._holders.discard(topic, session):
             del self._entries[topic]
             if entry.ready:
-                self._worker.submit(entry.unregister)
+                self._worker.submit(self._unregister(entry))
 
     def release(self, session):
         for topic in self._holders.names_of(session):
             self.unsubscribe(session, topic)
+
+    def _unregister(self, entry):
+        """A worker job dropping the topic's rospy subscriber."""
+        def job():
+            entry.unregister()
+            self._worker.dropped()
+        return job

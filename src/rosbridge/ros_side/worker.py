@@ -1,6 +1,7 @@
 """The ROS work that can block, on one thread of its own: asking the master, and making or dropping rospy
 publishers, subscribers and services (each a call to the master). With the master slow or stopped, only this
 thread waits; the event loop goes on serving every client."""
+import gc
 import queue
 import threading
 import time
@@ -8,6 +9,7 @@ import time
 import rosgraph
 import rospy
 
+IDLE_S = 2.0  # after this long without a job, the worker collects the garbage dropped objects left
 GRAPH_MAX_AGE = 0.5  # seconds a snapshot of the master's topics answers for the topics it holds
 GRAPH_MIN_AGE = 0.05  # a topic it lacks is asked again, but not more often than this (bursts share a look)
 
@@ -17,6 +19,7 @@ class RosWorker:
         self._loop = loop
         self._jobs = queue.SimpleQueue()
         self.graph = GraphSnapshot()
+        self._garbage = False  # (worker only)
         threading.Thread(target=self._run, name="ros worker", daemon=True).start()
 
     def submit(self, job, done=None):
@@ -24,9 +27,21 @@ class RosWorker:
         raised, or None)."""
         self._jobs.put((job, done))
 
+    def dropped(self):
+        """On the worker, after dropping rospy objects: their sockets and epoll descriptors are freed only when
+        the garbage collector gets to their reference cycles, so collect once the worker is idle (a client that
+        left after 200 subscriptions must not hold 200 descriptors for minutes)."""
+        self._garbage = True
+
     def _run(self):
         while True:
-            job, done = self._jobs.get()
+            try:
+                job, done = self._jobs.get(timeout=IDLE_S)
+            except queue.Empty:
+                if self._garbage:
+                    self._garbage = False
+                    gc.collect()
+                continue
             try:
                 result, error = job(), None
             except Exception as exception:  # handed to `done`, which tells the client or logs the bug
@@ -37,25 +52,31 @@ class RosWorker:
 
 class GraphSnapshot:
     """The master's topics and their types. A snapshot answers for GRAPH_MAX_AGE seconds about the topics it
-    holds; about others the master is asked again (a topic may have just appeared). Only the worker uses it."""
+    holds; about others the master is asked again (a topic may have just appeared). Only the worker uses it.
+
+    The master keeps a topic's type after its last user left, and a subscriber registering later does not
+    replace it; a publisher does. So a type binds a newcomer only while someone publishes the topic
+    (`published=True`), and guesses a type (for a subscribe or publish that gives none) while anyone uses it."""
 
     def __init__(self):
         self._master = None
-        self._types = {}
+        self._types = {}  # topics someone publishes or subscribes -> the master's type
+        self._published = set()
         self._taken = float("-inf")
 
-    def topic_type(self, topic):
-        """The topic's type while someone publishes or subscribes to it, or None: the master remembers the type
-        of a topic nobody uses any more, which must not bind the next user."""
+    def topic_type(self, topic, published=False):
         age = time.monotonic() - self._taken
         if age > GRAPH_MAX_AGE or (topic not in self._types and age > GRAPH_MIN_AGE):
             self.refresh()
+        if published and topic not in self._published:
+            return None
         return self._types.get(topic)
 
     def refresh(self):
         if self._master is None:  # (made here: the node has its name by now)
             self._master = rosgraph.Master(rospy.get_name())
         publishers, subscribers, _ = self._master.getSystemState()
-        used = {name for name, _ in publishers} | {name for name, _ in subscribers}
+        self._published = {name for name, _ in publishers}
+        used = self._published | {name for name, _ in subscribers}
         self._types = {name: type_name for name, type_name in self._master.getTopicTypes() if name in used}
         self._taken = time.monotonic()
