@@ -209,6 +209,19 @@ def start_bridge(ros, node_name="rosbridge_websocket", timeout=30.0, **launch_ar
     return proc, wait_for(port, timeout, what=f"{param} (bridge log: {proc.log_path})")
 
 
+def wait_publisher_connected(ros, publisher, topic, subscriber, timeout=20):
+    """Waits until node `publisher` has `subscriber` among the connections of its `topic`, seen from the
+    publisher's side (its XML-RPC getBusInfo). rospy delivers nothing published before that, and the subscriber
+    counts its connection a moment earlier (the publisher adds it after sending its header)."""
+    import xmlrpc.client
+    uri = ros.master().lookupNode(publisher)
+
+    def connected():
+        _, _, connections = xmlrpc.client.ServerProxy(uri).getBusInfo("/harness")
+        return any(c[1] == subscriber and c[2] == "o" and c[4] == topic for c in connections)
+    wait_for(connected, timeout, what=f"{subscriber} connected to {publisher}'s {topic}")
+
+
 def node_pid(ros, node_name):
     """The process id of a running ROS node, asked from the node itself (its XML-RPC getPid)."""
     import xmlrpc.client

@@ -10,14 +10,18 @@ allowed namespace never shows a hidden parameter.
 Where the reference fails silently, we answer with an error instead: an unreachable master, a bad argument,
 an unknown type, a parameter value that is not JSON."""
 import base64
+import concurrent.futures
+import io
 import json
 import math
+import socket
 import urllib.parse
 import xmlrpc.client
 
 import rosgraph
 import rosgraph.names
-import rosservice
+import rosgraph.network
+
 
 from rosbridge.errors import ClientError
 from rosbridge.globs import Globs, allowed, filter_names
@@ -60,6 +64,13 @@ SERVICES = {
     "/rosapi/get_time": ("rosapi/GetTime", ()),
 }
 
+# Asking service providers for their types (rosservice asks one at a time with a 5 s timeout, so one stopped
+# node made a listing of 20 services take 100 s): at most this many at once, each given this long.
+PROBE_THREADS = 8
+PROBE_TIMEOUT = 2.0  # s
+PROBED_TYPES_LIMIT = 4096  # remembered (service, provider URI) -> type pairs; forgotten all at once beyond
+
+
 class RosapiError(ClientError):
     """A /rosapi call failed; the message says why and is meant for the client."""
 
@@ -73,6 +84,9 @@ class Rosapi:
         self.caller_id = caller_id
         self.globs = Globs(**globs) if isinstance(globs, dict) else (globs or Globs())
         self.now = now
+        # (service, provider URI) -> type: a provider's service keeps its type while it lives. Filled from several
+        # call threads: single dict operations are atomic, and a lost entry is only asked again.
+        self._probed_types = {}
 
     # ---- the bridge's side
 
@@ -142,7 +156,8 @@ class Rosapi:
         return {"services": list(self._service_nodes())}
 
     def _services_for_type(self, type):
-        return {"services": [s for s in self._service_nodes() if self._service_type_of(s) == type]}
+        types = self._service_types(self._service_nodes())
+        return {"services": [s for s, s_type in types.items() if s_type == type]}
 
     def _service_type(self, service):
         return {"type": self._service_type_of(service) if allowed(service, self.globs.services) else ""}
@@ -152,8 +167,9 @@ class Rosapi:
         services = self._service_nodes()
         if service.startswith("/"):
             return {"providers": services.get(service, [])}
-        return {"providers": sorted({node for name, nodes in services.items()
-                                     if self._service_type_of(name) == service for node in nodes})}
+        types = self._service_types(services)
+        return {"providers": sorted({node for name, nodes in services.items() if types[name] == service
+                                     for node in nodes})}
 
     def _service_node(self, service):
         nodes = self._service_nodes().get(service, [])
@@ -174,6 +190,13 @@ class Rosapi:
         services.update({name: [self.caller_id] for name in SERVICES})
         return {name: services[name] for name in filter_names(sorted(services), self.globs.services)}
 
+    def _service_types(self, services):
+        """{service: type} of these services, their providers asked at once: one that never answers (a stopped
+        node) delays the answer by PROBE_TIMEOUT, not by that much for each service after it."""
+        services = list(services)
+        with concurrent.futures.ThreadPoolExecutor(max(1, min(PROBE_THREADS, len(services)))) as pool:
+            return dict(zip(services, pool.map(self._service_type_of, services)))
+
     def _service_type_of(self, service):
         """The type of a service, asked of its provider as rosservice does; "" if it cannot be found."""
         if service in SERVICES:
@@ -181,10 +204,14 @@ class Rosapi:
         uri = self._lookup("lookupService", service)
         if not uri:
             return ""
-        try:
-            return rosservice.get_service_headers(service, uri).get("type", "")
-        except rosservice.ROSServiceException:
-            return ""  # the provider went away between the master's answer and our probe
+        known = self._probed_types.get((service, uri))
+        if known is None:
+            known = _probe_service_type(service, uri)
+            if known:
+                if len(self._probed_types) >= PROBED_TYPES_LIMIT:
+                    self._probed_types.clear()
+                self._probed_types[(service, uri)] = known
+        return known
 
     # ---- nodes
 
@@ -306,6 +333,21 @@ class Rosapi:
             return self._ask(method, name)
         except rosgraph.masterapi.MasterException:
             return ""
+
+
+def _probe_service_type(service, uri):
+    """The type a service provider states in its TCPROS header when probed (what rosservice reads), or "" when
+    it does not answer within PROBE_TIMEOUT (gone, stopped, or not a service)."""
+    try:
+        address = urllib.parse.urlsplit(uri)
+        if address.scheme != "rosrpc" or not address.hostname or not address.port:
+            return ""
+        with socket.create_connection((address.hostname, address.port), timeout=PROBE_TIMEOUT) as sock:
+            rosgraph.network.write_ros_handshake_header(
+                sock, {"probe": "1", "md5sum": "*", "callerid": "/rosapi", "service": service})
+            return rosgraph.network.read_ros_handshake_header(sock, io.BytesIO(), 2048).get("type", "")
+    except (OSError, ValueError, rosgraph.network.ROSHandshakeException):  # (ValueError: a bad port in the URI)
+        return ""
 
 
 def _request_fields(service, args):

@@ -2,7 +2,6 @@
 private roscore. The page is loaded from the bridge, as a user would."""
 import math
 import time
-from xmlrpc.client import ServerProxy
 
 import pytest
 from geometry_msgs.msg import Twist
@@ -12,7 +11,7 @@ from std_srvs.srv import Empty
 from turtlesim.msg import Pose
 from turtlesim.srv import Spawn, TeleportAbsolute
 
-from harness import ARTIFACTS, start_bridge, wait_for
+from harness import ARTIFACTS, start_bridge, wait_for, wait_publisher_connected
 
 CENTRE = 5.544444561004639
 BACKGROUND = (69, 86, 255)
@@ -38,14 +37,8 @@ def ros_call(node, name, srv_class, *args):
 def wait_turtlesim_listens_to_bridge(ros, bridge="rosbridge_websocket", topic="/turtle1/cmd_vel",
                                      subscriber="/turtlesim"):
     """Waits until turtlesim (or another subscriber node) is connected to the bridge's publisher of
-    `topic` (the page advertises cmd_vel when it connects), as it is by the time a person clicks
-    Publish. A Twist published before that connection exists is not delivered by rospy."""
-    uri = ros.master().lookupNode(f"/{bridge}")
-
-    def connected():
-        _, _, connections = ServerProxy(uri).getBusInfo("/pytest")
-        return any(c[1] == subscriber and c[2] == "o" and c[4] == topic for c in connections)
-    wait_for(connected, 15, what=f"{subscriber} connected to {bridge}'s {topic}")
+    `topic` (the page advertises cmd_vel when it connects), as it is by the time a person clicks Publish."""
+    wait_publisher_connected(ros, f"/{bridge}", topic, subscriber)
 
 
 def settled(poses):

@@ -1,5 +1,6 @@
 """The /rosapi services through the running bridge, called by roslibpy as a client would, checked against
 the stock CLI tools; and the launch args' globs hiding topics, services and parameters."""
+import socket
 import time
 
 import pytest
@@ -55,6 +56,29 @@ def test_get_services_match_rosservice_plus_rosapi(ros, bridge):
     assert bridge.get_service_type("/rosapi_test/reset") == "std_srvs/Empty"
     assert bridge.get_service_type("/rosapi/topics") == "rosapi/Topics"
     assert bridge.get_services_for_type("std_srvs/Empty") == ["/rosapi_test/reset"]
+
+
+@pytest.fixture
+def stopped_services(ros):
+    """Three services whose provider accepts connections and never answers, as a stopped (SIGSTOP) node does."""
+    listener = socket.create_server(("127.0.0.1", 0))
+    port = listener.getsockname()[1]
+    master = ros.master()
+    names = [f"/rosapi_test/stopped_{n}" for n in range(3)]
+    for name in names:
+        master.registerService(name, f"rosrpc://127.0.0.1:{port}", f"http://127.0.0.1:{port}/")
+    yield names
+    for name in names:
+        master.unregisterService(name, f"rosrpc://127.0.0.1:{port}")
+    listener.close()
+
+
+def test_service_listings_by_type_answer_in_time_with_stopped_providers(graph, bridge, stopped_services):
+    # roslibpy waits 3 s for a rosapi answer; asking one provider at a time for 5 s each took 15 s here
+    assert bridge.get_services_for_type("std_srvs/Empty") == ["/rosapi_test/reset"]
+    providers = roslibpy.Service(bridge, "/rosapi/service_providers", "rosapi/ServiceProviders")
+    assert providers.call(roslibpy.ServiceRequest({"service": "std_srvs/Empty"}), timeout=3) == {"providers": [graph]}
+    assert bridge.get_service_type(stopped_services[0]) == ""
 
 
 def test_get_nodes_and_node_details_match_rosnode(ros, graph, bridge):

@@ -6,7 +6,7 @@ import termios
 
 import pytest
 
-from harness import wait_for
+from harness import wait_for, wait_publisher_connected
 
 BANNER = "Reading from keyboard\n---------------------------\nUse arrow keys to move the turtle. 'q' to quit.\n"
 
@@ -37,10 +37,11 @@ def scale_params(ros):
 
 
 def start_teleop(ros, terminal, twists):
-    received, subscriber = twists
+    """Starts the teleop and waits until it is connected to the `twists` subscriber (this process's node)."""
     proc = ros.spawn(["rosrun", "turtlesim", "turtle_teleop_key"], "teleop", stdin=terminal)
     proc.wait_output(BANNER, timeout=30)
-    wait_for(lambda: subscriber.get_num_connections() > 0, 20, what="the teleop publisher")
+    import rospy
+    wait_publisher_connected(ros, "/teleop_turtle", "/turtle1/cmd_vel", rospy.get_name())
     return proc
 
 
