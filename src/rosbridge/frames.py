@@ -1,9 +1,9 @@
 """What the bridge sends: frames ready for the socket, each encoded once for every client it goes to."""
-import io
 import itertools
 
 from rosbridge import encoding
-from rosbridge.convert import dumps, to_json
+from rosbridge.convert import dumps
+from rosbridge.wire import json_text
 
 COMPRESSIONS = ("none", "png", "cbor", "cbor-raw")
 
@@ -37,12 +37,13 @@ def text_frames(text, compression, fragment_size):
 
 
 class TopicMessage:
-    """One ROS message from a topic, encoded lazily and at most once per encoding for all its subscribers.
-    stamp: its receipt time in seconds (sent with cbor-raw)."""
-    __slots__ = ("topic", "msg", "stamp", "_json", "_frames")
+    """One ROS message from a topic, as rospy received it (msg_class: its genpy class; data: its serialized bytes),
+    encoded lazily and at most once per encoding for all its subscribers. stamp: its receipt time in seconds (sent
+    with cbor-raw)."""
+    __slots__ = ("topic", "msg_class", "data", "stamp", "_json", "_frames")
 
-    def __init__(self, topic, msg, stamp):
-        self.topic, self.msg, self.stamp = topic, msg, stamp
+    def __init__(self, topic, msg_class, data, stamp):
+        self.topic, self.msg_class, self.data, self.stamp = topic, msg_class, data, stamp
         self._json = None  # the frames of the usual case: plain JSON, not fragmented
         self._frames = None  # (compression, fragment_size) -> frames, for the others
 
@@ -62,15 +63,14 @@ class TopicMessage:
 
     def _encode(self, compression, fragment_size):
         if compression == "cbor":
-            return (encoding.cbor_frame({"op": "publish", "topic": self.topic,
-                                         "msg": encoding.to_cbor_value(self.msg)}),)
+            msg = self.msg_class()
+            msg.deserialize(self.data)
+            return (encoding.cbor_frame({"op": "publish", "topic": self.topic, "msg": encoding.to_cbor_value(msg)}),)
         if compression == "cbor-raw":
             secs = int(self.stamp)
-            buffer = io.BytesIO()
-            self.msg.serialize(buffer)  # the bytes rospy received: genpy serialization is canonical
-            raw = {"bytes": buffer.getvalue(), "secs": secs, "nsecs": int((self.stamp - secs) * 1e9)}
+            raw = {"bytes": bytes(self.data), "secs": secs, "nsecs": int((self.stamp - secs) * 1e9)}
             return (encoding.cbor_frame({"op": "publish", "topic": self.topic, "msg": raw}),)
-        text = '{"op":"publish","topic":%s,"msg":%s}' % (dumps(self.topic), dumps(to_json(self.msg)))
+        text = '{"op":"publish","topic":%s,"msg":%s}' % (dumps(self.topic), json_text(self.msg_class)(self.data))
         return text_frames(text, compression, fragment_size)
 
 

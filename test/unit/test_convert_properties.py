@@ -20,34 +20,48 @@ CLASSES = [AllTypes, geometry_msgs.msg.Twist, turtlesim.msg.Pose, sensor_msgs.ms
            rosgraph_msgs.msg.Log, geometry_msgs.msg.PoseArray]
 
 
-def scalar_values(base):
+def _raw_time(cls, low, high):
+    """A time or duration as any wire bytes can hold it: nsecs over a second too (genpy carries it into secs)."""
+    def make(secs, nsecs):
+        value = cls()
+        value.secs, value.nsecs = secs, nsecs
+        return value
+    return st.builds(make, st.integers(low, high), st.integers(low, high))
+
+
+def scalar_values(base, any_wire_value=False):
+    """any_wire_value: also NaN and +-Inf, and times whose nsecs are over a second, as ROS peers may send;
+    otherwise only values that come back bit for bit through JSON (NaN/Inf go out as null on purpose)."""
     if base in INT_RANGES:
         return st.integers(*INT_RANGES[base])
     if base in ("float32", "float64"):
-        # finite only: NaN/Inf go out as null on purpose and cannot come back bit for bit
-        return st.floats(width=32 if base == "float32" else 64, allow_nan=False, allow_infinity=False)
+        return st.floats(width=32 if base == "float32" else 64, allow_nan=any_wire_value,
+                         allow_infinity=any_wire_value)
     if base == "bool":
         return st.booleans()
     if base == "string":
         return st.text(max_size=8)
     if base == "time":
-        return st.builds(genpy.Time, st.integers(0, 2**32 - 1), st.integers(0, 10**9 - 1))
+        return _raw_time(genpy.Time, 0, 2**32 - 1) if any_wire_value else \
+            st.builds(genpy.Time, st.integers(0, 2**32 - 1), st.integers(0, 10**9 - 1))
     if base == "duration":
-        return st.builds(genpy.Duration, st.integers(-2**31, 2**31 - 1), st.integers(0, 10**9 - 1))
-    return messages(message_class(base))
+        return _raw_time(genpy.Duration, -2**31, 2**31 - 1) if any_wire_value else \
+            st.builds(genpy.Duration, st.integers(-2**31, 2**31 - 1), st.integers(0, 10**9 - 1))
+    return messages(message_class(base), any_wire_value)
 
 
-def field_values(slot_type):
+def field_values(slot_type, any_wire_value=False):
     base, is_array, size = parse_slot_type(slot_type)
     if base == "uint8" and is_array:
         return st.binary(min_size=size or 0, max_size=size or 8)
     if is_array:
-        return st.lists(scalar_values(base), min_size=size or 0, max_size=size or 3)
-    return scalar_values(base)
+        return st.lists(scalar_values(base, any_wire_value), min_size=size or 0, max_size=size or 3)
+    return scalar_values(base, any_wire_value)
 
 
-def messages(cls):
-    return st.builds(cls, **{name: field_values(slot_type) for name, slot_type in zip(cls.__slots__, cls._slot_types)})
+def messages(cls, any_wire_value=False):
+    return st.builds(cls, **{name: field_values(slot_type, any_wire_value)
+                             for name, slot_type in zip(cls.__slots__, cls._slot_types)})
 
 
 @pytest.mark.parametrize("cls", CLASSES, ids=lambda cls: cls._type)

@@ -15,6 +15,7 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 from rosbridge import frames, protocol
 from rosbridge.backend import Backend
 from rosbridge.globs import Globs
+from test_protocol import received
 
 SETTINGS = settings(max_examples=150, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
@@ -104,7 +105,7 @@ class Harness:
         """Delivers `count` messages on /chatter and runs due timers (advancing the clock to each) until none
         is left or a timer storm shows; returns the frames sent."""
         for n in range(count):
-            self.session.deliver(frames.TopicMessage("/chatter", std_msgs.msg.String(f"m{n}"), self.now))
+            self.session.deliver(received("/chatter", std_msgs.msg.String(f"m{n}"), self.now))
         for _ in range(100):
             if not self.timers:
                 break

@@ -8,6 +8,7 @@ from rosbridge.errors import RequestError, log_bug, refusal_text
 from rosbridge.frames import TopicMessage
 from rosbridge.ros_side.holders import Holders
 from rosbridge.types import message_class
+from rosbridge.wire import raw_class
 
 INBOX_LIMIT = 10_000  # messages per topic waiting for the loop; beyond that the oldest are dropped
 
@@ -16,7 +17,7 @@ class TopicSubscriber:
     """One topic's rospy subscriber. Made and dropped on the worker; messages arrive on rospy's threads, wait in
     the inbox and are handed to the topic's clients on the loop (see the package's thread rules)."""
     __slots__ = ("topic", "type", "asked", "ready", "inbox", "wake_pending", "latched", "_loop", "_clients",
-                 "_subscriber")
+                 "_subscriber", "_class")
 
     def __init__(self, loop, topic, clients):
         self._loop, self.topic, self._clients = loop, topic, clients
@@ -27,6 +28,7 @@ class TopicSubscriber:
         self.wake_pending = False
         self.latched = None  # the last message of a latched topic, for clients that subscribe later (loop)
         self._subscriber = None  # (worker)
+        self._class = None  # the genpy class of the messages (worker, then read on the loop once ready)
 
     def make(self, graph, asked_type):
         """On the worker: the topic's type (asked_type, or the graph's), and its rospy subscriber."""
@@ -40,7 +42,9 @@ class TopicSubscriber:
             if published_type not in (None, asked_type):
                 raise RequestError(f"subscribe {self.topic}: the topic is published as {published_type}, "
                                    f"not {asked_type}")
-        self._subscriber = rospy.Subscriber(self.topic, message_class(asked_type), self._on_message)
+        self._class = message_class(asked_type)
+        # (the bytes as they came: the loop writes JSON straight from them, see rosbridge.wire)
+        self._subscriber = rospy.Subscriber(self.topic, raw_class(self._class), self._on_message)
         return asked_type
 
     def unregister(self):
@@ -61,7 +65,7 @@ class TopicSubscriber:
         inbox, topic = self.inbox, self.topic
         for _ in range(len(inbox)):  # what is there now: a busy topic must not hold the loop (it wakes again)
             msg, stamp = inbox.popleft()
-            message = TopicMessage(topic, msg, stamp)
+            message = TopicMessage(topic, self._class, msg._buff, stamp)
             header = getattr(msg, "_connection_header", None)
             if header is not None and header.get("latching") == "1":
                 self.latched = message
