@@ -15,6 +15,10 @@ from rosbridge.frames import Utf8Text
 from rosbridge.origins import origin_allowed
 from rosbridge.pages import SECURITY_HEADERS
 
+# Frames waiting for a client go to its socket together, up to this many bytes per write: one system call for a
+# burst of small messages instead of one each.
+WRITE_BATCH_BYTES = 64 * 1024
+
 
 class FairProtocol(tornado.websocket.WebSocketProtocol13):
     """Tornado's RFC 6455 protocol, except that every frame a client sends, pings included, counts against its
@@ -43,6 +47,8 @@ class BridgeSocket(tornado.websocket.WebSocketHandler):
         self.session = None
         self.budget = None
         self._close_reason = None
+        self._loop = None
+        self._awaiting_drain = False  # frames were written that the socket has not taken yet
 
     def set_default_headers(self):
         for name, value in SECURITY_HEADERS.items():
@@ -87,7 +93,7 @@ class BridgeSocket(tornado.websocket.WebSocketHandler):
         return {} if self.bridge.settings.use_compression else None
 
     def open(self, *args):
-        loop = tornado.ioloop.IOLoop.current()
+        loop = self._loop = tornado.ioloop.IOLoop.current()
         settings = self.bridge.settings
         self.budget = ClientBudget(settings.max_frames_per_second, settings.max_bytes_per_second, time.monotonic)
         self.session = protocol.Session(self.bridge.backend, self.bridge.config, time.time, loop.call_later,
@@ -113,7 +119,7 @@ class BridgeSocket(tornado.websocket.WebSocketHandler):
         self.bridge.client_closed(self)
 
     def _wake(self):
-        tornado.ioloop.IOLoop.current().add_callback(self._flush)
+        self._loop.add_callback(self._flush)
 
     def _close_after_sending(self, reason):
         self._close_reason = reason
@@ -122,38 +128,57 @@ class BridgeSocket(tornado.websocket.WebSocketHandler):
     def _flush(self):
         """Writes the session's queued frames until the socket is backed up, then resumes when it has
         drained: a slow client's backlog stays in the session's bounded queue, not in Tornado's buffer."""
+        if self._awaiting_drain:
+            return  # _drained flushes again
         conn, session = self.ws_connection, self.session
+        one_at_a_time = bool(self.bridge.settings.delay_between_messages)
         while conn is not None and not conn.is_closing():
-            frame = session.take_frame()
-            if frame is None:
+            frames, size = [], 0
+            while size < WRITE_BATCH_BYTES:
+                frame = session.take_frame()
+                if frame is None:
+                    break
+                frames.append(frame)
+                size += len(frame)
+                if one_at_a_time:
+                    break
+            if frames:
+                try:
+                    written = self._write(conn, frames)
+                except (tornado.iostream.StreamClosedError, tornado.websocket.WebSocketClosedError):
+                    return
+                if conn.stream.writing():
+                    self._awaiting_drain = True
+                    written.add_done_callback(self._drained)
+                    return
+            if frame is None:  # the queue is empty: the next frame queued wakes us again
                 if self._close_reason is not None:
                     self.close(1008, self._close_reason)
                 return
-            try:
-                written = self._write(conn, frame)
-            except (tornado.iostream.StreamClosedError, tornado.websocket.WebSocketClosedError):
-                return
-            if conn.stream.writing():
-                written.add_done_callback(self._drained)
-                return
-            if self.bridge.settings.delay_between_messages:
-                tornado.ioloop.IOLoop.current().call_later(self.bridge.settings.delay_between_messages,
-                                                           self._flush)
+            if one_at_a_time:
+                self._loop.call_later(self.bridge.settings.delay_between_messages, self._flush)
                 return
 
     def _drained(self, written):
+        self._awaiting_drain = False
         if not written.cancelled() and written.exception() is None:
             self._flush()
 
-    def _write(self, conn, frame):
-        """Sends one frame; returns the stream's write future. Without permessage-deflate the frame goes
-        straight to the stream: the same bytes for every client, and none of the Task that write_message
-        wraps around each write."""
-        binary = not isinstance(frame, str) and not isinstance(frame, Utf8Text)
+    def _write(self, conn, frames):
+        """Sends frames; returns the stream's write future. Without permessage-deflate they go straight to the
+        stream, in one write: the same bytes for every client, and none of the Task that write_message wraps
+        around each frame."""
         if self.bridge.settings.use_compression:
-            return self.write_message(frame, binary=binary)
-        payload = frame.encode() if isinstance(frame, str) else frame
-        return conn.stream.write(websocket_frame(payload, 0x2 if binary else 0x1))
+            for frame in frames:
+                written = self.write_message(frame, binary=_is_binary(frame))
+            return written
+        return conn.stream.write(b"".join(
+            websocket_frame(frame.encode() if isinstance(frame, str) else frame, 0x2 if _is_binary(frame) else 0x1)
+            for frame in frames))
+
+
+def _is_binary(frame):
+    return not isinstance(frame, str) and not isinstance(frame, Utf8Text)
 
 
 def websocket_frame(payload, opcode):
