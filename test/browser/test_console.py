@@ -17,9 +17,11 @@ def tab(page, name):
 def open_topic(page, topic):
     """Opens a topic from the Topics tab's list, as a person clicks its name."""
     tab(page, "topics")
-    button = f'#tab-topics tr[data-topic="{topic}"] button'
-    wait_for(lambda: page.driver.find_elements(By.CSS_SELECTOR, button), 20, what=f"{topic} listed")
-    page.js("arguments[0].click()", page.driver.find_element(By.CSS_SELECTOR, button))
+    # found and clicked in one step: the list is redrawn when a rate changes, which would make a found row stale
+    click = f"""const button = document.querySelector('#tab-topics tr[data-topic="{topic}"] button');
+                if (button) button.click();
+                return Boolean(button);"""
+    wait_for(lambda: page.js(click), 20, what=f"{topic} listed")
 
 
 def options(page, select_id):

@@ -46,3 +46,8 @@ export function fillSelect(select, placeholder, choices) {
   select.replaceChildren(new Option(placeholder, ''), ...choices.map(([value, label]) => new Option(label, value)));
   select.value = choices.some(([value]) => value === chosen) ? chosen : '';
 }
+
+// Shows a ROS name in an element so that a narrow screen breaks it after a '/' (a <wbr>, which copying leaves out).
+export function showName(element, name) {
+  element.replaceChildren(...name.split(/(?<=\/)/).flatMap((part, i) => (i ? [document.createElement('wbr'), part] : [part])));
+}

@@ -2,7 +2,7 @@
 // counts; an opened topic shows its info, its definition and its latest message as a live tree (pausable),
 // with its rate and bandwidth. Several can be open; closing one unsubscribes.
 import { definitionText, messageTree } from './messages.js';
-import { Panel } from './panel.js';
+import { Panel, showName } from './panel.js';
 import { Plot } from './plot.js';
 
 const REFRESH_MS = 3000;
@@ -60,9 +60,9 @@ export class TopicsPanel extends Panel {
       row.innerHTML = '<td><button type="button" class="link"></button></td><td><code></code></td>' +
         '<td class="num"></td><td class="num"></td><td class="num rate"></td>';
       const cells = row.children;
-      cells[0].firstChild.textContent = name;
+      showName(cells[0].firstChild, name);
       cells[0].firstChild.addEventListener('click', () => this.openTopic(name, type));
-      cells[1].firstChild.textContent = type;
+      showName(cells[1].firstChild, type);
       [cells[2].textContent, cells[3].textContent, cells[4].textContent] = [String(pubs), String(subs), rate];
       return row;
     }));
