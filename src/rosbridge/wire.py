@@ -1,7 +1,8 @@
 """ROS serialized messages (the bytes rospy receives) straight to the JSON text the bridge sends: no genpy message
 and no Python dict in between.
 
-`raw_class(cls)` is the class rospy subscribes with so that it hands over the bytes as they came.
+`raw_class(cls)` is the class rospy subscribes with so that it hands over the bytes as they came;
+`raw_publish_class(cls)` the one it publishes serialized bytes with (rosbridge.packing makes them).
 `json_text(cls)` gives a function bytes -> text for one message type, generated from its fields once and cached
 (as genpy generates its deserializers). The text is exactly `convert.dumps(convert.to_json(msg))` for the message
 genpy would deserialize from those bytes; the tests compare the two for every message type on the machine.
@@ -244,3 +245,35 @@ def raw_class(cls):
         "__slots__": ("_buff",), "_type": cls._type, "_md5sum": cls._md5sum, "_full_text": cls._full_text,
         "_has_header": False, "_slot_types": [], "__init__": __init__, "deserialize": deserialize,
         "serialize": serialize})
+
+
+class _HeaderSeq:
+    """What rospy's serialize_message touches of a message's header: it sets `seq` to its publisher's count, and
+    reads `frame_id`. The header is the first field (genpy's _has_header), so seq is the buffer's first 4 bytes."""
+    __slots__ = ("_buff",)
+    frame_id = ""
+
+    def __init__(self, buff):
+        self._buff = buff
+
+    @property
+    def seq(self):
+        return _U32_AT(self._buff, 0)[0]
+
+    @seq.setter
+    def seq(self, value):
+        struct.pack_into("<I", self._buff, 0, value & 0xFFFFFFFF)
+
+
+_U32_AT = struct.Struct("<I").unpack_from
+
+
+@functools.lru_cache(maxsize=None)
+def raw_publish_class(cls):
+    """raw_class(cls) for publishing serialized bytes (a bytearray in `_buff`): where cls has a header, rospy writes
+    its sequence number into the bytes, as it does into a genpy message's header.seq."""
+    base = raw_class(cls)
+    if not cls._has_header:
+        return base
+    return type(base.__name__, (base,), {"__slots__": (), "_has_header": True,
+                                         "header": property(lambda self: _HeaderSeq(self._buff))})

@@ -116,6 +116,29 @@ def test_header_stamp_is_filled_when_missing(client, node):
     assert abs(msg.header.stamp.to_sec() - node.Time.now().to_sec()) < 60
 
 
+def test_header_seq_counts_as_rospy_publishers_count(client, node):
+    """A client's header.seq is replaced by the publisher's count (1, 2, 3, ...), as rospy does for its nodes."""
+    from geometry_msgs.msg import PointStamped
+    got = []
+    sub = node.Subscriber("/bridge_test/seq", PointStamped, got.append)
+    topic = roslibpy.Topic(client, "/bridge_test/seq", "geometry_msgs/PointStamped")
+    stamp = {"secs": 5, "nsecs": 6}
+
+    def received():
+        topic.publish(roslibpy.Message({"header": {"seq": 77, "stamp": stamp, "frame_id": "first"}}))
+        return got
+    wait_for(received, 20, interval=0.2, what="the first point")
+    for n in range(3):
+        topic.publish(roslibpy.Message({"header": {"seq": 77, "stamp": stamp, "frame_id": f"p{n}"},
+                                        "point": {"x": n}}))
+    wait_for(lambda: got[-1].header.frame_id == "p2", 10, what="three more points")
+    sub.unregister()
+    seqs = [m.header.seq for m in got]
+    assert 77 not in seqs and seqs == list(range(seqs[0], seqs[0] + len(seqs)))
+    assert [m.header.frame_id for m in got[-3:]] == ["p0", "p1", "p2"]
+    assert [m.point.x for m in got[-3:]] == [0.0, 1.0, 2.0] and got[-1].header.stamp.secs == 5
+
+
 def test_client_advertised_service_answers_rosservice(client, ros):
     service = roslibpy.Service(client, "/bridge_test/flip", "std_srvs/SetBool")
     requests = []

@@ -7,10 +7,11 @@ import warnings
 
 import rospy
 
-from rosbridge.convert import from_json
 from rosbridge.errors import RequestError, refusal_text
+from rosbridge.packing import packer
 from rosbridge.ros_side.holders import Holders
 from rosbridge.types import message_class
+from rosbridge.wire import raw_publish_class
 
 # A client usually publishes right after advertising, before any subscriber has connected to the new
 # publisher (that takes the master's publisherUpdate and a TCP handshake): messages published while nobody was
@@ -68,11 +69,11 @@ class ClientPublisher:
     a synchronous publisher on the loop either: one stalled subscriber would then freeze every client. The
     queue keeps rospy's queue_size meaning: when full, the oldest message is dropped (0 = unbounded).
 
-    The loop puts messages from the start; the worker makes the rospy publisher (a master call) and only then
-    starts the thread, which publishes what waits."""
+    The loop puts messages, serialized (rosbridge.packing), from the start; the worker makes the rospy publisher (a
+    master call) and only then starts the thread, which publishes what waits."""
 
     def __init__(self, topic, cls, latch, queue_size):
-        self.topic, self._cls, self._latch = topic, cls, latch
+        self.topic, self._cls, self._latch = topic, raw_publish_class(cls), latch
         maxlen = queue_size if 0 < queue_size < sys.maxsize else None
         self._queue = collections.deque(maxlen=maxlen)
         self._ready = threading.Event()
@@ -92,8 +93,9 @@ class ClientPublisher:
                                               subscriber_listener=self._early)
         threading.Thread(target=self._run, name=f"publish {self.topic}", daemon=True).start()
 
-    def put(self, msg):
-        self._queue.append(msg)
+    def put(self, data):
+        """Queues a message's serialized bytes."""
+        self._queue.append(data)
         self._ready.set()
         if self._queue.maxlen and len(self._queue) * 2 > self._queue.maxlen and self._publisher is not None:
             time.sleep(0)  # the publishing thread falls behind: let it have the GIL before the queue overflows
@@ -108,7 +110,9 @@ class ClientPublisher:
             self._ready.wait()
             self._ready.clear()
             while self._queue:
-                msg = self._queue.popleft()
+                msg = self._cls()
+                data = self._queue.popleft()
+                msg._buff = bytearray(data) if self._cls._has_header else data  # (rospy writes seq into a header)
                 try:
                     self._publisher.publish(msg)
                 except Exception as error:  # a broken connection: rospy drops it; keep publishing to the others
@@ -179,7 +183,7 @@ class Publishers:
         if entry is not None:
             if not self._holders.holds(topic, session):
                 self.advertise(session, topic, entry.type, latch, queue_size)
-            entry.publisher.put(from_json(entry.cls, msg, now=rospy.Time.now))
+            entry.publisher.put(packer(entry.cls)(msg, now=rospy.Time.now))
             return
         waiting = self._inferring.get(topic)
         if waiting is None:  # ask the master for the topic's type, off the loop
