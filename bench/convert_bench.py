@@ -1,8 +1,10 @@
-"""Micro-benchmark of the ROS <-> JSON conversion (rosbridge.convert) and the wire encodings, in microseconds
-per call (best of several repeats, so a busy machine disturbs it less). No roscore needed:
+"""Micro-benchmark of the ROS <-> JSON conversion, in microseconds per call: the bridge's direct roads
+(rosbridge.wire: ROS bytes -> JSON text; rosbridge.packing: parsed JSON -> ROS bytes) beside the genpy roads
+(deserialize + convert.to_json + dumps; convert.from_json + serialize), and the other wire encodings (best of several repeats, so a busy machine disturbs it less). No roscore needed:
 
     export PATH=/usr/bin:$PATH; source .build/setup.bash; python3 bench/convert_bench.py
 """
+import io
 import json
 import timeit
 
@@ -11,6 +13,8 @@ import sensor_msgs.msg
 
 from rosbridge.convert import dumps, from_json, to_json
 from rosbridge.encoding import cbor_frame, png_frame, to_cbor_value
+from rosbridge.packing import packer
+from rosbridge.wire import json_text
 
 
 def best_microseconds(function, repeats=5):
@@ -28,12 +32,29 @@ def samples():
     return {"geometry_msgs/Twist": twist, "sensor_msgs/Image 640x480 rgb8": image}
 
 
+def serialized(msg):
+    buffer = io.BytesIO()
+    msg.serialize(buffer)
+    return buffer.getvalue()
+
+
+def deserialized(cls, data):
+    msg = cls()
+    msg.deserialize(data)
+    return msg
+
+
 def main():
-    print(f"{'message':34} {'operation':28} {'us/call':>10}")
+    print(f"{'message':34} {'operation':36} {'us/call':>10}")
     for name, msg in samples().items():
         value = to_json(msg)
         parsed = json.loads(dumps(value))
+        cls, data = type(msg), serialized(msg)
         cases = {
+            "bytes -> text: genpy, to_json, dumps": lambda: dumps(to_json(deserialized(cls, data))),
+            "bytes -> text: wire.json_text": lambda: json_text(cls)(data),
+            "parsed -> bytes: from_json, genpy": lambda: serialized(from_json(cls, parsed)),
+            "parsed -> bytes: packing.packer": lambda: packer(cls)(parsed),
             "to_json": lambda: to_json(msg),
             "from_json": lambda: from_json(type(msg), parsed),
             "dumps(to_json)": lambda: dumps(to_json(msg)),
@@ -42,7 +63,7 @@ def main():
             "png_frame(dumps(to_json))": lambda: png_frame(dumps(to_json(msg))),
         }
         for operation, function in cases.items():
-            print(f"{name:34} {operation:28} {best_microseconds(function):10.2f}")
+            print(f"{name:34} {operation:36} {best_microseconds(function):10.2f}")
 
 
 if __name__ == "__main__":

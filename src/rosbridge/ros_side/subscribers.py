@@ -28,7 +28,7 @@ class TopicSubscriber:
         self.wake_pending = False
         self.latched = None  # the last message of a latched topic, for clients that subscribe later (loop)
         self._subscriber = None  # (worker)
-        self._class = None  # the genpy class of the messages (worker, then read on the loop once ready)
+        self._class = None  # the messages' genpy class: set on the worker before the rospy subscriber exists
 
     def make(self, graph, asked_type):
         """On the worker: the topic's type (asked_type, or the graph's), and its rospy subscriber."""
