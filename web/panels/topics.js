@@ -9,6 +9,7 @@ const REFRESH_MS = 3000;
 const WINDOW_S = 5;  // rate and bandwidth over the last seconds, as rostopic hz/bw's window
 const FAST_HZ = 200;  // above this the bridge throttles what it sends this page (the rate shown is then a floor)
 const THROTTLE_MS = 50;
+const FAST_SAMPLES = 50;  // arrivals needed before a topic is judged fast (messages also arrive in bursts)
 const RENDER_MS = 150;
 const INFO_EVERY_S = 3;  // the tree is redrawn at most this often, whatever the topic's rate
 
@@ -167,7 +168,7 @@ class OpenTopic {
     if (this.latest === null) this.showInfo();  // subscribed by now: this page is among the subscribers
     this.latest = message;
     this.plot.push(this.name, message);
-    if (!this.throttled && this.hz() > FAST_HZ) {  // too fast to show: let the bridge send a sample
+    if (!this.throttled && this.arrivals.length >= FAST_SAMPLES && this.hz() > FAST_HZ) {  // too fast to show
       this.throttled = true;
       this.subscribe();
     }
