@@ -7,6 +7,7 @@ import pytest
 from geometry_msgs.msg import Twist
 from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.keys import Keys
+from selenium.webdriver.support.ui import Select
 from std_srvs.srv import Empty
 from turtlesim.msg import Pose
 from turtlesim.srv import Spawn, TeleportAbsolute
@@ -140,6 +141,38 @@ def test_holding_arrow_keys_drives_and_releasing_stops(open_page, world, listen)
     assert (last.linear.x, last.angular.z) == (0, 0)  # stopped by the page, not by the sim's timeout
     assert commands.count() >= 10
     assert world.last.x > CENTRE + 1
+
+
+def test_drives_any_twist_topic_kept_in_the_address_and_stop_sends_zero(open_page, bridge_url, listen, node):
+    """A robot whose cmd_vel is not /turtle1/cmd_vel: given in the address, or chosen from the graph's Twists."""
+    rover = listen("/rover_test/cmd_vel", Twist)
+    other = node.Publisher("/rover_test/arm/cmd_vel", Twist, queue_size=1)  # another Twist topic of the graph
+    page = open_page(url=bridge_url + "?drive=/rover_test/cmd_vel")
+    assert page.el("cmd-vel-name").text == "/rover_test/cmd_vel"
+    page.el("world").click()
+    keys = ActionChains(page.driver)
+    keys.key_down(Keys.ARROW_UP).perform()
+    wait_for(lambda: rover.count() and rover.last.linear.x == pytest.approx(1.5), 15, what="the rover driven")
+    page.el("stop").click()  # stops while the key is still held
+    wait_for(lambda: (rover.last.linear.x, rover.last.angular.z) == (0, 0), 10, what="the zero Twist")
+    keys.key_up(Keys.ARROW_UP).perform()
+    assert "Stopped: a zero Twist on /rover_test/cmd_vel" in page.feedback()
+    assert "drive a turtle" in page.el("teleport-form").text  # not a turtle: nothing to teleport
+    page.js("arguments[0].click()", page.el("teleport"))
+    assert "not a turtle's cmd_vel" in page.js("return document.getElementById('service-status').textContent")
+
+    choices = lambda: page.js("return [...document.getElementById('target').options].map(o => o.value)")
+    wait_for(lambda: {"/rover_test/arm/cmd_vel", "/turtle1/cmd_vel"} <= set(choices()), 15, what="Twist topics")
+    Select(page.el("target")).select_by_value("/turtle1/cmd_vel")
+    assert page.js("return location.search") == "?drive=%2Fturtle1%2Fcmd_vel"
+    assert "turtle1" in page.el("teleport-form").text
+    other.unregister()
+
+
+def test_a_drive_address_that_is_no_topic_name_is_reported(open_page, bridge_url):
+    page = open_page(url=bridge_url + "?drive=rm -rf")
+    assert page.el("cmd-vel-name").text == "/turtle1/cmd_vel"
+    assert "“rm -rf” is not a topic name" in page.feedback()
 
 
 def test_leaving_the_page_while_a_key_is_held_stops_the_turtle(open_page, world, listen):

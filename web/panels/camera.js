@@ -63,6 +63,9 @@ export class CameraPanel extends Panel {
       if (picture instanceof ImageData) context.putImageData(picture, 0, 0);
       else context.drawImage(picture, 0, 0);
       this.status.textContent = '';
+      // Each frame drawn, with its age then (s, from its header stamp), for whoever measures the page.
+      const drawnAge = stamp && stamp.secs ? Date.now() / 1000 - (stamp.secs + stamp.nsecs / 1e9) : null;
+      this.canvas.dispatchEvent(new CustomEvent('frame', { detail: { age: drawnAge } }));
     } catch (error) {
       this.status.textContent = error.message;
     }

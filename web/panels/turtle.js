@@ -4,7 +4,8 @@
 import { WorldView, WORLD_M } from './world.js';
 import { Driver } from './drive.js';
 
-const DISCOVERY_MS = 2000;  // how often the set of turtles is refreshed
+const DISCOVERY_MS = 2000;  // how often the set of turtles (and of Twist topics to drive) is refreshed
+const DRIVE_PARAM = 'drive';  // ?drive=/rover/cmd_vel: the Twist topic driven, kept in the page's address
 const $ = id => document.getElementById(id);
 
 const view = new WorldView($('world'));
@@ -95,6 +96,7 @@ async function discoverTurtles() {
     if (asked !== session) return;
     trackTurtles(topics.filter((name, i) => types[i] === 'turtlesim/Pose' && /^\/[^/]+\/pose$/.test(name))
       .map(name => name.split('/')[1]));
+    showTargets(topics.filter((name, i) => types[i] === 'geometry_msgs/Twist'));
   } catch (error) {
     feedback(`Could not list topics: ${error.message}`, 'error');
   }
@@ -113,34 +115,50 @@ function trackTurtles(names) {
     if (poses.has(name)) continue;
     poses.set(name, session.subscribe(`/${name}/pose`, 'turtlesim/Pose', pose => view.setPose(name, pose)));
   }
-  showTargets(names);
+  showTarget();
 }
 
-function showTargets(names) {
+// Every Twist topic of the graph can be driven; the one driven stays listed even before anyone uses it.
+function showTargets(topics) {
   const select = $('target');
   const current = select.value;
-  const wanted = names.length ? [...names].sort() : [current];
+  const wanted = [...new Set([...topics, current])].sort();
   if ([...select.options].map(o => o.value).join() === wanted.join()) return;
   select.replaceChildren(...wanted.map(name => new Option(name, name)));
-  select.value = wanted.includes(current) ? current : wanted[0];
-  if (select.value !== current) switchTarget();
+  select.value = current;
 }
 
 function target() {
-  return $('target').value || 'turtle1';
+  return $('target').value;
+}
+
+// The turtle whose cmd_vel is driven (teleport acts on it), or null for another robot's topic.
+function drivenTurtle() {
+  const name = /^\/([^/]+)\/cmd_vel$/.exec(target())?.[1];
+  return name && (poses.has(name) || !session) ? name : null;
 }
 
 function showTarget() {
-  $('cmd-vel-name').textContent = `/${target()}/cmd_vel`;
-  for (const el of document.querySelectorAll('.target-name')) el.textContent = target();
+  $('cmd-vel-name').textContent = target();
+  for (const el of document.querySelectorAll('.target-name')) el.textContent = drivenTurtle() ?? '(drive a turtle)';
 }
+
+function startingTarget() {
+  const asked = new URLSearchParams(location.search).get(DRIVE_PARAM)?.trim();
+  const valid = asked && /^\/[A-Za-z][\w]*(\/[A-Za-z][\w]*)*$/.test(asked);
+  if (asked && !valid) feedback(`“${asked}” is not a topic name: driving /turtle1/cmd_vel.`, 'error');
+  const name = valid ? asked : '/turtle1/cmd_vel';
+  $('target').replaceChildren(new Option(name, name));
+  showTarget();
+}
+startingTarget();
 
 // ---- publishing Twists -------------------------------------------------------------------------
 
 // The cmd_vel publisher of the driven turtle, advertised ahead of the first command (on connect and on
 // a change of turtle) so that turtlesim is already subscribed when the first Twist goes out.
 function commandTopic() {
-  const name = `/${target()}/cmd_vel`;
+  const name = target();
   if (cmdVel?.name !== name) {
     cmdVel?.publisher.close();
     cmdVel = { name, publisher: session.advertise(name, 'geometry_msgs/Twist', { queue_size: 1 }) };
@@ -171,7 +189,7 @@ $('twist-form').addEventListener('submit', e => {
     return;
   }
   if (publishTwist(speeds.linear, speeds.angular)) {
-    feedback(`Published linear.x = ${speeds.linear}, angular.z = ${speeds.angular} on /${target()}/cmd_vel.`, 'ok');
+    feedback(`Published linear.x = ${speeds.linear}, angular.z = ${speeds.angular} on ${target()}.`, 'ok');
   } else {
     feedback('Nothing published: not connected to the bridge.', 'error');
   }
@@ -187,14 +205,23 @@ const driver = new Driver({
   joystick: $('joystick'),
 });
 
-// The driven turtle is stopped first: its zero Twist still goes to the publisher of the old name.
+// The driven robot is stopped first: its zero Twist still goes to the publisher of the old name.
 function switchTarget() {
   driver.stop();
   showTarget();
+  const address = new URL(location.href);
+  address.searchParams.set(DRIVE_PARAM, target());
+  history.replaceState(null, '', address);
   if (session) commandTopic();
 }
 
 $('target').addEventListener('change', switchTarget);
+
+$('stop').addEventListener('click', () => {
+  driver.stop();
+  if (publishTwist(0, 0)) feedback(`Stopped: a zero Twist on ${target()}.`, 'ok');
+  else feedback('Not connected to the bridge: nothing could be sent.', 'error');
+});
 
 // ---- services ----------------------------------------------------------------------------------
 
@@ -244,7 +271,11 @@ $('teleport-form').addEventListener('submit', e => {
   const values = readNumbers(['tp-x', 'tp-y', 'tp-theta']);
   if (!values) return;
   const [x, y, theta] = values;
-  const name = target();
+  const name = drivenTurtle();
+  if (!name) {
+    serviceStatus(`${target()} is not a turtle's cmd_vel: choose a turtle to teleport under Drive.`, 'error');
+    return;
+  }
   callService(`/${name}/teleport_absolute`, 'turtlesim/TeleportAbsolute', { x, y, theta },
     () => `Teleported ${name} to (${x}, ${y}, ${theta}).`);
 });
