@@ -433,19 +433,19 @@ def section_isolation(run, table):
         run.stop(turtle)
 
 
-def other_bench(run, script, title, code_block=False):
+def other_bench(run, script, title, code_block=False, python=PY):
     """Runs another part's benchmark (bench/<script>, same roscore environment) and returns its table."""
     path = BENCH / script
     if not path.exists():
         return f"### {title}\n\n(bench/{script} is not there yet)"
-    res = subprocess.run([PY, str(path)], env=run.ros.env, capture_output=True, text=True, timeout=300)
+    res = subprocess.run([python, str(path)], env=run.ros.env, capture_output=True, text=True, timeout=300)
     if res.returncode != 0:
         return f"### {title}\n\n(bench/{script} failed, exit {res.returncode}:\n\n```\n{res.stderr[-1500:]}\n```)"
     out = res.stdout.strip()
     return f"### {title}\n\n" + (f"```\n{out}\n```" if code_block else out)
 
 
-SECTIONS = ("throughput", "rates", "latency", "fanout", "large", "isolation", "turtlesim", "convert")
+SECTIONS = ("throughput", "rates", "latency", "fanout", "large", "isolation", "turtlesim", "convert", "page")
 
 
 def main():
@@ -474,7 +474,9 @@ def main():
                     "turtlesim": lambda: other_bench(run, "turtlesim_bench.py",
                                                      "turtlesim_node (bench/turtlesim_bench.py)"),
                     "convert": lambda: other_bench(run, "convert_bench.py",
-                                                   "ROS <-> JSON conversion (bench/convert_bench.py)", code_block=True)}
+                                                   "ROS <-> JSON conversion (bench/convert_bench.py)", code_block=True),
+                    "page": lambda: other_bench(run, "page_bench.py", "The page in Chromium (bench/page_bench.py)",
+                                                python=str(REPO / ".build" / "venv" / "bin" / "python"))}
         for name in a.only:
             t = time.monotonic()
             extra = sections[name]()
