@@ -11,12 +11,9 @@ import io
 import json
 import struct
 
-from rosbridge.convert import BUILTIN_TYPES, from_json, parse_slot_type
+from rosbridge.convert import STRUCT_CODES as _CODES, TIME_PART_CODES as _TIME_CODES, from_json, parse_slot_type
 from rosbridge.types import message_class
 
-_CODES = {"bool": "?", "int8": "b", "uint8": "B", "int16": "h", "uint16": "H", "int32": "i", "uint32": "I",
-          "int64": "q", "uint64": "Q", "float32": "f", "float64": "d"}
-_TIME_CODES = {"time": "I", "duration": "i"}
 # The JSON values each kind of field takes on the common road (bool is not an int here, as in convert).
 _KINDS = {"bool": "_BOOL", "float32": "_NUMBER", "float64": "_NUMBER"}
 _DEFAULTS = {"bool": False, "string": "", "float32": 0.0, "float64": 0.0}

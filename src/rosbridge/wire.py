@@ -16,13 +16,9 @@ import struct
 import genpy
 from genpy.rostime import _canon
 
-from rosbridge.convert import BUILTIN_TYPES, parse_slot_type
+from rosbridge.convert import BUILTIN_TYPES, STRUCT_CODES as _CODES, TIME_PART_CODES as _TIME_CODES, parse_slot_type
 from rosbridge.types import message_class
 
-# struct codes of the fixed-size fields; bool is read as '?' (any non-zero byte is true, as genpy's bool()).
-_CODES = {"bool": "?", "int8": "b", "uint8": "B", "int16": "h", "uint16": "H", "int32": "i", "uint32": "I",
-          "int64": "q", "uint64": "Q", "float32": "f", "float64": "d"}
-_TIME_CODES = {"time": "II", "duration": "ii"}
 _FLOATS = ("float32", "float64")
 _NS = 1_000_000_000
 
@@ -158,7 +154,7 @@ class _Generator:
                              "p += n")
             reader.value(text)
         elif base in _TIME_CODES:
-            secs, nsecs = reader.fixed(_TIME_CODES[base])
+            secs, nsecs = reader.fixed(_TIME_CODES[base] * 2)
             if top:
                 reader.after_read(f"if not 0 <= {nsecs} < _NS: {secs}, {nsecs} = _canon({secs}, {nsecs})")
             reader.text('{"secs":')
@@ -188,7 +184,7 @@ class _Generator:
             reader.text('"')
             return
         if base in _CODES or base in _TIME_CODES:
-            code, per_item = (_TIME_CODES[base][0], 2) if base in _TIME_CODES else (_CODES[base], 1)
+            code, per_item = (_TIME_CODES[base], 2) if base in _TIME_CODES else (_CODES[base], 1)
             width = struct.calcsize("<" + code) * per_item
             if size is None:
                 unpack = f"_unpack_from('<%d{code}' % ({per_item} * n), b, p)"
