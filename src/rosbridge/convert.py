@@ -330,17 +330,18 @@ def _constant(value):
     return lambda now=None: value
 
 
-_DEFAULTS = {"bool": False, "string": "", "float32": 0.0, "float64": 0.0, **{base: 0 for base in INT_RANGES}}
+# The value of a field missing from the JSON (times and messages: an empty object).
+DEFAULTS = {"bool": False, "string": "", "float32": 0.0, "float64": 0.0, **{base: 0 for base in INT_RANGES}}
 
 
 def _field_default(base, is_array, size, decode):
     """A function now -> a fresh default value for a field missing from the JSON."""
-    if not is_array and base in _DEFAULTS:
-        return _constant(_DEFAULTS[base])
+    if not is_array and base in DEFAULTS:
+        return _constant(DEFAULTS[base])
     if base == "uint8" and is_array:
         return _constant(bytes(size or 0))
     # Mutable values (lists, times, messages) must be new for every message: decode a JSON default.
-    json_default = {} if not is_array else [] if size is None else [_DEFAULTS.get(base, {})] * size
+    json_default = {} if not is_array else [] if size is None else [DEFAULTS.get(base, {})] * size
     return lambda now=None: decode(json_default, now)
 
 

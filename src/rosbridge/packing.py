@@ -8,15 +8,14 @@ ints for uint8[], a missing header stamp, any error) goes the long way through c
 and every error message stay exactly convert's; the tests compare the two on random and junk input."""
 import base64
 import io
-import json
 import struct
 
-from rosbridge.convert import STRUCT_CODES as _CODES, TIME_PART_CODES as _TIME_CODES, from_json, parse_slot_type
+from rosbridge.convert import (DEFAULTS, STRUCT_CODES as _CODES, TIME_PART_CODES as _TIME_CODES, from_json,
+                               parse_slot_type)
 from rosbridge.types import message_class
 
 # The JSON values each kind of field takes on the common road (bool is not an int here, as in convert).
 _KINDS = {"bool": "_BOOL", "float32": "_NUMBER", "float64": "_NUMBER"}
-_DEFAULTS = {"bool": False, "string": "", "float32": 0.0, "float64": 0.0}
 
 
 class _LongWay(Exception):
@@ -28,7 +27,7 @@ def _check(ok):
         raise _LongWay
 
 
-def _time(value, code):
+def _time(value):
     """secs, nsecs of a {"secs", "nsecs"} object already canonical (0 <= nsecs < 1e9)."""
     _check(type(value) is dict and value.keys() <= _SECS_NSECS)
     secs, nsecs = value.get("secs", 0), value.get("nsecs", 0)
@@ -37,7 +36,7 @@ def _time(value, code):
 
 
 def _times(values, code):
-    pairs = [part for value in values for part in _time(value, code)]
+    pairs = [part for value in values for part in _time(value)]
     return struct.pack(f"<{len(pairs)}{code}", *pairs)
 
 
@@ -112,7 +111,7 @@ class _Generator:
                 values.append(var)
             elif not is_array and base in _TIME_CODES:
                 codes.append(_TIME_CODES[base] * 2)
-                values.append(f"*_time({var}, {_TIME_CODES[base]!r})")
+                values.append(f"*_time({var})")
             else:
                 flush()
                 lines.extend(self._variable(var, base, is_array, size))
@@ -154,9 +153,7 @@ def _json_default(base, is_array, size):
         if base == "uint8":
             return base64.b64encode(bytes(size)).decode()
         return [_json_default(base, False, None)] * size
-    if base in _DEFAULTS:
-        return _DEFAULTS[base]
-    return 0 if base in _CODES else {}
+    return DEFAULTS.get(base, {})
 
 
 _cache = {}
