@@ -55,7 +55,8 @@ def test_get_services_match_rosservice_plus_rosapi(ros, bridge):
     assert "/rosapi_test/reset" in services and "/rosapi/get_param" in services
     assert bridge.get_service_type("/rosapi_test/reset") == "std_srvs/Empty"
     assert bridge.get_service_type("/rosapi/topics") == "rosapi/Topics"
-    assert bridge.get_services_for_type("std_srvs/Empty") == ["/rosapi_test/reset"]
+    # as `rosservice find` says (other tests' turtlesims may provide std_srvs/Empty services too)
+    assert bridge.get_services_for_type("std_srvs/Empty") == cli_list(ros, "rosservice", "find", "std_srvs/Empty")
 
 
 @pytest.fixture
@@ -75,9 +76,10 @@ def stopped_services(ros):
 
 def test_service_listings_by_type_answer_in_time_with_stopped_providers(graph, bridge, stopped_services):
     # roslibpy waits 3 s for a rosapi answer; asking one provider at a time for 5 s each took 15 s here
-    assert bridge.get_services_for_type("std_srvs/Empty") == ["/rosapi_test/reset"]
+    found = bridge.get_services_for_type("std_srvs/Empty")
+    assert "/rosapi_test/reset" in found and not set(found) & set(stopped_services)
     providers = roslibpy.Service(bridge, "/rosapi/service_providers", "rosapi/ServiceProviders")
-    assert providers.call(roslibpy.ServiceRequest({"service": "std_srvs/Empty"}), timeout=3) == {"providers": [graph]}
+    assert graph in providers.call(roslibpy.ServiceRequest({"service": "std_srvs/Empty"}), timeout=3)["providers"]
     assert bridge.get_service_type(stopped_services[0]) == ""
 
 
