@@ -22,7 +22,6 @@ import rosgraph
 import rosgraph.names
 import rosgraph.network
 
-
 from rosbridge.errors import ClientError
 from rosbridge.globs import Globs, allowed, filter_names
 from rosbridge.types import UnknownType, message_class, service_class

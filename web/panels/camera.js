@@ -54,7 +54,7 @@ export class CameraPanel extends Panel {
   async draw(type, message) {
     this.frames.push(performance.now());
     const stamp = message.header?.stamp;
-    this.age = stamp && stamp.secs ? Date.now() / 1000 - (stamp.secs + stamp.nsecs / 1e9) : null;
+    this.age = ageOf(stamp);
     try {
       const picture = type === 'sensor_msgs/CompressedImage' ? await decodeCompressed(message) : decodeRaw(message);
       this.canvas.width = picture.width;
@@ -63,9 +63,8 @@ export class CameraPanel extends Panel {
       if (picture instanceof ImageData) context.putImageData(picture, 0, 0);
       else context.drawImage(picture, 0, 0);
       this.status.textContent = '';
-      // Each frame drawn, with its age then (s, from its header stamp), for whoever measures the page.
-      const drawnAge = stamp && stamp.secs ? Date.now() / 1000 - (stamp.secs + stamp.nsecs / 1e9) : null;
-      this.canvas.dispatchEvent(new CustomEvent('frame', { detail: { age: drawnAge } }));
+      // Each frame drawn, with its age then, for whoever measures the page.
+      this.canvas.dispatchEvent(new CustomEvent('frame', { detail: { age: ageOf(stamp) } }));
     } catch (error) {
       this.status.textContent = error.message;
     }
@@ -81,6 +80,11 @@ export class CameraPanel extends Panel {
     const age = this.age === null ? '' : ` · frame age ${(this.age * 1000).toFixed(0)} ms`;
     this.stats.textContent = `${this.frames.length} fps${age}`;
   }
+}
+
+// Seconds since a header stamp (null without one).
+function ageOf(stamp) {
+  return stamp && stamp.secs ? Date.now() / 1000 - (stamp.secs + stamp.nsecs / 1e9) : null;
 }
 
 function bytes(data) {

@@ -49,5 +49,6 @@ export function fillSelect(select, placeholder, choices) {
 
 // Shows a ROS name in an element so that a narrow screen breaks it after a '/' (a <wbr>, which copying leaves out).
 export function showName(element, name) {
-  element.replaceChildren(...name.split(/(?<=\/)/).flatMap((part, i) => (i ? [document.createElement('wbr'), part] : [part])));
+  const parts = name.split(/(?<=\/)/);
+  element.replaceChildren(...parts.flatMap((part, i) => (i ? [document.createElement('wbr'), part] : [part])));
 }
