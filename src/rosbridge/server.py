@@ -3,8 +3,6 @@
 
 One IOLoop thread serves every client; rospy's threads and the service-call threads only hand work to it
 (see ros_side/__init__.py)."""
-import errno
-import os
 import resource
 import time
 from pathlib import Path
@@ -18,6 +16,7 @@ import tornado.netutil
 import tornado.web
 
 from rosbridge import protocol
+from rosbridge.accepting import accept_connections
 from rosbridge.globs import Globs, parse_globs
 from rosbridge.pages import PageFiles
 from rosbridge.ros_side import RosBackend
@@ -27,8 +26,7 @@ from rosbridge.settings import Settings
 from rosbridge.websocket import BridgeSocket
 
 MAX_LOGGED_KINDS = 1000  # kinds of refusal remembered for rate limiting (refused origins are kinds)
-FDS_KEPT_FREE = 64
-IDLE_TIMEOUT = 10.0  # seconds  # file descriptors left to rospy (subscribers, service calls) when clients are accepted
+IDLE_TIMEOUT = 10.0  # seconds
 
 
 class Bridge:
@@ -75,44 +73,6 @@ def routes(bridge, web_root):
     if web_root:
         table.append((r"/(.+)", PageFiles, {"path": str(web_root)}))
     return table
-
-
-def accept_connections(server, sockets, bridge, loop):
-    """Accepts clients like Tornado's TCPServer.add_sockets, but when file descriptors run short (EMFILE,
-    ENFILE, or fewer than FDS_KEPT_FREE left) it stops listening for a while instead of failing in a loop:
-    the pending clients wait in the kernel's backlog."""
-    soft_limit = resource.getrlimit(resource.RLIMIT_NOFILE)[0]
-
-    def fds_short():
-        if soft_limit == resource.RLIM_INFINITY:
-            return False
-        return len(os.listdir("/proc/self/fd")) > soft_limit - FDS_KEPT_FREE
-
-    def pause(sock, text):
-        bridge.log_refusal("fds", f"not accepting clients for a second: {text}")
-        loop.remove_handler(sock)
-        loop.call_later(1.0, lambda: loop.add_handler(sock, lambda fd, events: accept(sock), loop.READ))
-
-    def accept(sock):
-        for _ in range(128):  # then let the loop serve the clients it has
-            if fds_short():
-                pause(sock, f"file descriptors near the limit ({soft_limit})")
-                return
-            try:
-                connection, address = sock.accept()
-            except BlockingIOError:
-                return
-            except OSError as error:
-                if error.errno == errno.ECONNABORTED:
-                    continue
-                if error.errno in (errno.EMFILE, errno.ENFILE, errno.ENOBUFS, errno.ENOMEM):
-                    pause(sock, error.strerror)
-                    return
-                raise
-            server._handle_connection(connection, address)  # TCPServer's own per-connection set-up
-
-    for sock in sockets:
-        loop.add_handler(sock, lambda fd, events, sock=sock: accept(sock), loop.READ)
 
 
 def raise_fd_limit():
@@ -163,7 +123,7 @@ def main():
     # a connection that sends no request within IDLE_TIMEOUT is closed: idle sockets must not hold descriptors
     server = tornado.httpserver.HTTPServer(app, ssl_options=ssl_options, max_buffer_size=max_frame,
                                            idle_connection_timeout=IDLE_TIMEOUT)
-    accept_connections(server, sockets, bridge, loop)
+    accept_connections(server._handle_connection, sockets, lambda text: bridge.log_refusal("fds", text), loop)
     port = sockets[0].getsockname()[1]
     rospy.set_param("~actual_port", port)
     MasterWatch(after_recovery=lambda: rospy.set_param("~actual_port", port))
