@@ -1,0 +1,99 @@
+"""rosbridge.tcpros: the framing and the connection headers, against what rospy and rosgraph do."""
+import io
+import random
+
+import pytest
+from geometry_msgs.msg import Twist
+from rospy.impl.tcpros_pubsub import TCPROSHandler
+from std_msgs.msg import String
+
+from rosbridge import tcpros
+
+
+def messages_of(sizes, seed=0):
+    rnd = random.Random(seed)
+    return [bytes(rnd.randrange(256) for _ in range(size)) for size in sizes]
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_frames_split_anywhere_come_out_whole_and_in_order(seed):
+    rnd = random.Random(seed)
+    messages = messages_of([rnd.choice((0, 1, 3, 4, 5, 48, 300, 70_000)) for _ in range(30)], seed)
+    stream = b"".join(tcpros.frame(m) for m in messages)
+    reader, got, offset = tcpros.FrameReader(), [], 0
+    while offset < len(stream):
+        step = rnd.choice((1, 2, 3, 5, 64, 4096, 100_000))
+        got += reader.feed(stream[offset:offset + step])
+        offset += step
+    assert got == messages
+    assert reader.missing() == 0
+
+
+def test_missing_counts_the_rest_of_a_begun_message():
+    reader = tcpros.FrameReader()
+    data = tcpros.frame(b"x" * 1000) + tcpros.frame(b"y")
+    assert reader.feed(data[:3]) == [] and reader.missing() == 0  # the length itself is not complete
+    assert reader.feed(data[3:10]) == [] and reader.missing() == 994
+    assert reader.feed(data[10:]) == [b"x" * 1000, b"y"]
+
+
+def test_frame_is_what_a_rospy_subscriber_reads():
+    buff = io.BytesIO()
+    msg = String(data="hello")
+    msg.serialize(buff)
+    framed = tcpros.frame(buff.getvalue())
+    assert framed[:4] == len(buff.getvalue()).to_bytes(4, "little")
+    assert String().deserialize(framed[4:]).data == "hello"
+
+
+def test_headers_survive_the_round_trip_through_rosgraph():
+    fields = tcpros.subscriber_header("/cmd_vel", Twist, "/rosbridge")
+    encoded = tcpros.encode_header(fields)
+    assert tcpros.decode_header(encoded[:4], encoded[4:]) == fields
+    assert fields["md5sum"] == Twist._md5sum and fields["type"] == "geometry_msgs/Twist"
+
+
+def test_a_header_too_big_or_malformed_is_refused():
+    with pytest.raises(tcpros.HandshakeError):
+        tcpros.header_size((tcpros.MAX_HEADER + 1).to_bytes(4, "little"))
+    with pytest.raises(tcpros.HandshakeError):
+        tcpros.decode_header((8).to_bytes(4, "little"), b"\xff\xff\xff\x7fabcd")
+
+
+def subscriber(**fields):
+    header = {"topic": "/cmd_vel", "md5sum": Twist._md5sum, "callerid": "/teleop", "type": "geometry_msgs/Twist"}
+    header.update(fields)
+    return {k: v for k, v in header.items() if v is not None}
+
+
+def test_the_reply_to_a_matching_subscriber_describes_the_topic():
+    reply = tcpros.publisher_reply(subscriber(), "/cmd_vel", Twist, True, "/rosbridge")
+    assert reply == {"callerid": "/rosbridge", "md5sum": Twist._md5sum, "type": "geometry_msgs/Twist",
+                     "topic": "/cmd_vel", "message_definition": Twist._full_text, "latching": "1"}
+    assert tcpros.publisher_reply(subscriber(md5sum="*", type="*"), "/cmd_vel", Twist, False, "/b")["latching"] == "0"
+
+
+@pytest.mark.parametrize("fields", [{"md5sum": "0" * 32}, {"md5sum": "0" * 32, "type": "std_msgs/String"},
+                                    {"md5sum": "0" * 32, "type": None}, {"topic": None}, {"md5sum": None},
+                                    {"callerid": None}])
+def test_refusals_are_rospys(fields, monkeypatch):
+    """The same error text a rospy publisher gives (rostopic and roscpp show it to the user)."""
+    ours = tcpros.publisher_reply(subscriber(**fields), "/cmd_vel", Twist, False, "/rosbridge")
+
+    class Topic:
+        data_class, closed, is_latch, headers = Twist, False, False, None
+
+    class Manager:
+        @staticmethod
+        def get_publisher_impl(name):
+            return Topic
+
+    monkeypatch.setattr("rospy.impl.registration.get_topic_manager", lambda: Manager)
+    monkeypatch.setattr("rospy.core.is_shutdown_requested", lambda: False)
+    theirs = TCPROSHandler().topic_connection_handler(None, None, subscriber(**fields))
+    assert ours == {"error": theirs}
+
+
+def test_nodelay_as_the_subscriber_asks():
+    assert tcpros.wants_nodelay({"tcp_nodelay": "1"}) and not tcpros.wants_nodelay({"tcp_nodelay": "0"})
+    assert not tcpros.wants_nodelay({})
