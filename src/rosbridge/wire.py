@@ -1,19 +1,16 @@
 """ROS serialized messages (the bytes rospy receives) straight to the JSON text the bridge sends: no genpy message
 and no Python dict in between.
 
-`raw_class(cls)` is the class rospy subscribes with so that it hands over the bytes as they came;
-`raw_publish_class(cls)` the one it publishes serialized bytes with (rosbridge.packing makes them).
+The bytes come from the bridge's own TCPROS links (rosbridge.ros_side.links).
 `json_text(cls)` gives a function bytes -> text for one message type, generated from its fields once and cached
 (as genpy generates its deserializers). The text is exactly `convert.dumps(convert.to_json(msg))` for the message
 genpy would deserialize from those bytes; the tests compare the two for every message type on the machine.
 Consecutive fixed-size fields, nested messages' included, are read with one struct call and written with one
 %-format; variable-size fields (strings, arrays) are written to their own text first."""
 import base64
-import functools
 import json
 import struct
 
-import genpy
 from genpy.rostime import _canon
 
 from rosbridge.convert import BUILTIN_TYPES, STRUCT_CODES as _CODES, TIME_PART_CODES as _TIME_CODES, parse_slot_type
@@ -220,56 +217,3 @@ def json_text(cls):
         read = generator.namespace[generator.reader(cls, top=True)]
         convert = _cache[cls] = lambda data: read(data, 0)[0]
     return convert
-
-
-@functools.lru_cache(maxsize=None)
-def raw_class(cls):
-    """A message class that rospy takes for cls (same type, md5sum and definition, so the master records the
-    topic's real type) but whose instances keep the serialized bytes, in `_buff`, instead of decoding them: as
-    rospy.AnyMsg, but typed."""
-    def __init__(self, *args, **kwds):  # rospy makes an empty one, then deserializes into it
-        self._buff = None
-
-    def deserialize(self, data):
-        self._buff = data
-        return self
-
-    def serialize(self, buff):
-        buff.write(self._buff)
-
-    return type(f"Raw{cls.__name__}", (genpy.Message,), {
-        "__slots__": ("_buff",), "_type": cls._type, "_md5sum": cls._md5sum, "_full_text": cls._full_text,
-        "_has_header": False, "_slot_types": [], "__init__": __init__, "deserialize": deserialize,
-        "serialize": serialize})
-
-
-class _HeaderSeq:
-    """What rospy's serialize_message touches of a message's header: it sets `seq` to its publisher's count, and
-    reads `frame_id`. The header is the first field (genpy's _has_header), so seq is the buffer's first 4 bytes."""
-    __slots__ = ("_buff",)
-    frame_id = ""
-
-    def __init__(self, buff):
-        self._buff = buff
-
-    @property
-    def seq(self):
-        return _U32_AT(self._buff, 0)[0]
-
-    @seq.setter
-    def seq(self, value):
-        struct.pack_into("<I", self._buff, 0, value & 0xFFFFFFFF)
-
-
-_U32_AT = struct.Struct("<I").unpack_from
-
-
-@functools.lru_cache(maxsize=None)
-def raw_publish_class(cls):
-    """raw_class(cls) for publishing serialized bytes (a bytearray in `_buff`): where cls has a header, rospy writes
-    its sequence number into the bytes, as it does into a genpy message's header.seq."""
-    base = raw_class(cls)
-    if not cls._has_header:
-        return base
-    return type(base.__name__, (base,), {"__slots__": (), "_has_header": True,
-                                         "header": property(lambda self: _HeaderSeq(self._buff))})

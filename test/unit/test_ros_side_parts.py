@@ -34,35 +34,24 @@ class Clock:
 def test_early_messages_are_replayed_to_a_subscriber_within_the_window():
     clock = Clock()
     replay = EarlyReplay(10, clock)
-    replay.record("m1", lambda: 0)
-    replay.record("m2", lambda: 1)  # someone was connected for this one: it got it
-    got = []
-    replay.peer_subscribe("/t", None, got.append)
-    assert got == ["m1"]
+    replay.record("m1")
+    replay.record("m2")
+    assert replay.replay() == ("m1", "m2")
     clock.now += REPLAY_WINDOW
-    replay.record("m3", lambda: 0)
-    replay.peer_subscribe("/t", None, got.append)
-    assert got == ["m1"]
+    replay.record("m3")
+    assert replay.replay() == ()
 
 
 def test_no_replay_once_a_subscriber_left():
     replay = EarlyReplay(10, Clock())
-    replay.record("m1", lambda: 0)
-    replay.peer_unsubscribe("/t", 0)
-    got = []
-    replay.peer_subscribe("/t", None, got.append)
-    assert got == []
+    replay.record("m1")
+    replay.end()
+    replay.record("m2")
+    assert replay.replay() == ()
 
 
-def test_a_subscriber_leaving_while_a_message_is_recorded():
-    """The interleaving that once ended a topic's publishing thread: peer_unsubscribe (a rospy thread) runs
-    between the publishing thread's check of the buffer and its use of it."""
-    replay = EarlyReplay(10, Clock())
-
-    def connections():  # asked between the check and the use: the subscriber leaves right there
-        replay.peer_unsubscribe("/t", 0)
-        return 0
-    replay.record("m1", connections)  # must not raise
-    got = []
-    replay.peer_subscribe("/t", None, got.append)
-    assert got == []
+def test_early_replay_keeps_the_newest_messages():
+    replay = EarlyReplay(2, Clock())
+    for n in range(5):
+        replay.record(n)
+    assert replay.replay() == (3, 4)

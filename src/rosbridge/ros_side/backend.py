@@ -3,6 +3,7 @@ services, plus the bridge's own /client_count and the master look-ups they share
 import rospy
 
 from rosbridge.backend import Backend
+from rosbridge.ros_side.links import TopicLinks
 from rosbridge.ros_side.publishers import Publishers
 from rosbridge.ros_side.services import ProvidedServices, ServiceCalls
 from rosbridge.ros_side.subscribers import Subscribers
@@ -17,8 +18,9 @@ MAX_CALLS_PENDING_PER_CLIENT = 1000  # running or waiting
 class RosBackend(Backend):
     def __init__(self, loop, rosapi=None, unregister_timeout=10.0, service_timeout=60.0):
         worker = RosWorker(loop)
-        self._publishers = Publishers(loop, worker, unregister_timeout)
-        self._subscribers = Subscribers(loop, worker)
+        links = TopicLinks(loop, lambda text: rospy.logwarn_throttle(60, "bridge topics: " + text))
+        self._publishers = Publishers(loop, worker, links, unregister_timeout)
+        self._subscribers = Subscribers(loop, worker, links)
         self._calls = ServiceCalls(loop, rosapi, MAX_CALLS_RUNNING_PER_CLIENT, MAX_CALLS_RUNNING,
                                    MAX_CALLS_PENDING_PER_CLIENT)
         self._provided = ProvidedServices(loop, worker, service_timeout)

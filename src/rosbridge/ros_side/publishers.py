@@ -1,17 +1,17 @@
 """Client -> ROS: the topics clients publish, one rospy publisher per topic shared by its clients."""
 import collections
+import struct
 import sys
-import threading
 import time
 import warnings
 
 import rospy
 
+from rosbridge import tcpros
 from rosbridge.errors import RequestError, refusal_text
 from rosbridge.packing import packer
 from rosbridge.ros_side.holders import Holders
 from rosbridge.types import message_class
-from rosbridge.wire import raw_publish_class
 
 # A client usually publishes right after advertising, before any subscriber has connected to the new
 # publisher (that takes the master's publisherUpdate and a TCP handshake): messages published while nobody was
@@ -20,108 +20,113 @@ from rosbridge.wire import raw_publish_class
 # must not receive stale commands.
 REPLAY_WINDOW = 1.0  # seconds after advertising
 INFERRING_LIMIT = 100  # messages kept per topic while the master is asked for its type
+SEQ = struct.Struct("<I")
 
 
 class EarlyReplay:
-    """The messages published before any subscriber connected, replayed to the subscribers that connect
-    within REPLAY_WINDOW. A rospy subscriber listener: peer_subscribe / peer_unsubscribe run on rospy's
-    threads while record runs on the publishing thread, so the buffer is only touched under the lock."""
+    """The messages published before any subscriber connected, for the subscribers that connect within
+    REPLAY_WINDOW. On the loop only."""
 
     def __init__(self, maxlen, clock=time.monotonic):
         self._clock = clock
         self._until = clock() + REPLAY_WINDOW
-        self._lock = threading.Lock()
         self._messages = collections.deque(maxlen=maxlen)
         self._over = False  # set once (window passed, or a subscriber left), never cleared
 
-    def record(self, msg, connections):
-        """After publishing msg: keep it if nobody was connected (connections() -> how many are now; asked
-        outside the lock, as rospy calls the listener while holding its own)."""
-        nobody = not connections()
-        with self._lock:
-            if self._over:
-                return
-            if self._clock() >= self._until:
-                self._end()
-            elif nobody:
-                self._messages.append(msg)
+    def record(self, data):
+        """A message published while nobody was connected."""
+        if self._over:
+            return
+        if self._clock() >= self._until:
+            self.end()
+        else:
+            self._messages.append(data)
 
-    def peer_subscribe(self, topic_name, topic_publish, peer_publish):
-        with self._lock:
-            replay = () if self._over or self._clock() >= self._until else tuple(self._messages)
-        for msg in replay:
-            peer_publish(msg)
+    def replay(self):
+        """What a subscriber that connects now gets first."""
+        if self._over or self._clock() >= self._until:
+            return ()
+        return tuple(self._messages)
 
-    def peer_unsubscribe(self, topic_name, num_peers):
-        with self._lock:
-            self._end()
-
-    def _end(self):
+    def end(self):
         self._over = True
         self._messages.clear()
 
 
 class ClientPublisher:
-    """Publishes one topic's messages from a thread of its own, with a synchronous rospy publisher.
+    """One topic that clients publish. The loop writes each message (its bytes from rosbridge.packing) straight
+    to the topic's subscribers (ros_side/links.py: one OutboundLink each). rospy's publisher, made on the worker,
+    only registers the topic with the master and lists the connections for getBusInfo.
 
-    Not rospy's queued publisher on the loop: it yields the thread after every message (time.sleep(0)), which
-    on a busy machine costs the loop far more than the publishing itself (client -> ROS: 4x fewer msg/s). Not
-    a synchronous publisher on the loop either: one stalled subscriber would then freeze every client. The
-    queue keeps rospy's queue_size meaning: when full, the oldest message is dropped (0 = unbounded).
+    A subscriber that reads slowly holds up nobody: its messages wait in its link, at most queue_size of them
+    (rospy's meaning: the oldest are dropped; 0 = links.LINK_QUEUE_LIMIT). Like rospy, the publisher numbers
+    the messages it sends in their header.seq (1, 2, ...)."""
 
-    The loop puts messages, serialized (rosbridge.packing), from the start; the worker makes the rospy publisher (a
-    master call) and only then starts the thread, which publishes what waits."""
-
-    def __init__(self, topic, cls, latch, queue_size):
-        self.topic, self._cls, self._latch = topic, raw_publish_class(cls), latch
-        maxlen = queue_size if 0 < queue_size < sys.maxsize else None
-        self._queue = collections.deque(maxlen=maxlen)
-        self._ready = threading.Event()
-        self._closed = False
-        self._publisher = self._early = None  # made on the worker before the thread starts
+    def __init__(self, links, topic, cls, latch, queue_size):
+        self._links = links
+        self.topic, self.cls, self.latch = topic, cls, latch
+        self.queue_size = queue_size if 0 < queue_size < sys.maxsize else 0
+        self.closed = False  # (loop; set once)
+        self._subscribers = []  # OutboundLinks (loop)
+        self._seq = 0
+        self._latched = None  # the last message of a latched topic (loop)
+        # (a latched topic already sends its last message to every new subscriber)
+        self._early = None if latch else EarlyReplay(self.queue_size or 100)
+        self._publisher = None  # (worker)
 
     def make(self, graph, type_name):
-        """On the worker: check the graph's type, make the rospy publisher, start publishing."""
+        """On the worker: check the graph's type, then register the topic (links first: a subscriber may connect
+        as soon as rospy's publisher exists)."""
         graph_type = graph.topic_type(self.topic, published=True)
         if graph_type not in (None, type_name):
             raise RequestError(f"advertise {self.topic}: the topic is published as {graph_type}, not {type_name}")
-        # (a latched publisher already sends its last message to every new subscriber)
-        self._early = None if self._latch else EarlyReplay(self._queue.maxlen or 100)
-        with warnings.catch_warnings():  # rospy warns about queue_size=None: synchronous is meant here
-            warnings.simplefilter("ignore")
-            self._publisher = rospy.Publisher(self.topic, self._cls, latch=self._latch, queue_size=None,
-                                              subscriber_listener=self._early)
-        threading.Thread(target=self._run, name=f"publish {self.topic}", daemon=True).start()
+        self._links.publications[self.topic] = self
+        try:
+            with warnings.catch_warnings():  # rospy warns about queue_size=None: rospy never queues here
+                warnings.simplefilter("ignore")
+                self._publisher = rospy.Publisher(self.topic, self.cls, latch=self.latch, queue_size=None)
+        except Exception:
+            self.unregister()
+            raise
+
+    def unregister(self):
+        """On the worker, once closed: rospy closes the topic's links."""
+        if self._links.publications.get(self.topic) is self:
+            del self._links.publications[self.topic]
+        if self._publisher is not None:
+            self._publisher.unregister()
 
     def put(self, data):
-        """Queues a message's serialized bytes."""
-        self._queue.append(data)
-        self._ready.set()
-        if self._queue.maxlen and len(self._queue) * 2 > self._queue.maxlen and self._publisher is not None:
-            time.sleep(0)  # the publishing thread falls behind: let it have the GIL before the queue overflows
+        """On the loop: publishes a message's serialized bytes."""
+        if self.latch:
+            self._latched = data
+        if not self._subscribers:
+            if self._early is not None:
+                self._early.record(data)
+            return
+        framed = self._framed(data)
+        for link in self._subscribers:
+            link.send(framed)
 
-    def close(self):
-        """Publishes what is queued, then unregisters (in the publishing thread)."""
-        self._closed = True
-        self._ready.set()
+    def attach(self, link):
+        """On the loop: a subscriber connected."""
+        link.on_closed = self._detach
+        self._subscribers.append(link)
+        first = (self._latched,) if self._latched is not None else self._early.replay() if self._early else ()
+        for data in first:
+            link.send(self._framed(data))
 
-    def _run(self):
-        while True:
-            self._ready.wait()
-            self._ready.clear()
-            while self._queue:
-                msg = self._cls()
-                data = self._queue.popleft()
-                msg._buff = bytearray(data) if self._cls._has_header else data  # (rospy writes seq into a header)
-                try:
-                    self._publisher.publish(msg)
-                except Exception as error:  # a broken connection: rospy drops it; keep publishing to the others
-                    rospy.logwarn("publishing on %s failed: %s", self.topic, error)
-                if self._early is not None:
-                    self._early.record(msg, self._publisher.get_num_connections)
-            if self._closed:
-                self._publisher.unregister()
-                return
+    def _detach(self, link):
+        if link in self._subscribers:
+            self._subscribers.remove(link)
+            if self._early is not None:
+                self._early.end()
+
+    def _framed(self, data):
+        if not self.cls._has_header:
+            return tcpros.frame(data)
+        self._seq += 1
+        return tcpros.LENGTH.pack(len(data)) + SEQ.pack(self._seq) + data[4:]
 
 
 class _Entry:
@@ -138,8 +143,8 @@ class Publishers:
     unregister_timeout seconds, so that a page reload finds its subscribers still connected. A client learns of
     a failure on the worker through session.ros_refused."""
 
-    def __init__(self, loop, worker, unregister_timeout):
-        self._loop, self._worker, self._unregister_timeout = loop, worker, unregister_timeout
+    def __init__(self, loop, worker, links, unregister_timeout):
+        self._loop, self._worker, self._links, self._unregister_timeout = loop, worker, links, unregister_timeout
         self._entries = {}
         self._holders = Holders()
         self._inferring = {}  # topic -> [(session, msg, latch, queue_size)] waiting for the graph's type
@@ -148,7 +153,8 @@ class Publishers:
         entry = self._entries.get(topic)
         if entry is None:
             cls = message_class(type_name)
-            entry = self._entries[topic] = _Entry(type_name, cls, ClientPublisher(topic, cls, latch, queue_size))
+            entry = self._entries[topic] = _Entry(type_name, cls,
+                                                  ClientPublisher(self._links, topic, cls, latch, queue_size))
             self._worker.submit(lambda: entry.publisher.make(self._worker.graph, type_name),
                                 lambda error, _: self._made(topic, entry, error))
         elif entry.type != type_name:
@@ -162,7 +168,7 @@ class Publishers:
         if error is None:
             entry.ready = True
             if self._entries.get(topic) is not entry:  # dropped while it was being made
-                entry.publisher.close()
+                self._drop(entry)
             return
         if self._entries.get(topic) is entry:
             del self._entries[topic]
@@ -224,4 +230,8 @@ class Publishers:
         if not self._holders.holders(topic) and self._entries.get(topic) is entry:
             del self._entries[topic]
             if entry.ready:
-                entry.publisher.close()
+                self._drop(entry)
+
+    def _drop(self, entry):
+        entry.publisher.closed = True
+        self._worker.submit(lambda: (entry.publisher.unregister(), self._worker.dropped()))

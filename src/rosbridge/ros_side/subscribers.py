@@ -1,5 +1,4 @@
 """ROS -> client: the topics clients subscribe to, one rospy subscriber per topic shared by its clients."""
-import collections
 import time
 
 import rospy
@@ -8,27 +7,25 @@ from rosbridge.errors import RequestError, log_bug, refusal_text
 from rosbridge.frames import TopicMessage
 from rosbridge.ros_side.holders import Holders
 from rosbridge.types import message_class
-from rosbridge.wire import raw_class
-
-INBOX_LIMIT = 10_000  # messages per topic waiting for the loop; beyond that the oldest are dropped
 
 
 class TopicSubscriber:
-    """One topic's rospy subscriber. Made and dropped on the worker; messages arrive on rospy's threads, wait in
-    the inbox and are handed to the topic's clients on the loop (see the package's thread rules)."""
-    __slots__ = ("topic", "type", "asked", "ready", "inbox", "wake_pending", "latched", "_loop", "_clients",
+    """One topic that clients subscribe to. Its messages are read on the loop (ros_side/links.py: one
+    InboundLink per publisher) and handed to the topic's clients there. rospy's subscriber, made and dropped on
+    the worker, only registers the topic with the master (which then tells rospy of the publishers, and rospy
+    asks the links to connect) and lists the connections for getBusInfo."""
+    __slots__ = ("topic", "type", "asked", "ready", "latched", "active", "_loop", "_links", "_clients",
                  "_subscriber", "_class")
 
-    def __init__(self, loop, topic, clients):
-        self._loop, self.topic, self._clients = loop, topic, clients
+    def __init__(self, loop, links, topic, clients):
+        self._loop, self._links, self.topic, self._clients = loop, links, topic, clients
         self.type = None  # known once made (loop)
         self.asked = {}  # session -> the type it asked for, checked once the type is known (loop)
         self.ready = False  # (loop)
-        self.inbox = collections.deque(maxlen=INBOX_LIMIT)
-        self.wake_pending = False
+        self.active = True  # False once every client left: messages still read are dropped (loop)
         self.latched = None  # the last message of a latched topic, for clients that subscribe later (loop)
         self._subscriber = None  # (worker)
-        self._class = None  # the messages' genpy class: set on the worker before the rospy subscriber exists
+        self._class = None  # the messages' genpy class: set on the worker before the links may use it
 
     def make(self, graph, asked_type):
         """On the worker: the topic's type (asked_type, or the graph's), and its rospy subscriber."""
@@ -43,31 +40,29 @@ class TopicSubscriber:
                 raise RequestError(f"subscribe {self.topic}: the topic is published as {published_type}, "
                                    f"not {asked_type}")
         self._class = message_class(asked_type)
-        # (the bytes as they came: the loop writes JSON straight from them, see rosbridge.wire)
-        self._subscriber = rospy.Subscriber(self.topic, raw_class(self._class), self._on_message)
+        self._links.subscriptions[self.topic] = (self._class, self._deliver)
+        try:
+            self._subscriber = rospy.Subscriber(self.topic, self._class)
+        except Exception:
+            self.unregister()
+            raise
         return asked_type
 
     def unregister(self):
-        """On the worker."""
+        """On the worker: rospy closes the topic's links."""
+        if self._links.subscriptions.get(self.topic, (None, None))[1] == self._deliver:
+            del self._links.subscriptions[self.topic]
         if self._subscriber is not None:
             self._subscriber.unregister()
-        self.inbox.clear()
 
-    def _on_message(self, msg):
-        """On a rospy thread: hand the message to the loop, waking it once per batch."""
-        self.inbox.append((msg, time.time()))
-        if not self.wake_pending:
-            self.wake_pending = True
-            self._loop.add_callback(self._drain)
-
-    def _drain(self):
-        self.wake_pending = False
-        inbox, topic = self.inbox, self.topic
-        for _ in range(len(inbox)):  # what is there now: a busy topic must not hold the loop (it wakes again)
-            msg, stamp = inbox.popleft()
-            message = TopicMessage(topic, self._class, msg._buff, stamp)
-            header = getattr(msg, "_connection_header", None)
-            if header is not None and header.get("latching") == "1":
+    def _deliver(self, messages, latching):
+        """On the loop: messages (their bytes) read from one publisher."""
+        if not self.active:
+            return
+        topic, cls, stamp = self.topic, self._class, time.time()
+        for data in messages:
+            message = TopicMessage(topic, cls, data, stamp)
+            if latching:
                 self.latched = message
             for session in self._clients(topic):
                 try:
@@ -80,8 +75,8 @@ class Subscribers:
     """The topics clients subscribe to. A new topic's subscriber is made on the worker; a client learns of a
     failure there through session.ros_refused."""
 
-    def __init__(self, loop, worker):
-        self._loop, self._worker = loop, worker
+    def __init__(self, loop, worker, links):
+        self._loop, self._worker, self._links = loop, worker, links
         self._entries = {}
         self._holders = Holders()
 
@@ -90,7 +85,7 @@ class Subscribers:
             message_class(type_name)  # an unknown type is refused at once
         entry = self._entries.get(topic)
         if entry is None:
-            entry = self._entries[topic] = TopicSubscriber(self._loop, topic, self._holders.holders)
+            entry = self._entries[topic] = TopicSubscriber(self._loop, self._links, topic, self._holders.holders)
             self._worker.submit(lambda: entry.make(self._worker.graph, type_name),
                                 lambda error, made_type: self._made(entry, error, made_type))
         elif entry.ready and type_name not in (None, entry.type):
@@ -133,6 +128,7 @@ class Subscribers:
             entry.asked.pop(session, None)
         if self._holders.discard(topic, session):
             del self._entries[topic]
+            entry.active = False
             if entry.ready:
                 self._worker.submit(self._unregister(entry))
 

@@ -1,0 +1,257 @@
+"""The bridge's topic connections with other nodes, on the event loop: TCPROS (rosbridge.tcpros) over Tornado
+streams, with no thread per connection and no hand-off per message.
+
+rospy still does the rest of being a node: it registers the bridge's publishers and subscribers with the master
+(rospy.Publisher / rospy.Subscriber, made on the worker), answers the other nodes' XML-RPC calls, and reports
+the connections in getBusInfo (each link is a rospy Transport in its topic's list). TopicLinks joins in as the
+first of rospy's protocol handlers: it makes the connections of the topics the bridge's clients use, and leaves
+the node's own topics (/rosout, /client_count) to rospy's TCPROS handler."""
+import collections
+import datetime
+import socket
+
+import rosgraph.network
+import rospy
+import tornado.gen
+import tornado.tcpserver
+from rospy.impl.registration import RegManager, get_registration_listeners, get_topic_manager
+from rospy.impl.tcpros import get_tcpros_handler
+from rospy.impl.transport import INBOUND, OUTBOUND, ProtocolHandler, Transport
+from tornado.iostream import IOStream, StreamClosedError
+
+from rosbridge import tcpros
+from rosbridge.accepting import accept_connections
+
+TCPROS = "TCPROS"
+CONNECT_TIMEOUT = datetime.timedelta(seconds=10)  # for a publisher to accept the bridge's connection and answer its header
+HANDSHAKE_TIMEOUT = datetime.timedelta(seconds=10)  # for a subscriber to send its header once connected
+READ_CHUNK = 1 << 16  # bytes read at once from a publisher (one wake of the loop for every message in them)
+LINK_QUEUE_LIMIT = 10_000  # messages waiting for a slow subscriber when the topic's queue_size is 0 (unbounded)
+Timeouts = (tornado.util.TimeoutError, TimeoutError)
+LinkErrors = (StreamClosedError, OSError, tcpros.HandshakeError) + Timeouts
+
+
+async def read_header(stream):
+    prefix = await stream.read_bytes(4)
+    return tcpros.decode_header(prefix, await stream.read_bytes(tcpros.header_size(prefix)))
+
+
+class Link(Transport):
+    """One connection, as rospy reports it (getBusInfo). close() may come from any thread (rospy closes a topic's
+    connections when it is unregistered): it marks the link done, lets rospy forget it, and closes the stream on
+    the loop. `stream` is only touched on the loop."""
+    transport_type = TCPROS
+
+    def __init__(self, loop, direction, topic):
+        super().__init__(direction, topic)
+        self._loop = loop
+        self.stream = None
+        self.on_closed = None  # called on the loop once the stream is closed
+
+    def close(self):
+        if self.done:  # (rospy calls close again while forgetting the link)
+            return
+        super().close()
+        self._loop.add_callback(self._close_stream)
+
+    def _close_stream(self):
+        if self.stream is not None:
+            self.stream.close()
+        if self.on_closed is not None:
+            self.on_closed(self)
+
+    def get_transport_info(self):  # the format rosnode info parses
+        return (f"{self.transport_type} connection on port {self.local_endpoint[1]} to "
+                f"[{self.remote_endpoint[0]}:{self.remote_endpoint[1]} on socket "
+                f"{self.stream.fileno().fileno() if self.stream is not None and not self.stream.closed() else -1}]")
+
+
+class InboundLink(Link):
+    """The bridge subscribed to one publisher of a topic: reads its messages on the loop and hands them, a chunk
+    at a time, to deliver(messages, latching)."""
+
+    def __init__(self, loop, topic, cls, publisher_uri, family, address, deliver):
+        super().__init__(loop, INBOUND, topic)
+        self.endpoint_id = publisher_uri
+        self.remote_endpoint = address[:2]
+        self._cls, self._family, self._address, self._deliver = cls, family, address, deliver
+
+    async def run(self):
+        try:
+            await self._connect()
+            reply = await tornado.gen.with_timeout(CONNECT_TIMEOUT, read_header(self.stream))
+            if "error" in reply:
+                raise tcpros.HandshakeError(f"the publisher refused: {reply['error']}")
+            await self._read(reply.get("latching") == "1")
+        except LinkErrors as error:
+            if not self.done and not isinstance(error, StreamClosedError):
+                rospy.logwarn("subscribing %s from %s: %s", self.name, self.endpoint_id, error)
+        finally:
+            self.close()
+
+    async def _connect(self):
+        self.stream = IOStream(socket.socket(self._family, socket.SOCK_STREAM))
+        if self.done:
+            raise StreamClosedError()
+        await tornado.gen.with_timeout(CONNECT_TIMEOUT, self.stream.connect(self._address))
+        self.stream.set_nodelay(True)
+        self.local_endpoint = self.stream.socket.getsockname()[:2]
+        await self.stream.write(tcpros.encode_header(
+            tcpros.subscriber_header(self.name, self._cls, rospy.get_name())))
+
+    async def _read(self, latching):
+        reader, stream, deliver = tcpros.FrameReader(), self.stream, self._deliver
+        while True:
+            missing = reader.missing()
+            if missing > READ_CHUNK:  # the rest of a big message (an image) in one read
+                chunk = await stream.read_bytes(missing)
+            else:
+                chunk = await stream.read_bytes(READ_CHUNK, partial=True)
+            self.stat_bytes += len(chunk)
+            messages = reader.feed(chunk)
+            if messages and not self.done:
+                self.stat_num_msg += len(messages)
+                deliver(messages, latching)
+
+
+class OutboundLink(Link):
+    """One subscriber of a topic the bridge publishes. Messages are written as they come; while a write is in
+    progress, the next ones wait (at most queue_limit, the oldest dropped first) and go out together."""
+
+    def __init__(self, loop, topic, stream, callerid, queue_limit):
+        super().__init__(loop, OUTBOUND, topic)
+        self.stream, self.endpoint_id = stream, callerid
+        self.local_endpoint = stream.socket.getsockname()[:2]
+        self.remote_endpoint = stream.socket.getpeername()[:2]
+        self._waiting = collections.deque(maxlen=queue_limit)
+        self._writing = False
+
+    def send(self, framed):
+        self.stat_num_msg += 1
+        if self._writing:
+            self._waiting.append(framed)
+        else:
+            self._write(framed)
+
+    def _write(self, data):
+        try:
+            written = self.stream.write(data)
+        except StreamClosedError:
+            self.close()
+            return
+        self.stat_bytes += len(data)
+        self._writing = True
+        written.add_done_callback(self._written)
+
+    def _written(self, written):
+        self._writing = False
+        if written.exception() is not None:
+            self.close()
+        elif self._waiting:
+            data = b"".join(self._waiting)
+            self._waiting.clear()
+            self._write(data)
+
+    async def watch(self):
+        """Until the subscriber leaves (it sends nothing after its header: anything it does send is dropped)."""
+        try:
+            while True:
+                await self.stream.read_bytes(READ_CHUNK, partial=True)
+        except StreamClosedError:
+            pass
+        finally:
+            self.close()
+
+
+class TopicLinks(ProtocolHandler):
+    """TCPROS for the topics of the bridge's clients. Its tables are written on the worker (before the rospy
+    object is made, after it is dropped) and read on rospy's threads and the loop (dict reads: atomic):
+    - subscriptions: topic -> (genpy class, deliver(messages, latching) called on the loop);
+    - publications: topic -> an object with `cls`, `latch`, `queue_size`, `closed` and `attach(link)` (loop).
+    Other topics go to rospy's own handler (`fallback`)."""
+
+    def __init__(self, loop, refusal_log):
+        self._loop = loop
+        self._fallback = get_tcpros_handler()
+        self.subscriptions, self.publications = {}, {}
+        self._server = _TopicServer(self)
+        self._sockets = tornado.netutil.bind_sockets(0, rosgraph.network.get_bind_address())
+        self._port = self._sockets[0].getsockname()[1]
+        self._host = rosgraph.network.get_host_name()
+        accept_connections(self._server._handle_connection, self._sockets, refusal_log, loop)
+        node = next(listener.handler for listener in get_registration_listeners().listeners
+                    if isinstance(listener, RegManager))
+        node.protocol_handlers.insert(0, self)
+
+    # rospy's ProtocolHandler interface: called on rospy's threads
+    def supports(self, protocol):
+        return protocol == TCPROS
+
+    def get_supported(self):
+        return [[TCPROS]]
+
+    def shutdown(self):
+        for sock in self._sockets:
+            self._loop.add_callback(sock.close)
+
+    def init_publisher(self, topic, protocol):
+        if topic not in self.publications:
+            return self._fallback.init_publisher(topic, protocol)
+        return 1, f"ready on {self._host}:{self._port}", [TCPROS, self._host, self._port]
+
+    def create_transport(self, topic, publisher_uri, params):
+        subscription = self.subscriptions.get(topic)
+        if subscription is None:
+            return self._fallback.create_transport(topic, publisher_uri, params)
+        if not isinstance(params, list) or len(params) != 3 or params[0] != TCPROS:
+            return 0, f"ERROR: invalid TCPROS parameters {params}", 0
+        _, host, port = params
+        family = socket.AF_INET6 if rosgraph.network.use_ipv6() else socket.AF_INET  # (as rospy connects)
+        try:  # (on rospy's connecting thread, not the loop: a name lookup may take long)
+            address = socket.getaddrinfo(host, port, family, socket.SOCK_STREAM)[0][4]
+        except OSError as error:
+            return 0, f"ERROR: cannot resolve publisher {host}:{port}: {error}", 0
+        impl = get_topic_manager().get_subscriber_impl(topic)
+        if impl is None:
+            return 0, f"ERROR: not subscribed to {topic}", 0
+        cls, deliver = subscription
+        link = InboundLink(self._loop, topic, cls, publisher_uri, family, address, deliver)
+        if not impl.add_connection(link):
+            return 0, f"ERROR: the subscriber of {topic} was closed meanwhile", 0
+        self._loop.add_callback(link.run)
+        return 1, f"connecting topic [{topic}] on the bridge's loop", port
+
+    # on the loop
+    async def handshake(self, stream):
+        """A subscriber connected to the bridge's TCPROS port: answer its header, then send it the topic."""
+        try:
+            header = await tornado.gen.with_timeout(HANDSHAKE_TIMEOUT, read_header(stream))
+            topic = header.get("topic", "")
+            publication = self.publications.get(topic)
+            if publication is None or publication.closed:
+                reply = {"error": f"[{rospy.get_name()}] is not a publisher of [{topic}]"}
+            else:
+                reply = tcpros.publisher_reply(header, topic, publication.cls, publication.latch, rospy.get_name())
+            await stream.write(tcpros.encode_header(reply))
+            impl = get_topic_manager().get_publisher_impl(topic)
+            if "error" in reply or impl is None or publication.closed:
+                stream.close()
+                return
+            stream.set_nodelay(tcpros.wants_nodelay(header))
+            link = OutboundLink(self._loop, topic, stream, header["callerid"],
+                                publication.queue_size or LINK_QUEUE_LIMIT)
+        except LinkErrors:
+            stream.close()
+            return
+        impl.add_connection(link)  # (for getBusInfo; rospy itself never writes to it)
+        publication.attach(link)
+        await link.watch()
+
+
+class _TopicServer(tornado.tcpserver.TCPServer):
+    def __init__(self, links):
+        super().__init__()
+        self._links = links
+
+    async def handle_stream(self, stream, address):
+        await self._links.handshake(stream)
