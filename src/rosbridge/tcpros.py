@@ -9,11 +9,13 @@ from rosgraph.network import ROSHandshakeException, decode_ros_handshake_header,
 
 LENGTH = struct.Struct("<I")
 MAX_HEADER = 1 << 20  # bytes: a connection header (message definitions included) is a few kB
+MAX_MESSAGE = 1 << 28  # bytes: room for a 4K camera's raw images and big point clouds, not for a bogus length
 ANY_TYPE = "*"  # the md5sum of a subscriber that takes any type (rostopic's)
 
 
-class HandshakeError(Exception):
-    """The other side's connection header is malformed, or it refused the connection."""
+class TcprosError(Exception):
+    """The other side broke TCPROS: its connection header is malformed or too big, it refused the connection,
+    or it announced a message too big."""
 
 
 def frame(data):
@@ -25,7 +27,7 @@ def header_size(prefix):
     """The size of a connection header from its first 4 bytes; refused beyond MAX_HEADER."""
     (size,) = LENGTH.unpack(prefix)
     if size > MAX_HEADER:
-        raise HandshakeError(f"connection header of {size} bytes (at most {MAX_HEADER})")
+        raise TcprosError(f"connection header of {size} bytes (at most {MAX_HEADER})")
     return size
 
 
@@ -33,11 +35,12 @@ def encode_header(fields):
     return encode_ros_handshake_header(fields)
 
 
-def decode_header(prefix, body):
+def decode_header(body):
+    """The fields of a connection header, from the bytes after its length."""
     try:
-        return decode_ros_handshake_header(prefix + body)
+        return decode_ros_handshake_header(LENGTH.pack(len(body)) + body)
     except (ROSHandshakeException, ValueError, UnicodeDecodeError, struct.error) as error:
-        raise HandshakeError(f"malformed connection header: {error}") from None
+        raise TcprosError(f"malformed connection header: {error}") from None
 
 
 def subscriber_header(topic, cls, callerid):
@@ -70,28 +73,41 @@ def wants_nodelay(header):
 
 
 class FrameReader:
-    """Splits the bytes read from a publisher into messages."""
-    __slots__ = ("_pending",)
+    """Splits the bytes read from a publisher into frames: its connection header, then its messages. A frame
+    longer than `max_size` is refused (TcprosError) before its bytes are awaited."""
+    __slots__ = ("_pending", "max_size")
 
-    def __init__(self):
-        self._pending = b""
+    def __init__(self, max_size=MAX_MESSAGE):
+        self._pending = bytearray()  # (a message read in many chunks grows here without copying it each time)
+        self.max_size = max_size
 
-    def feed(self, chunk):
-        """The messages completed by `chunk` (bytes each, in order); the rest waits for more."""
-        data = self._pending + chunk if self._pending else chunk
+    def feed(self, chunk, most=None):
+        """The frames completed by `chunk` (bytes each, in order; at most `most` of them); the rest waits."""
+        pending = self._pending
+        if pending:
+            pending += chunk
+            data = memoryview(pending)
+        else:
+            data = chunk
         messages, offset, end = [], 0, len(data)
-        while end - offset >= 4:
+        while end - offset >= 4 and most != len(messages):
             (size,) = LENGTH.unpack_from(data, offset)
+            if size > self.max_size:
+                raise TcprosError(f"a frame of {size} bytes (at most {self.max_size})")
             start = offset + 4
             if end - start < size:
                 break
-            messages.append(data[start:start + size])
+            messages.append(bytes(data[start:start + size]))
             offset = start + size
-        self._pending = data[offset:] if offset else data
+        if pending:
+            data.release()
+            del pending[:offset]
+        elif offset < end:
+            pending += chunk[offset:]
         return messages
 
     def missing(self):
-        """How many more bytes the message begun needs (0 if none is begun or its length is not read yet)."""
+        """How many more bytes the frame begun needs (0 if none is begun or its length is not read yet)."""
         pending = self._pending
         if len(pending) < 4:
             return 0

@@ -1,5 +1,6 @@
-"""The bridge's topic connections with other nodes, on the event loop: TCPROS (rosbridge.tcpros) over Tornado
-streams, with no thread per connection and no hand-off per message.
+"""The bridge's topic connections with other nodes, on the event loop: TCPROS (rosbridge.tcpros) with no thread
+per connection and no hand-off per message. The bridge reads its publishers on plain sockets the loop watches
+(the path every message of a subscribed topic takes); its subscribers connect to a Tornado TCPServer.
 
 rospy still does the rest of being a node: it registers the bridge's publishers and subscribers with the master
 (rospy.Publisher / rospy.Subscriber, made on the worker), answers the other nodes' XML-RPC calls, and reports
@@ -8,110 +9,170 @@ first of rospy's protocol handlers: it makes the connections of the topics the b
 the node's own topics (/rosout, /client_count) to rospy's TCPROS handler."""
 import collections
 import datetime
+import errno
+import os
 import socket
 
 import rosgraph.network
 import rospy
 import tornado.gen
+import tornado.netutil
 import tornado.tcpserver
+import tornado.util
 from rospy.impl.registration import RegManager, get_registration_listeners, get_topic_manager
 from rospy.impl.tcpros import get_tcpros_handler
 from rospy.impl.transport import INBOUND, OUTBOUND, ProtocolHandler, Transport
-from tornado.iostream import IOStream, StreamClosedError
+from tornado.iostream import StreamClosedError
 
 from rosbridge import tcpros
 from rosbridge.accepting import accept_connections
 
 TCPROS = "TCPROS"
-CONNECT_TIMEOUT = datetime.timedelta(seconds=10)  # for a publisher to accept the bridge's connection and answer its header
-HANDSHAKE_TIMEOUT = datetime.timedelta(seconds=10)  # for a subscriber to send its header once connected
+CONNECT_TIMEOUT = 10.0  # seconds for a publisher to accept the bridge's connection and answer its header
+HANDSHAKE_TIMEOUT = 10.0  # seconds for a subscriber to send its header once connected
 READ_CHUNK = 1 << 16  # bytes read at once from a publisher (one wake of the loop for every message in them)
+BIG_READ = 1 << 22  # bytes read at once for the rest of a big message (an image): fewer, larger reads
 LINK_QUEUE_LIMIT = 10_000  # messages waiting for a slow subscriber when the topic's queue_size is 0 (unbounded)
-Timeouts = (tornado.util.TimeoutError, TimeoutError)
-LinkErrors = (StreamClosedError, OSError, tcpros.HandshakeError) + Timeouts
 
 
 async def read_header(stream):
-    prefix = await stream.read_bytes(4)
-    return tcpros.decode_header(prefix, await stream.read_bytes(tcpros.header_size(prefix)))
+    return tcpros.decode_header(await stream.read_bytes(tcpros.header_size(await stream.read_bytes(4))))
 
 
 class Link(Transport):
     """One connection, as rospy reports it (getBusInfo). close() may come from any thread (rospy closes a topic's
-    connections when it is unregistered): it marks the link done, lets rospy forget it, and closes the stream on
-    the loop. `stream` is only touched on the loop."""
+    connections when it is unregistered): it marks the link done, lets rospy forget it, and closes the socket on
+    the loop. The socket is only touched on the loop."""
     transport_type = TCPROS
 
     def __init__(self, loop, direction, topic):
         super().__init__(direction, topic)
         self._loop = loop
-        self.stream = None
-        self.on_closed = None  # called on the loop once the stream is closed
+        self.on_closed = None  # called on the loop once the socket is closed
 
     def close(self):
         if self.done:  # (rospy calls close again while forgetting the link)
             return
         super().close()
-        self._loop.add_callback(self._close_stream)
+        self._loop.add_callback(self._closed)
 
-    def _close_stream(self):
-        if self.stream is not None:
-            self.stream.close()
+    def _closed(self):
+        self._close_socket()
         if self.on_closed is not None:
             self.on_closed(self)
 
     def get_transport_info(self):  # the format rosnode info parses
         return (f"{self.transport_type} connection on port {self.local_endpoint[1]} to "
-                f"[{self.remote_endpoint[0]}:{self.remote_endpoint[1]} on socket "
-                f"{self.stream.fileno().fileno() if self.stream is not None and not self.stream.closed() else -1}]")
+                f"[{self.remote_endpoint[0]}:{self.remote_endpoint[1]} on socket {self._fileno()}]")
 
 
 class InboundLink(Link):
-    """The bridge subscribed to one publisher of a topic: reads its messages on the loop and hands them, a chunk
-    at a time, to deliver(messages, latching)."""
+    """The bridge subscribed to one publisher of a topic. A plain non-blocking socket watched by the loop: each
+    time it is readable, one read, and the messages completed go to deliver(messages, latching) - no future or
+    coroutine step per message, which a topic at a fixed rate would pay on every message."""
 
     def __init__(self, loop, topic, cls, publisher_uri, family, address, deliver):
         super().__init__(loop, INBOUND, topic)
         self.endpoint_id = publisher_uri
         self.remote_endpoint = address[:2]
         self._cls, self._family, self._address, self._deliver = cls, family, address, deliver
+        self._sock = None
+        self._unsent = None  # our header's bytes not yet written (None: not connected yet)
+        self._sending = True  # until our header is written; then reading
+        self._reader = tcpros.FrameReader(max_size=tcpros.MAX_HEADER)  # (the first frame is the reply header)
+        self._latching = None  # the publisher's answer: None until its header is read
+        self._deadline = None  # a timer until the publisher has answered
 
-    async def run(self):
-        try:
-            await self._connect()
-            reply = await tornado.gen.with_timeout(CONNECT_TIMEOUT, read_header(self.stream))
-            if "error" in reply:
-                raise tcpros.HandshakeError(f"the publisher refused: {reply['error']}")
-            await self._read(reply.get("latching") == "1")
-        except LinkErrors as error:
-            if not self.done and not isinstance(error, StreamClosedError):
-                rospy.logwarn("subscribing %s from %s: %s", self.name, self.endpoint_id, error)
-        finally:
-            self.close()
-
-    async def _connect(self):
-        self.stream = IOStream(socket.socket(self._family, socket.SOCK_STREAM))
+    def start(self):
+        """On the loop: connect, send our header, then read."""
         if self.done:
-            raise StreamClosedError()
-        await tornado.gen.with_timeout(CONNECT_TIMEOUT, self.stream.connect(self._address))
-        self.stream.set_nodelay(True)
-        self.local_endpoint = self.stream.socket.getsockname()[:2]
-        await self.stream.write(tcpros.encode_header(
-            tcpros.subscriber_header(self.name, self._cls, rospy.get_name())))
+            return
+        try:
+            self._sock = socket.socket(self._family, socket.SOCK_STREAM)
+            self._sock.setblocking(False)
+            self._sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            error = self._sock.connect_ex(self._address)
+            if error not in (0, errno.EINPROGRESS):
+                raise OSError(error, os.strerror(error))
+        except OSError as error:
+            self._fail(error)
+            return
+        self._loop.add_handler(self._sock, self._on_events, self._loop.WRITE)
+        self._deadline = self._loop.call_later(CONNECT_TIMEOUT,
+                                               lambda: self._fail(f"no answer in {CONNECT_TIMEOUT:g} s"))
 
-    async def _read(self, latching):
-        reader, stream, deliver = tcpros.FrameReader(), self.stream, self._deliver
-        while True:
-            missing = reader.missing()
-            if missing > READ_CHUNK:  # the rest of a big message (an image) in one read
-                chunk = await stream.read_bytes(missing)
+    def _on_events(self, fd, events):
+        try:
+            if self._sending:
+                self._send_header()
             else:
-                chunk = await stream.read_bytes(READ_CHUNK, partial=True)
-            self.stat_bytes += len(chunk)
-            messages = reader.feed(chunk)
-            if messages and not self.done:
-                self.stat_num_msg += len(messages)
-                deliver(messages, latching)
+                self._read()
+        except (OSError, tcpros.TcprosError) as error:
+            self._fail(error)
+
+    def _send_header(self):
+        sock = self._sock
+        if self._unsent is None:  # connected, or failed to
+            error = sock.getsockopt(socket.SOL_SOCKET, socket.SO_ERROR)
+            if error:
+                raise OSError(error, os.strerror(error))
+            self.local_endpoint = sock.getsockname()[:2]
+            self._unsent = tcpros.encode_header(tcpros.subscriber_header(self.name, self._cls, rospy.get_name()))
+        try:
+            self._unsent = self._unsent[sock.send(self._unsent):]
+        except BlockingIOError:
+            return
+        if not self._unsent:
+            self._sending = False
+            self._loop.update_handler(sock, self._loop.READ)
+
+    def _read(self):
+        missing = self._reader.missing()
+        try:
+            chunk = self._sock.recv(min(missing, BIG_READ) if missing > READ_CHUNK else READ_CHUNK)
+        except BlockingIOError:
+            return
+        if not chunk:  # the publisher left
+            self.close()
+            return
+        self.stat_bytes += len(chunk)
+        if self._latching is None:
+            if not self._read_reply(chunk):
+                return
+            chunk = b""  # (the rest of it is pending in the reader)
+        messages = self._reader.feed(chunk)
+        if messages and not self.done:
+            self.stat_num_msg += len(messages)
+            self._deliver(messages, self._latching)
+
+    def _read_reply(self, chunk):
+        """The publisher's header, the first frame it sends: True once it is read and accepts us."""
+        frames = self._reader.feed(chunk, most=1)
+        if not frames:
+            return False
+        reply = tcpros.decode_header(frames[0])
+        if "error" in reply:
+            raise tcpros.TcprosError(f"the publisher refused: {reply['error']}")
+        self._latching = reply.get("latching") == "1"
+        self._reader.max_size = tcpros.MAX_MESSAGE
+        self._loop.remove_timeout(self._deadline)
+        self._deadline = None
+        return True
+
+    def _fail(self, error):
+        if not self.done:
+            rospy.logwarn("subscribing %s from %s: %s", self.name, self.endpoint_id, error)
+        self.close()
+
+    def _close_socket(self):
+        if self._deadline is not None:
+            self._loop.remove_timeout(self._deadline)
+        if self._sock is not None:
+            self._loop.remove_handler(self._sock)
+            self._sock.close()
+
+    def _fileno(self):
+        return self._sock.fileno() if self._sock is not None else -1
 
 
 class OutboundLink(Link):
@@ -125,6 +186,12 @@ class OutboundLink(Link):
         self.remote_endpoint = stream.socket.getpeername()[:2]
         self._waiting = collections.deque(maxlen=queue_limit)
         self._writing = False
+
+    def _close_socket(self):
+        self.stream.close()
+
+    def _fileno(self):
+        return -1 if self.stream.closed() else self.stream.fileno().fileno()
 
     def send(self, framed):
         self.stat_num_msg += 1
@@ -218,14 +285,15 @@ class TopicLinks(ProtocolHandler):
         link = InboundLink(self._loop, topic, cls, publisher_uri, family, address, deliver)
         if not impl.add_connection(link):
             return 0, f"ERROR: the subscriber of {topic} was closed meanwhile", 0
-        self._loop.add_callback(link.run)
+        self._loop.add_callback(link.start)
         return 1, f"connecting topic [{topic}] on the bridge's loop", port
 
     # on the loop
     async def handshake(self, stream):
         """A subscriber connected to the bridge's TCPROS port: answer its header, then send it the topic."""
         try:
-            header = await tornado.gen.with_timeout(HANDSHAKE_TIMEOUT, read_header(stream))
+            header = await tornado.gen.with_timeout(datetime.timedelta(seconds=HANDSHAKE_TIMEOUT),
+                                                    read_header(stream))
             topic = header.get("topic", "")
             publication = self.publications.get(topic)
             if publication is None or publication.closed:
@@ -240,7 +308,7 @@ class TopicLinks(ProtocolHandler):
             stream.set_nodelay(tcpros.wants_nodelay(header))
             link = OutboundLink(self._loop, topic, stream, header["callerid"],
                                 publication.queue_size or LINK_QUEUE_LIMIT)
-        except LinkErrors:
+        except (StreamClosedError, OSError, tcpros.TcprosError, tornado.util.TimeoutError):
             stream.close()
             return
         impl.add_connection(link)  # (for getBusInfo; rospy itself never writes to it)
