@@ -29,6 +29,8 @@ from rosbridge.accepting import accept_connections
 
 TCPROS = "TCPROS"
 CONNECT_TIMEOUT = 10.0  # seconds for a publisher to accept the bridge's connection and answer its header
+CONNECT_RETRIES = (0.5, 1, 2, 4, 8, 16, 32, 32)  # seconds before each new try when connecting to a publisher
+# fails, as rospy backs off; then the bridge gives up (the publisher is gone; a new one is announced anew)
 HANDSHAKE_TIMEOUT = 10.0  # seconds for a subscriber to send its header once connected
 READ_CHUNK = 1 << 16  # bytes read at once from a publisher (one wake of the loop for every message in them)
 BIG_READ = 1 << 22  # bytes read at once for the rest of a big message (an image): fewer, larger reads
@@ -76,17 +78,20 @@ class InboundLink(Link):
         self.endpoint_id = publisher_uri
         self.remote_endpoint = address[:2]
         self._cls, self._family, self._address, self._deliver = cls, family, address, deliver
+        self._tries = 0
+        self._retry = None  # the timer of the next try to connect
+        self._deadline = None  # the timer of the try under way
         self._sock = None
+
+    def start(self):
+        """On the loop: connect, send our header, then read."""
+        self._retry = None
+        if self.done:
+            return
         self._unsent = None  # our header's bytes not yet written (None: not connected yet)
         self._sending = True  # until our header is written; then reading
         self._reader = tcpros.FrameReader(max_size=tcpros.MAX_HEADER)  # (the first frame is the reply header)
         self._latching = None  # the publisher's answer: None until its header is read
-        self._deadline = None  # a timer until the publisher has answered
-
-    def start(self):
-        """On the loop: connect, send our header, then read."""
-        if self.done:
-            return
         try:
             self._sock = socket.socket(self._family, socket.SOCK_STREAM)
             self._sock.setblocking(False)
@@ -98,8 +103,8 @@ class InboundLink(Link):
             self._fail(error)
             return
         self._loop.add_handler(self._sock, self._on_events, self._loop.WRITE)
-        self._deadline = self._loop.call_later(CONNECT_TIMEOUT,
-                                               lambda: self._fail(f"no answer in {CONNECT_TIMEOUT:g} s"))
+        self._deadline = self._loop.call_later(  # (until the publisher has answered)
+            CONNECT_TIMEOUT, lambda: self._fail(TimeoutError(f"no answer in {CONNECT_TIMEOUT:g} s")))
 
     def _on_events(self, fd, events):
         try:
@@ -133,6 +138,8 @@ class InboundLink(Link):
         except BlockingIOError:
             return
         if not chunk:  # the publisher left
+            if self._latching is None:
+                raise ConnectionResetError("the publisher closed the connection before answering")
             self.close()
             return
         self.stat_bytes += len(chunk)
@@ -160,16 +167,30 @@ class InboundLink(Link):
         return True
 
     def _fail(self, error):
-        if not self.done:
+        """Connecting failed (tried again later, as rospy does) or the connection broke (closed, as rospy does);
+        a refusal is final."""
+        if self.done:
+            return
+        if self._latching is not None or isinstance(error, tcpros.TcprosError) \
+                or self._tries == len(CONNECT_RETRIES):
             rospy.logwarn("subscribing %s from %s: %s", self.name, self.endpoint_id, error)
-        self.close()
+            self.close()
+            return
+        if self._tries == 0:
+            rospy.logwarn("subscribing %s from %s: %s; trying again", self.name, self.endpoint_id, error)
+        self._close_socket()
+        self._retry = self._loop.call_later(CONNECT_RETRIES[self._tries], self.start)
+        self._tries += 1
 
     def _close_socket(self):
-        if self._deadline is not None:
-            self._loop.remove_timeout(self._deadline)
+        for timer in (self._deadline, self._retry):
+            if timer is not None:
+                self._loop.remove_timeout(timer)
+        self._deadline = self._retry = None
         if self._sock is not None:
             self._loop.remove_handler(self._sock)
             self._sock.close()
+            self._sock = None
 
     def _fileno(self):
         return self._sock.fileno() if self._sock is not None else -1

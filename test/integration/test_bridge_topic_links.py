@@ -1,0 +1,99 @@
+"""The bridge's own TCPROS connections (ros_side/links.py) against publishers that misbehave the way networks
+and nodes do: one that drops the bridge's first connection before answering (rospy tries again; so must the
+bridge), one that refuses it."""
+import socket
+import struct
+import threading
+import xmlrpc.client
+from xmlrpc.server import SimpleXMLRPCServer
+
+import pytest
+from std_msgs.msg import String
+
+from bridge_client import WsClient
+from harness import start_bridge
+
+from rosbridge import tcpros
+
+
+@pytest.fixture(scope="module")
+def bridge(ros):
+    proc, port = start_bridge(ros, node_name="links_bridge")
+    yield port
+    proc.stop()
+
+
+class FakePublisher:
+    """A node that publishes one std_msgs/String on `topic` (registered with the master), whose TCPROS server
+    first drops `drops` connections without answering, then answers with `reply` and sends the message."""
+
+    def __init__(self, ros, topic, drops=0, refuse=False):
+        self.topic, self.drops, self.refuse = topic, drops, refuse
+        self.connections = 0
+        self.tcp = socket.create_server(("127.0.0.1", 0))
+        self.xmlrpc = SimpleXMLRPCServer(("127.0.0.1", 0), logRequests=False, allow_none=True)
+        self.xmlrpc.register_function(self.request_topic, "requestTopic")
+        self.uri = f"http://127.0.0.1:{self.xmlrpc.server_address[1]}/"
+        self.name = f"/fake_publisher_{self.tcp.getsockname()[1]}"
+        for target in (self.xmlrpc.serve_forever, self.serve_tcp):
+            threading.Thread(target=target, daemon=True).start()
+        self.master = xmlrpc.client.ServerProxy(ros.master().master_uri)
+        self.master.registerPublisher(self.name, topic, "std_msgs/String", self.uri)
+
+    def request_topic(self, caller_id, topic, protocols):
+        return [1, "ready", ["TCPROS", "127.0.0.1", self.tcp.getsockname()[1]]]
+
+    def serve_tcp(self):
+        while True:
+            try:
+                conn, _ = self.tcp.accept()
+            except OSError:
+                return
+            self.connections += 1
+            with conn:
+                (size,) = struct.unpack("<I", conn.recv(4))
+                while size:
+                    size -= len(conn.recv(size))
+                if self.connections <= self.drops:
+                    continue  # closed before answering
+                if self.refuse:
+                    conn.sendall(tcpros.encode_header({"error": "not today"}))
+                    continue
+                conn.sendall(tcpros.encode_header(
+                    tcpros.publisher_reply({"topic": self.topic, "md5sum": String._md5sum, "callerid": "/x"},
+                                           self.topic, String, False, self.name)))
+                conn.sendall(tcpros.frame(struct.pack("<I", 5) + b"hello"))
+                conn.recv(1)  # until the bridge leaves
+
+    def close(self):
+        self.master.unregisterPublisher(self.name, self.topic, self.uri)
+        self.xmlrpc.shutdown()
+        self.tcp.close()
+
+
+def test_a_connection_dropped_before_the_answer_is_tried_again(bridge, ros):
+    publisher = FakePublisher(ros, "/links_test/flaky", drops=2)
+    try:
+        ws = WsClient(f"ws://127.0.0.1:{bridge}/")
+        ws.send({"op": "subscribe", "topic": "/links_test/flaky", "type": "std_msgs/String"})
+        got = ws.recv_until(lambda f: f.get("op") == "publish", timeout=15)
+        assert got["msg"] == {"data": "hello"}
+        assert publisher.connections == 3
+        ws.close()
+    finally:
+        publisher.close()
+
+
+def test_a_refusal_is_final_and_the_bridge_goes_on(bridge, ros):
+    publisher = FakePublisher(ros, "/links_test/refusing", refuse=True)
+    try:
+        ws = WsClient(f"ws://127.0.0.1:{bridge}/")
+        ws.send({"op": "subscribe", "topic": "/links_test/refusing", "type": "std_msgs/String"})
+        with pytest.raises(TimeoutError):
+            ws.recv_until(lambda f: f.get("op") == "publish", timeout=3)
+        assert publisher.connections == 1
+        ws.send({"op": "call_service", "service": "/rosapi/get_time", "id": "t"})
+        assert ws.recv_until(lambda f: f.get("id") == "t", timeout=10)["result"] is True
+        ws.close()
+    finally:
+        publisher.close()
