@@ -8,6 +8,7 @@ import struct
 from rosgraph.network import ROSHandshakeException, decode_ros_handshake_header, encode_ros_handshake_header
 
 LENGTH = struct.Struct("<I")
+SEQ = struct.Struct("<I")  # a header's seq: the first 4 bytes of a message whose first field is its header
 MAX_HEADER = 1 << 20  # bytes: a connection header (message definitions included) is a few kB
 MAX_MESSAGE = 1 << 28  # bytes: room for a 4K camera's raw images and big point clouds, not for a bogus length
 ANY_TYPE = "*"  # the md5sum of a subscriber that takes any type (rostopic's)
@@ -18,9 +19,12 @@ class TcprosError(Exception):
     or it announced a message too big."""
 
 
-def frame(data):
-    """One message as it goes on the stream."""
-    return LENGTH.pack(len(data)) + data
+def frame(data, seq=None):
+    """One message as it goes on the stream; with `seq`, numbered as a rospy publisher numbers its messages
+    (their header.seq, wrapping as rospy's uint32 does)."""
+    if seq is None:
+        return LENGTH.pack(len(data)) + data
+    return LENGTH.pack(len(data)) + SEQ.pack(seq & 0xFFFFFFFF) + data[4:]
 
 
 def header_size(prefix):

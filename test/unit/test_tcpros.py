@@ -61,6 +61,18 @@ def test_frame_is_what_a_rospy_subscriber_reads():
     assert String().deserialize(framed[4:]).data == "hello"
 
 
+def test_a_numbered_frame_carries_the_seq_in_the_header_wrapping_at_32_bits():
+    from std_msgs.msg import Header
+    buff = io.BytesIO()
+    Header(seq=77, frame_id="f").serialize(buff)
+    data = buff.getvalue()
+    for seq, expected in ((5, 5), (2 ** 32 + 3, 3)):
+        framed = tcpros.frame(data, seq)
+        assert framed[:4] == len(data).to_bytes(4, "little")
+        header = Header().deserialize(framed[4:])
+        assert (header.seq, header.frame_id) == (expected, "f")
+
+
 def test_headers_survive_the_round_trip_through_rosgraph():
     fields = tcpros.subscriber_header("/cmd_vel", Twist, "/rosbridge")
     encoded = tcpros.encode_header(fields)

@@ -1,6 +1,5 @@
 """Client -> ROS: the topics clients publish, one rospy publisher per topic shared by its clients."""
 import collections
-import struct
 import sys
 import time
 import warnings
@@ -20,7 +19,6 @@ from rosbridge.types import message_class
 # must not receive stale commands.
 REPLAY_WINDOW = 1.0  # seconds after advertising
 INFERRING_LIMIT = 100  # messages kept per topic while the master is asked for its type
-SEQ = struct.Struct("<I")
 
 
 class EarlyReplay:
@@ -126,7 +124,7 @@ class ClientPublisher:
         if not self.cls._has_header:
             return tcpros.frame(data)
         self._seq += 1
-        return tcpros.LENGTH.pack(len(data)) + SEQ.pack(self._seq) + data[4:]
+        return tcpros.frame(data, self._seq)
 
 
 class _Entry:
