@@ -18,12 +18,35 @@ from rosbridge.pages import SECURITY_HEADERS
 # Frames waiting for a client go to its socket together, up to this many bytes per write: one system call for a
 # burst of small messages instead of one each.
 WRITE_BATCH_BYTES = 64 * 1024
+READ_CHUNK = 64 * 1024  # bytes read from a client at once: every frame in them parsed without another read
 
 
 class FairProtocol(tornado.websocket.WebSocketProtocol13):
-    """Tornado's RFC 6455 protocol, except that every frame a client sends, pings included, counts against its
-    budget: Tornado's reading task only waits for what `_handle_message` returns (on_message's result, never a
-    ping's), and without waiting it reads on for as long as the client's data lasts, holding the loop."""
+    """Tornado's RFC 6455 protocol, with two changes:
+    - every frame a client sends, pings included, counts against its budget: Tornado's reading task only waits
+      for what `_handle_message` returns (on_message's result, never a ping's), and without waiting it reads on
+      for as long as the client's data lasts, holding the loop;
+    - the frames are read from the stream a chunk at a time, not piece by piece: Tornado's frame parser asks
+      for each frame's header, mask and payload separately (`_read_bytes`), and each stream read costs it a
+      future and a few calls - most of the work of taking a small frame (bench/README.md)."""
+
+    def start_reading(self):
+        self._unparsed = bytearray()  # read from the stream, not yet parsed (< READ_CHUNK but for a big payload)
+
+    async def _read_bytes(self, n):
+        unparsed = self._unparsed
+        while len(unparsed) < n:
+            missing = n - len(unparsed)
+            if missing > READ_CHUNK:  # the rest of a big payload (its length is under max_message_size)
+                data = bytes(unparsed) + await self.stream.read_bytes(missing)
+                unparsed.clear()
+                break
+            unparsed += await self.stream.read_bytes(READ_CHUNK, partial=True)
+        else:
+            data = bytes(unparsed[:n])
+            del unparsed[:n]
+        self._wire_bytes_in += n
+        return data
 
     def _handle_message(self, opcode, data):
         handled = super()._handle_message(opcode, data)
@@ -80,6 +103,7 @@ class BridgeSocket(tornado.websocket.WebSocketHandler):
         websocket = super().get_websocket_protocol()
         if websocket is not None:
             websocket.__class__ = FairProtocol  # same state and settings, fair reading (see FairProtocol)
+            websocket.start_reading()
         return websocket
 
     def check_origin(self, origin):

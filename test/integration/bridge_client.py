@@ -1,7 +1,11 @@
 """A plain websocket client for the bridge tests (Tornado's client on a private asyncio loop), so a test can
 send any frame, including broken ones, and read exactly what the server answers."""
 import asyncio
+import base64
 import json
+import os
+import socket
+import struct
 import time
 
 import cbor2
@@ -93,3 +97,69 @@ def ping(client):
     reply = client.request({"op": "set_level", "level": "bogus", "id": "ping"})
     assert reply["op"] == "status" and reply["level"] == "error" and "bogus" in reply["msg"], reply
     return True
+
+
+class RawWebSocket:
+    """A websocket client written on a bare socket, so a test can stop reading or stop mid-frame."""
+
+    def __init__(self, port, recv_buffer=None):
+        self.sock = socket.create_connection(("127.0.0.1", port), timeout=10)
+        if recv_buffer:
+            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, recv_buffer)
+        key = base64.b64encode(os.urandom(16)).decode()
+        self.sock.sendall((f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n"
+                           f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n\r\n")
+                          .encode())
+        reply = b""
+        while b"\r\n\r\n" not in reply:
+            chunk = self.sock.recv(1)  # byte by byte: nothing after the handshake is consumed
+            assert chunk, "server closed during the handshake"
+            reply += chunk
+        assert reply.startswith(b"HTTP/1.1 101"), reply
+
+    @staticmethod
+    def header(length, opcode=0x1, fin=True):
+        """FIN + opcode, then the masked payload length (clients must mask)."""
+        first = (0x80 if fin else 0) | opcode
+        if length < 126:
+            return struct.pack("!BB", first, 0x80 | length)
+        if length < 1 << 16:
+            return struct.pack("!BBH", first, 0x80 | 126, length)
+        return struct.pack("!BBQ", first, 0x80 | 127, length)
+
+    @classmethod
+    def frame(cls, payload, opcode=0x1, fin=True):
+        """One client frame with a random mask, as a browser sends it."""
+        mask = os.urandom(4)
+        masked = bytes(byte ^ mask[i % 4] for i, byte in enumerate(payload))
+        return cls.header(len(payload), opcode, fin) + mask + masked
+
+    def recv_frame(self):
+        """(opcode, payload) of the server's next frame (unmasked, as servers send them)."""
+        first, second = self._recv_exactly(2)
+        length = second & 0x7F
+        if length == 126:
+            length, = struct.unpack("!H", self._recv_exactly(2))
+        elif length == 127:
+            length, = struct.unpack("!Q", self._recv_exactly(8))
+        return first & 0x0F, self._recv_exactly(length)
+
+    def _recv_exactly(self, size):
+        data = b""
+        while len(data) < size:
+            chunk = self.sock.recv(size - len(data))
+            assert chunk, "the server closed the connection"
+            data += chunk
+        return data
+
+    def send_text(self, text, cut_after=None):
+        """Sends one text frame (mask of zeros: the payload is sent as is); with cut_after, only the header
+        and that many payload bytes are sent."""
+        data = text.encode()
+        frame = self.header(len(data)) + b"\0\0\0\0" + data
+        self.sock.sendall(frame if cut_after is None else frame[:len(frame) - len(data) + cut_after])
+
+    def close(self, reset=False):
+        if reset:  # RST instead of FIN, as when the client machine drops off
+            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+        self.sock.close()

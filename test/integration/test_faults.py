@@ -1,18 +1,15 @@
 """The bridge when things go wrong around it: a client that stops reading during a flood, a client that dies
 in the middle of a frame, the bridge itself killed and restarted under a reconnecting roslibpy client,
 turtlesim_node killed and restarted while a client drives it, and roscore restarted. Loopback only."""
-import base64
 import os
 import signal
-import socket
-import struct
 import threading
 import time
 
 import pytest
 import roslibpy
 
-from bridge_client import WsClient, ping
+from bridge_client import RawWebSocket, WsClient, ping
 from harness import ProcStat, RosMaster, free_port, node_pid, start_bridge, wait_for
 
 
@@ -30,46 +27,6 @@ def bridge_topics(ros, node_name):
     """The topics the bridge node is registered on with the master (as publisher or subscriber)."""
     pubs, subs, _ = ros.master().getSystemState()
     return {topic for topic, nodes in [*pubs, *subs] if node_name in nodes}
-
-
-class RawWebSocket:
-    """A websocket client written on a bare socket, so a test can stop reading or stop mid-frame."""
-
-    def __init__(self, port, recv_buffer=None):
-        self.sock = socket.create_connection(("127.0.0.1", port), timeout=10)
-        if recv_buffer:
-            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, recv_buffer)
-        key = base64.b64encode(os.urandom(16)).decode()
-        self.sock.sendall((f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n"
-                           f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n\r\n")
-                          .encode())
-        reply = b""
-        while b"\r\n\r\n" not in reply:
-            chunk = self.sock.recv(1)  # byte by byte: nothing after the handshake is consumed
-            assert chunk, "server closed during the handshake"
-            reply += chunk
-        assert reply.startswith(b"HTTP/1.1 101"), reply
-
-    @staticmethod
-    def header(length, opcode=0x1):
-        """FIN + opcode, then the masked payload length (clients must mask)."""
-        if length < 126:
-            return struct.pack("!BB", 0x80 | opcode, 0x80 | length)
-        if length < 1 << 16:
-            return struct.pack("!BBH", 0x80 | opcode, 0x80 | 126, length)
-        return struct.pack("!BBQ", 0x80 | opcode, 0x80 | 127, length)
-
-    def send_text(self, text, cut_after=None):
-        """Sends one text frame (mask of zeros: the payload is sent as is); with cut_after, only the header
-        and that many payload bytes are sent."""
-        data = text.encode()
-        frame = self.header(len(data)) + b"\0\0\0\0" + data
-        self.sock.sendall(frame if cut_after is None else frame[:len(frame) - len(data) + cut_after])
-
-    def close(self, reset=False):
-        if reset:  # RST instead of FIN, as when the client machine drops off
-            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
-        self.sock.close()
 
 
 def publish_in_thread(publisher, make_msg, rate, count=None, stop=None):
