@@ -1,6 +1,6 @@
-"""The bridge's own TCPROS connections (ros_side/links.py) against publishers that misbehave the way networks
-and nodes do: one that drops the bridge's first connection before answering (rospy tries again; so must the
-bridge), one that refuses it."""
+"""The bridge's own TCPROS connections (ros_side/links.py) against nodes that misbehave the way networks and
+nodes do: a publisher that drops the bridge's first connection before answering (rospy tries again; so must
+the bridge), one that refuses it, a subscriber that stops reading."""
 import socket
 import struct
 import threading
@@ -11,7 +11,7 @@ import pytest
 from std_msgs.msg import String
 
 from bridge_client import WsClient
-from harness import start_bridge
+from harness import start_bridge, wait_for
 
 from rosbridge import tcpros
 
@@ -97,3 +97,41 @@ def test_a_refusal_is_final_and_the_bridge_goes_on(bridge, ros):
         ws.close()
     finally:
         publisher.close()
+
+
+def test_a_subscriber_that_stops_reading_holds_up_nobody_and_gets_whole_messages(bridge, ros, node):
+    topic, count, filler = "/links_test/slow", 200, "x" * 100_000  # 20 MB: far more than socket buffers hold
+    ws = WsClient(f"ws://127.0.0.1:{bridge}/")
+    ws.send({"op": "advertise", "topic": topic, "type": "std_msgs/String", "queue_size": 10})
+    got = []
+    reader = node.Subscriber(topic, String, lambda m: got.append(int(m.data.split(":")[0])))
+    wait_for(lambda: reader.get_num_connections() >= 1, 20, what="the reading subscriber connected")
+    bridge_node = xmlrpc.client.ServerProxy(ros.master().lookupNode("/links_bridge"))
+    _, _, (_, host, port) = bridge_node.requestTopic("/stuck_subscriber", topic, [["TCPROS"]])
+    stuck = socket.socket()
+    stuck.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    stuck.connect((host, port))
+    try:
+        stuck.sendall(tcpros.encode_header(tcpros.subscriber_header(topic, String, "/stuck_subscriber")))
+        frames = tcpros.FrameReader(max_size=tcpros.MAX_HEADER)
+        while not frames.feed(stuck.recv(1), most=1):  # the bridge's answer, byte by byte: no message read yet
+            pass
+        for i in range(count):
+            ws.send({"op": "publish", "topic": topic, "msg": {"data": f"{i}:{filler}"}})
+        wait_for(lambda: got and got[-1] == count - 1, 30, what="the reading subscriber to get the last message")
+        assert got == list(range(count))
+
+        stuck.settimeout(5)
+        frames.max_size = tcpros.MAX_MESSAGE
+        numbers = []
+        while not numbers or numbers[-1] != count - 1:
+            for message in frames.feed(stuck.recv(1 << 16)):
+                (size,) = struct.unpack_from("<I", message)
+                number, _, rest = bytes(message[4:]).decode().partition(":")
+                assert size == len(message) - 4 and rest == filler, "a torn message"
+                numbers.append(int(number))
+        assert numbers == sorted(numbers) and len(numbers) < count, "the queue (10) held more than it may"
+    finally:
+        stuck.close()
+        reader.unregister()
+        ws.close()
