@@ -155,8 +155,13 @@ def bridge_out(run, url, server, kind, count, compression="none", rate=0, queue_
     return figures
 
 
-def transport_in(run, count, rate=0):
-    server, url, stat = run.transport("--no-echo")
+def transport_in(run, count, rate=0, forward=False):
+    """The bare server receiving; with `forward`, also writing each message to a plain TCP reader."""
+    sink = run.role("tcp_sink.py") if forward else None
+    if sink:
+        run.ready(sink)
+    forwarding = ("--forward", re.search(r"PORT (\d+)", sink.output()).group(1)) if sink else ()
+    server, url, stat = run.transport("--no-echo", *forwarding)
     client = run.role("ws_roles.py", "publish", "--url", url, "--count", count, "--publish-rate", rate)
     run.ready(client)
     cpu = Cpu(stat)
@@ -165,7 +170,7 @@ def transport_in(run, count, rate=0):
     run.go(client)  # closes the socket: the server then reports what it received
     got = run.result(server)
     figures = {"rate": got["rate"], "server_us": cpu.us_per(got["received"])}
-    run.stop(client, server)
+    run.stop(client, server, *filter(None, [sink]))
     return figures
 
 
@@ -328,21 +333,24 @@ def section_rates(run, table, rounds):
     both ways, against the bare transport at the same rates."""
     for hz, seconds in RATES:
         count = int(hz * seconds)
-        ceil_in, ceil_out, into, out = [], [], [], []
+        ceil_in, ceil_out, into, out, forwarding = [], [], [], [], []
         for _ in range(rounds):
             ceil_in.append(transport_in(run, count, rate=hz))
+            forwarding.append(transport_in(run, count, rate=hz, forward=True))
             ceil_out.append(transport_out(run, count, rate=hz))
             bridge, url, server = run.bridge()
             into.append(bridge_in(run, url, server, "twist", count, rate=hz))
             out.append(bridge_out(run, url, server, "twist", count, rate=hz))
             run.stop(bridge)
-        ceil_in, ceil_out, into, out = map(medians, (ceil_in, ceil_out, into, out))
+        ceil_in, ceil_out, into, out, forwarding = map(medians, (ceil_in, ceil_out, into, out, forwarding))
         goal, limit = ("<= 1.3x", 1.3) if hz >= 1000 else ("", None)
         for way, bridge_r, ceil in (("client -> ROS", into, ceil_in), ("ROS -> client", out, ceil_out)):
             table.row(f"{way} at {hz:,} Hz: bridge CPU per message", bridge_r["server_us"], "µs",
                       f"bare Tornado+JSON server at {hz:,} Hz", ceil["server_us"], goal,
                       None if limit is None else bridge_r["server_us"] <= limit * ceil["server_us"])
             table.row(f"{way} at {hz:,} Hz: messages delivered", bridge_r["delivered"], "%", "all sent", 1.0)
+        table.row(f"client -> ROS at {hz:,} Hz: vs the bare server that also writes each message to a TCP reader",
+                  into["server_us"], "µs", "bare Tornado+JSON server + one send per message", forwarding["server_us"])
 
 
 def section_latency(run, table, rounds):
@@ -359,6 +367,8 @@ def section_latency(run, table, rounds):
                   bridge_rtts[f"{q}_ms"], "ms", "plain rospy round trip via the same echo node", plain[f"{q}_ms"])
     table.row("round trip p50: vs websocket transport ceiling", bridge_rtts["p50_ms"], "ms",
               "bare Tornado echo", ceil["p50_ms"], "<= 1.5x", bridge_rtts["p50_ms"] <= 1.5 * ceil["p50_ms"])
+    table.row("round trip p50: vs the two trips it is made of", bridge_rtts["p50_ms"], "ms",
+              "bare Tornado echo + plain rospy round trip", ceil["p50_ms"] + plain["p50_ms"])
     table.row("round trips answered", bridge_rtts["echoed"] / bridge_rtts["sent"], "%",
               "plain rospy", plain["echoed"] / plain["sent"])
 
