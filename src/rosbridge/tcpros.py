@@ -11,6 +11,7 @@ LENGTH = struct.Struct("<I")
 SEQ = struct.Struct("<I")  # a header's seq: the first 4 bytes of a message whose first field is its header
 MAX_HEADER = 1 << 20  # bytes: a connection header (message definitions included) is a few kB
 MAX_MESSAGE = 1 << 28  # bytes: room for a 4K camera's raw images and big point clouds, not for a bogus length
+BIG_FRAME = 1 << 16  # bytes: a message at least this long is read in place (FrameReader)
 ANY_TYPE = "*"  # the md5sum of a subscriber that takes any type (rostopic's)
 
 
@@ -78,28 +79,44 @@ def wants_nodelay(header):
 
 class FrameReader:
     """Splits the bytes read from a publisher into frames: its connection header, then its messages. A frame
-    longer than `max_size` is refused (TcprosError) before its bytes are awaited."""
-    __slots__ = ("_pending", "max_size")
+    longer than `max_size` is refused (TcprosError) before its bytes are awaited. A message of BIG_FRAME bytes or
+    more is read in place: once its length is known, the rest goes straight into its own buffer (`into`,
+    `received`), which becomes the message (a bytearray) - no copy of a camera image on the way."""
+    __slots__ = ("_pending", "_big", "_filled", "max_size")
 
     def __init__(self, max_size=MAX_MESSAGE):
-        self._pending = bytearray()  # (a message read in many chunks grows here without copying it each time)
+        self._pending = bytearray()  # the bytes of frames not complete yet (below BIG_FRAME, or their length)
+        self._big = None  # the buffer of the big message under way
+        self._filled = 0  # bytes of it read so far
         self.max_size = max_size
 
     def feed(self, chunk, most=None):
-        """The frames completed by `chunk` (bytes each, in order; at most `most` of them); the rest waits."""
+        """The frames completed by `chunk` (in order; at most `most` of them); the rest waits."""
+        messages = []
+        if self._big is not None:
+            taken = min(len(chunk), len(self._big) - self._filled)
+            self._big[self._filled:self._filled + taken] = chunk[:taken]
+            messages = self.received(taken)
+            if not messages:
+                return messages
+            chunk = chunk[taken:]
         pending = self._pending
         if pending:
             pending += chunk
             data = memoryview(pending)
         else:
             data = chunk
-        messages, offset, end = [], 0, len(data)
+        offset, end = 0, len(data)
         while end - offset >= 4 and most != len(messages):
             (size,) = LENGTH.unpack_from(data, offset)
             if size > self.max_size:
                 raise TcprosError(f"a frame of {size} bytes (at most {self.max_size})")
             start = offset + 4
             if end - start < size:
+                if size >= BIG_FRAME and most is None:  # (messages only: the header is taken alone)
+                    self._big = bytearray(size)
+                    self._big[:end - start] = data[start:end]
+                    self._filled, offset = end - start, end
                 break
             messages.append(bytes(data[start:start + size]))
             offset = start + size
@@ -110,9 +127,15 @@ class FrameReader:
             pending += chunk[offset:]
         return messages
 
-    def missing(self):
-        """How many more bytes the frame begun needs (0 if none is begun or its length is not read yet)."""
-        pending = self._pending
-        if len(pending) < 4:
-            return 0
-        return LENGTH.unpack_from(pending)[0] + 4 - len(pending)
+    def into(self):
+        """Where the rest of the big message under way goes (a writable memoryview to read into, then call
+        `received`), or None."""
+        return None if self._big is None else memoryview(self._big)[self._filled:]
+
+    def received(self, count):
+        """`count` bytes were read into `into()`: the big message once it is complete ([] until then)."""
+        self._filled += count
+        if self._filled < len(self._big):
+            return []
+        message, self._big = self._big, None
+        return [message]

@@ -26,15 +26,24 @@ def test_frames_split_anywhere_come_out_whole_and_in_order(seed):
         got += reader.feed(stream[offset:offset + step])
         offset += step
     assert got == messages
-    assert reader.missing() == 0
+    assert reader.into() is None
 
 
-def test_missing_counts_the_rest_of_a_begun_message():
+def test_a_big_message_is_read_in_place_and_small_ones_around_it_as_usual():
     reader = tcpros.FrameReader()
-    data = tcpros.frame(b"x" * 1000) + tcpros.frame(b"y")
-    assert reader.feed(data[:3]) == [] and reader.missing() == 0  # the length itself is not complete
-    assert reader.feed(data[3:10]) == [] and reader.missing() == 994
-    assert reader.feed(data[10:]) == [b"x" * 1000, b"y"]
+    big = messages_of([tcpros.BIG_FRAME + 5])[0]
+    stream = tcpros.frame(b"before") + tcpros.frame(big) + tcpros.frame(b"after")
+    assert reader.feed(stream[:3]) == [] and reader.into() is None  # the length itself is not complete
+    assert reader.feed(stream[3:20]) == [b"before"]
+    space = reader.into()
+    assert len(space) == len(big) - 6  # the 6 bytes of it that came with "before" are in place already
+    rest = stream[20:20 + len(space)]
+    space[:1000] = rest[:1000]
+    assert reader.received(1000) == []
+    reader.into()[:len(rest) - 1000] = rest[1000:]
+    assert reader.received(len(rest) - 1000) == [big]
+    assert reader.into() is None
+    assert reader.feed(stream[20 + len(rest):]) == [b"after"]
 
 
 def test_a_frame_longer_than_the_limit_is_refused_before_its_bytes_come():

@@ -33,7 +33,6 @@ CONNECT_RETRIES = (0.5, 1, 2, 4, 8, 16, 32, 32)  # seconds before each new try w
 # fails, as rospy backs off; then the bridge gives up (the publisher is gone; a new one is announced anew)
 HANDSHAKE_TIMEOUT = 10.0  # seconds for a subscriber to send its header once connected
 READ_CHUNK = 1 << 16  # bytes read at once from a publisher (one wake of the loop for every message in them)
-BIG_READ = 1 << 22  # bytes read at once for the rest of a big message (an image): fewer, larger reads
 LINK_QUEUE_LIMIT = 10_000  # messages waiting for a slow subscriber when the topic's queue_size is 0 (unbounded)
 
 
@@ -132,22 +131,32 @@ class InboundLink(Link):
             self._loop.update_handler(sock, self._loop.READ)
 
     def _read(self):
-        missing = self._reader.missing()
+        space = self._reader.into()
         try:
-            chunk = self._sock.recv(min(missing, BIG_READ) if missing > READ_CHUNK else READ_CHUNK)
+            if space is not None:  # the rest of a big message: straight into its buffer
+                count = self._sock.recv_into(space)
+            else:
+                chunk = self._sock.recv(READ_CHUNK)
+                count = len(chunk)
         except BlockingIOError:
             return
-        if not chunk:  # the publisher left
+        finally:
+            if space is not None:
+                space.release()
+        if not count:  # the publisher left
             if self._latching is None:
                 raise ConnectionResetError("the publisher closed the connection before answering")
             self.close()
             return
-        self.stat_bytes += len(chunk)
-        if self._latching is None:
+        self.stat_bytes += count
+        if space is not None:
+            messages = self._reader.received(count)
+        elif self._latching is None:
             if not self._read_reply(chunk):
                 return
-            chunk = b""  # (the rest of it is pending in the reader)
-        messages = self._reader.feed(chunk)
+            messages = self._reader.feed(b"")  # (what came with the answer)
+        else:
+            messages = self._reader.feed(chunk)
         if messages and not self.done:
             self.stat_num_msg += len(messages)
             self._deliver(messages, self._latching)
