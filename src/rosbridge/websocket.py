@@ -18,6 +18,7 @@ from rosbridge.pages import SECURITY_HEADERS
 # Frames waiting for a client go to its socket together, up to this many bytes per write: one system call for a
 # burst of small messages instead of one each.
 WRITE_BATCH_BYTES = 64 * 1024
+BIG_PAYLOAD = 64 * 1024  # bytes: a payload this big is handed to the stream as it is, not joined with others
 READ_CHUNK = 64 * 1024  # bytes read from a client at once: every frame in them parsed without another read
 
 
@@ -190,28 +191,33 @@ class BridgeSocket(tornado.websocket.WebSocketHandler):
 
     def _write(self, conn, frames):
         """Sends frames; returns the stream's write future. Without permessage-deflate they go straight to the
-        stream, in one write: the same bytes for every client, and none of the Task that write_message wraps
-        around each frame."""
+        stream, small ones joined in one write, a big payload (an image) by reference, not copied: the same bytes
+        for every client, and none of the Task that write_message wraps around each frame."""
         if self.bridge.settings.use_compression:
             for frame in frames:
                 written = self.write_message(frame, binary=_is_binary(frame))
             return written
-        return conn.stream.write(b"".join(
-            websocket_frame(frame.encode() if isinstance(frame, str) else frame, 0x2 if _is_binary(frame) else 0x1)
-            for frame in frames))
+        stream, joined = conn.stream, []
+        for frame in frames:
+            payload = frame.encode() if isinstance(frame, str) else frame
+            joined.append(websocket_header(len(payload), 0x2 if _is_binary(frame) else 0x1))
+            if len(payload) < BIG_PAYLOAD:
+                joined.append(payload)
+            else:
+                stream.write(b"".join(joined))
+                joined.clear()
+                stream.write(payload)
+        return stream.write(b"".join(joined))  # (done once everything before it is written too)
 
 
 def _is_binary(frame):
     return not isinstance(frame, str) and not isinstance(frame, Utf8Text)
 
 
-def websocket_frame(payload, opcode):
-    """An unmasked, unfragmented server-to-client websocket frame (RFC 6455 section 5.2)."""
-    length = len(payload)
+def websocket_header(length, opcode):
+    """The header of an unmasked, unfragmented server-to-client websocket frame (RFC 6455 section 5.2)."""
     if length < 126:
-        header = struct.pack("!BB", 0x80 | opcode, length)
-    elif length <= 0xFFFF:
-        header = struct.pack("!BBH", 0x80 | opcode, 126, length)
-    else:
-        header = struct.pack("!BBQ", 0x80 | opcode, 127, length)
-    return header + payload
+        return struct.pack("!BB", 0x80 | opcode, length)
+    if length <= 0xFFFF:
+        return struct.pack("!BBH", 0x80 | opcode, 126, length)
+    return struct.pack("!BBQ", 0x80 | opcode, 127, length)
