@@ -4,6 +4,7 @@ import base64
 import io
 import json
 import math
+import os
 import re
 import struct
 
@@ -24,7 +25,20 @@ def _typed_array(tag, code):
     return lambda items: cbor2.CBORTag(tag, struct.pack(f"<{len(items)}{code}", *items))
 
 
+BIG_BYTES = 1 << 16  # bytes: a byte string this long is put into its CBOR frame by cbor_frame, not by cbor2
+
+
+class _Spliced:
+    """A big byte string (an image's data), which cbor_frame puts in its frame itself."""
+    __slots__ = ("data",)
+
+    def __init__(self, data):
+        self.data = data
+
+
 def _byte_string(value):
+    if len(value) >= BIG_BYTES:
+        return _Spliced(value)
     return value if isinstance(value, bytes) else bytes(value)
 
 
@@ -49,8 +63,52 @@ def to_cbor_value(msg):
 
 
 def cbor_frame(obj):
-    """The bytes of a binary websocket frame holding `obj` (e.g. a publish op whose msg is to_cbor_value(...))."""
-    return cbor2.dumps(obj)
+    """The bytes of a binary websocket frame holding `obj` (e.g. a publish op whose msg is to_cbor_value(...)).
+    A big byte string in it is encoded by cbor2 as a 16-byte stand-in, which one join then replaces with the
+    real bytes: the image is copied once, where cbor2 alone takes over ten times longer."""
+    try:
+        return cbor2.dumps(obj, default=_refuse_spliced)
+    except _HasSpliced:
+        pass
+    spliced = []
+
+    def stand_in(encoder, value):
+        _refuse_other(value)
+        token = os.urandom(16)
+        spliced.append((token, value.data))
+        encoder.encode(token)
+
+    encoded, parts, start = cbor2.dumps(obj, default=stand_in), [], 0
+    for token, data in spliced:  # (in the order cbor2 wrote them)
+        place = encoded.index(_bytes_head(16) + token, start)
+        parts += (encoded[start:place], _bytes_head(len(data)), data)
+        start = place + 17
+    parts.append(encoded[start:])
+    return b"".join(parts)
+
+
+class _HasSpliced(Exception):
+    pass
+
+
+def _refuse_spliced(encoder, value):
+    _refuse_other(value)
+    raise _HasSpliced
+
+
+def _refuse_other(value):
+    if not isinstance(value, _Spliced):
+        raise cbor2.CBOREncodeTypeError(f"cannot serialize type {type(value).__name__}")
+
+
+def _bytes_head(length):
+    """The head of a CBOR byte string of `length` bytes (RFC 8949 section 3: major type 2, then the length)."""
+    if length < 24:
+        return bytes((0x40 | length,))
+    for info, size in ((24, 1), (25, 2), (26, 4), (27, 8)):
+        if length < 1 << (8 * size):
+            return bytes((0x40 | info,)) + length.to_bytes(size, "big")
+    raise ValueError(f"{length} bytes: too long for CBOR")
 
 
 _NON_ASCII = re.compile(r"[^\x00-\x7f]")

@@ -3,6 +3,7 @@ import base64
 import io
 import json
 import math
+import os
 import struct
 
 import cbor2
@@ -15,6 +16,7 @@ from PIL import Image
 
 from test_convert import AllTypes, deserialized, serialized
 from rosbridge.convert import dumps, from_json, parse_slot_type
+from rosbridge import encoding
 from rosbridge.encoding import cbor_frame, fragments, png_frame, png_unframe, to_cbor_value
 
 # element type -> (size in bytes, signed, float, struct code)
@@ -184,3 +186,14 @@ def test_png_unframe_of_junk_raises_only_value_error(junk):
         png_unframe(junk)
     except ValueError:
         pass
+
+
+@pytest.mark.parametrize("sizes", [[encoding.BIG_BYTES], [encoding.BIG_BYTES - 1, 70_000], [70_000, 100, 1 << 17]])
+def test_big_byte_strings_are_put_in_place_exactly_as_cbor2_would_write_them(sizes):
+    blobs = [os.urandom(size) for size in sizes]
+    messages = [sensor_msgs.msg.Image(height=1, width=len(blob), encoding="mono8", step=len(blob), data=blob)
+                for blob in blobs]
+    obj = {"op": "publish", "topic": "/camera", "msg": [to_cbor_value(m) for m in messages]}
+    expected = cbor2.dumps({"op": "publish", "topic": "/camera",
+                            "msg": [{**to_cbor_value(m), "data": m.data} for m in messages]})
+    assert cbor_frame(obj) == expected
