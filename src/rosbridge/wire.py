@@ -175,7 +175,7 @@ class _Generator:
             reader.statement("(n,) = _U32(b, p); p += 4")
         text = reader.var()
         if base == "uint8":  # uint8[] and char[]: base64 of the bytes as they are
-            reader.statement(f"{text} = _b64(b[p:p + {count}]).decode(); p += {count}")
+            reader.statement(f"{text} = _b64(memoryview(b)[p:p + {count}]).decode(); p += {count}")  # (no copy)
             reader.text('"')
             reader.value(text)
             reader.text('"')
