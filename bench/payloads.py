@@ -52,11 +52,15 @@ def json_msg(kind, seq=0):
         return {"data": float(seq)}
     if kind == "string":
         return {"data": _cached("text", _text)}
-    if kind == "image":
-        return {"header": {"seq": seq, "stamp": {"secs": 0, "nsecs": 0}, "frame_id": "camera"},
-                "height": IMAGE_H, "width": IMAGE_W, "encoding": "rgb8", "is_bigendian": 0, "step": IMAGE_W * 3,
-                "data": _cached("image_b64", lambda: base64.b64encode(_cached("image", _image_bytes)).decode())}
+    if kind == "image":  # (the data encoded for every message, as a server sending an image it has as bytes must)
+        return {**_image_fields(seq), "data": base64.b64encode(_cached("image", _image_bytes)).decode()}
     raise ValueError(f"unknown payload kind {kind!r}")
+
+
+def _image_fields(seq):
+    """An image's fields but its data."""
+    return {"header": {"seq": seq, "stamp": {"secs": 0, "nsecs": 0}, "frame_id": "camera"},
+            "height": IMAGE_H, "width": IMAGE_W, "encoding": "rgb8", "is_bigendian": 0, "step": IMAGE_W * 3}
 
 
 def publish_frame(kind, topic, seq=0):
@@ -67,9 +71,7 @@ def publish_frame(kind, topic, seq=0):
 def cbor_frame(kind, topic, seq=0):
     """The same `publish` op as CBOR, binary fields as byte strings (what a CBOR subscriber gets)."""
     import cbor2
-    msg = json_msg(kind, seq)
-    if kind == "image":
-        msg = {**msg, "data": _cached("image", _image_bytes)}
+    msg = {**_image_fields(seq), "data": _cached("image", _image_bytes)} if kind == "image" else json_msg(kind, seq)
     return cbor2.dumps({"op": "publish", "topic": topic, "msg": msg})
 
 
