@@ -32,7 +32,8 @@ class FairProtocol(tornado.websocket.WebSocketProtocol13):
       future and a few calls - most of the work of taking a small frame (bench/README.md)."""
 
     def start_reading(self):
-        self._unparsed = bytearray()  # read from the stream, not yet parsed (< READ_CHUNK but for a big payload)
+        self._unparsed = bytearray()  # read from the stream, not parsed yet (under two reads' worth: a big
+        # payload's rest is read at once and not kept here)
 
     async def _read_bytes(self, n):
         unparsed = self._unparsed
