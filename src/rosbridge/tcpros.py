@@ -25,7 +25,7 @@ def frame(data, seq=None):
     (their header.seq, wrapping as rospy's uint32 does)."""
     if seq is None:
         return LENGTH.pack(len(data)) + data
-    return LENGTH.pack(len(data)) + SEQ.pack(seq & 0xFFFFFFFF) + data[4:]
+    return LENGTH.pack(len(data)) + SEQ.pack(seq & 0xFFFFFFFF) + memoryview(data)[4:]  # (one copy, not two)
 
 
 def header_size(prefix):
