@@ -25,11 +25,13 @@ def _typed_array(tag, code):
     return lambda items: cbor2.CBORTag(tag, struct.pack(f"<{len(items)}{code}", *items))
 
 
-BIG_BYTES = 1 << 16  # bytes: a byte string this long is put into its CBOR frame by cbor_frame, not by cbor2
+# bytes: a byte string this long (an image's data) is cheaper to write to the socket by reference, as a part of
+# its frame, than to copy into one frame with the rest (frames.SplicedFrame)
+BIG_BYTES = 1 << 16
 
 
 class _Spliced:
-    """A big byte string (an image's data), which cbor_frame puts in its frame itself."""
+    """A big byte string (an image's data), which cbor_parts leaves out of cbor2's output."""
     __slots__ = ("data",)
 
     def __init__(self, data):
@@ -62,12 +64,12 @@ def to_cbor_value(msg):
     return _cbor_encoder_for(type(msg))(msg)
 
 
-def cbor_frame(obj):
-    """The bytes of a binary websocket frame holding `obj` (e.g. a publish op whose msg is to_cbor_value(...)).
-    A big byte string in it is encoded by cbor2 as a 16-byte stand-in, which one join then replaces with the
-    real bytes: the image is copied once, where cbor2 alone takes over ten times longer."""
+def cbor_parts(obj):
+    """`obj` (e.g. a publish op whose msg is to_cbor_value(...)) in CBOR, as parts to send one after another. cbor2
+    encodes each big byte string as a 16-byte stand-in, whose place then holds the head of the real string and
+    the bytes themselves, not copied: cbor2 alone takes over ten times longer."""
     try:
-        return cbor2.dumps(obj, default=_refuse_spliced)
+        return [cbor2.dumps(obj, default=_refuse_spliced)]
     except _HasSpliced:
         pass
     spliced = []
@@ -81,10 +83,10 @@ def cbor_frame(obj):
     encoded, parts, start = cbor2.dumps(obj, default=stand_in), [], 0
     for token, data in spliced:  # (in the order cbor2 wrote them)
         place = encoded.index(_bytes_head(16) + token, start)
-        parts += (encoded[start:place], _bytes_head(len(data)), data)
+        parts += (encoded[start:place] + _bytes_head(len(data)), data)
         start = place + 17
     parts.append(encoded[start:])
-    return b"".join(parts)
+    return parts
 
 
 class _HasSpliced(Exception):

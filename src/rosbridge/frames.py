@@ -3,7 +3,7 @@ import itertools
 
 from rosbridge import encoding
 from rosbridge.convert import dumps
-from rosbridge.wire import json_text
+from rosbridge.wire import SPLICE_MARK, joined, json_parts
 
 COMPRESSIONS = ("none", "png", "cbor", "cbor-raw")
 
@@ -11,6 +11,28 @@ COMPRESSIONS = ("none", "png", "cbor", "cbor-raw")
 class Utf8Text(bytes):
     """A text frame already encoded to UTF-8, so that it is encoded once for all the clients it goes to."""
     __slots__ = ()
+
+
+class SplicedFrame:
+    """A frame whose payload is `parts` (bytes) one after another, written to the socket by reference: the big
+    parts (an image's data, or its base64) are never copied into a frame of their own. text: UTF-8 text, else
+    binary."""
+    __slots__ = ("parts", "text", "_size")
+
+    def __init__(self, parts, text):
+        self.parts, self.text, self._size = parts, text, sum(map(len, parts))
+
+    def __len__(self):
+        return self._size
+
+    def __bytes__(self):
+        return b"".join(self.parts)
+
+
+def cbor_frame(obj):
+    """The binary frame holding `obj` in CBOR (see encoding.cbor_parts)."""
+    parts = encoding.cbor_parts(obj)
+    return parts[0] if len(parts) == 1 else SplicedFrame(parts, text=False)
 
 
 def status_frame(level, msg, request_id=None):
@@ -48,7 +70,8 @@ class TopicMessage:
         self._frames = None  # (compression, fragment_size) -> frames, for the others
 
     def frames(self, compression, fragment_size):
-        """The frames (Utf8Text for text, bytes for binary) that carry this message with these options."""
+        """The frames (Utf8Text for text, bytes for binary, SplicedFrame for either) that carry this message with
+        these options."""
         if compression == "none" and fragment_size is None:
             if self._json is None:
                 self._json = self._encode(compression, fragment_size)
@@ -65,13 +88,17 @@ class TopicMessage:
         if compression == "cbor":
             msg = self.msg_class()
             msg.deserialize(self.data)
-            return (encoding.cbor_frame({"op": "publish", "topic": self.topic, "msg": encoding.to_cbor_value(msg)}),)
+            return (cbor_frame({"op": "publish", "topic": self.topic, "msg": encoding.to_cbor_value(msg)}),)
         if compression == "cbor-raw":
             secs = int(self.stamp)
             raw = {"bytes": bytes(self.data), "secs": secs, "nsecs": int((self.stamp - secs) * 1e9)}
-            return (encoding.cbor_frame({"op": "publish", "topic": self.topic, "msg": raw}),)
-        text = '{"op":"publish","topic":%s,"msg":%s}' % (dumps(self.topic), json_text(self.msg_class)(self.data))
-        return text_frames(text, compression, fragment_size)
+            return (cbor_frame({"op": "publish", "topic": self.topic, "msg": raw}),)
+        text, spliced = json_parts(self.msg_class)(self.data)
+        text = '{"op":"publish","topic":%s,"msg":%s}' % (dumps(self.topic), text)
+        if spliced and compression == "none" and fragment_size is None:
+            pieces = text.encode().split(SPLICE_MARK.encode())
+            return (SplicedFrame([*itertools.chain.from_iterable(zip(pieces, spliced)), pieces[-1]], text=True),)
+        return text_frames(joined(text, spliced), compression, fragment_size)
 
 
 def service_response_frames(service, call_id, ok, values, compression="none", fragment_size=None):
@@ -79,5 +106,5 @@ def service_response_frames(service, call_id, ok, values, compression="none", fr
     if call_id is not None:
         frame["id"] = call_id
     if compression in ("cbor", "cbor-raw"):
-        return (encoding.cbor_frame(frame),)
+        return (cbor_frame(frame),)
     return text_frames(dumps(frame), compression, fragment_size)

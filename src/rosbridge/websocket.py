@@ -11,14 +11,14 @@ import tornado.websocket
 
 from rosbridge import protocol
 from rosbridge.budget import ClientBudget
-from rosbridge.frames import Utf8Text
+from rosbridge.encoding import BIG_BYTES
+from rosbridge.frames import SplicedFrame, Utf8Text
 from rosbridge.origins import origin_allowed
 from rosbridge.pages import SECURITY_HEADERS
 
 # Frames waiting for a client go to its socket together, up to this many bytes per write: one system call for a
 # burst of small messages instead of one each.
 WRITE_BATCH_BYTES = 64 * 1024
-BIG_PAYLOAD = 64 * 1024  # bytes: a payload this big is handed to the stream as it is, not joined with others
 READ_CHUNK = 64 * 1024  # bytes read from a client at once: every frame in them parsed without another read
 
 
@@ -192,26 +192,33 @@ class BridgeSocket(tornado.websocket.WebSocketHandler):
 
     def _write(self, conn, frames):
         """Sends frames; returns the stream's write future. Without permessage-deflate they go straight to the
-        stream, small ones joined in one write, a big payload (an image) by reference, not copied: the same bytes
-        for every client, and none of the Task that write_message wraps around each frame."""
+        stream, small ones joined in one write, a big payload or part (an image) by reference, not copied: the
+        same bytes for every client, and none of the Task that write_message wraps around each frame."""
         if self.bridge.settings.use_compression:
             for frame in frames:
-                written = self.write_message(frame, binary=_is_binary(frame))
+                written = self.write_message(bytes(frame) if isinstance(frame, SplicedFrame) else frame,
+                                             binary=_is_binary(frame))
             return written
         stream, joined = conn.stream, []
         for frame in frames:
-            payload = frame.encode() if isinstance(frame, str) else frame
-            joined.append(websocket_header(len(payload), 0x2 if _is_binary(frame) else 0x1))
-            if len(payload) < BIG_PAYLOAD:
-                joined.append(payload)
+            if isinstance(frame, SplicedFrame):
+                parts = frame.parts
             else:
-                stream.write(b"".join(joined))
-                joined.clear()
-                stream.write(payload)
+                parts = (frame.encode() if isinstance(frame, str) else frame,)
+            joined.append(websocket_header(sum(map(len, parts)), 0x2 if _is_binary(frame) else 0x1))
+            for part in parts:
+                if len(part) < BIG_BYTES:
+                    joined.append(part)
+                else:
+                    stream.write(b"".join(joined))
+                    joined.clear()
+                    stream.write(part)
         return stream.write(b"".join(joined))  # (done once everything before it is written too)
 
 
 def _is_binary(frame):
+    if isinstance(frame, SplicedFrame):
+        return not frame.text
     return not isinstance(frame, str) and not isinstance(frame, Utf8Text)
 
 

@@ -3,21 +3,26 @@ and no Python dict in between.
 
 The bytes come from the bridge's own TCPROS links (rosbridge.ros_side.links).
 `json_text(cls)` gives a function bytes -> text for one message type, generated from its fields once and cached
-(as genpy generates its deserializers). The text is exactly `convert.dumps(convert.to_json(msg))` for the message
+(as genpy generates its deserializers). `json_parts(cls)` gives the same text with each big base64 string (an
+image's data) left out, so that the frame can carry those bytes as they are, not copied into one text. The text is exactly `convert.dumps(convert.to_json(msg))` for the message
 genpy would deserialize from those bytes; the tests compare the two for every message type on the machine.
 Consecutive fixed-size fields, nested messages' included, are read with one struct call and written with one
 %-format; variable-size fields (strings, arrays) are written to their own text first."""
 import base64
+import itertools
 import json
 import struct
 
 from genpy.rostime import _canon
 
 from rosbridge.convert import BUILTIN_TYPES, STRUCT_CODES as _CODES, TIME_PART_CODES as _TIME_CODES, parse_slot_type
+from rosbridge.encoding import BIG_BYTES
 from rosbridge.types import message_class
 
 _FLOATS = ("float32", "float64")
 _NS = 1_000_000_000
+# Where json_parts left a big base64 string out. JSON text never holds a raw NUL: strings escape it as \u0000.
+SPLICE_MARK = "\x00"
 
 
 def _finite(x):
@@ -38,20 +43,30 @@ def _bools(values):
     return ",".join(["false", "true"][value] for value in values)
 
 
+def _base64_text(data, spliced):
+    """uint8[] as the text of a JSON string; a big one (its base64 bytes) goes to `spliced`, a mark in its place."""
+    encoded = base64.b64encode(data)
+    if len(encoded) < BIG_BYTES:
+        return encoded.decode()
+    spliced.append(encoded)
+    return SPLICE_MARK
+
+
 def _times(values):
     """secs, nsecs, secs, nsecs, ... as JSON objects (as they are: genpy makes only single times canonical)."""
     return ",".join(['{"secs":%d,"nsecs":%d}' % pair for pair in zip(values[::2], values[1::2])])
 
 
 _GLOBALS = {
-    "_U32": struct.Struct("<I").unpack_from, "_b64": base64.b64encode, "_str": json.encoder.encode_basestring,
+    "_U32": struct.Struct("<I").unpack_from, "_b64text": _base64_text, "_str": json.encoder.encode_basestring,
     "_unpack_from": struct.unpack_from, "_finite": _finite, "_floats": _floats, "_ints": _ints, "_bools": _bools,
     "_times": _times, "_canon": _canon, "_BOOL": ("false", "true"), "_NS": _NS,
 }
 
 
 class _Reader:
-    """The source of one generated function read_<n>(b, p) -> (json text, position after the message)."""
+    """The source of one generated function read_<n>(b, p, s) -> (json text, position after the message); s: the
+    list that receives the big base64 strings left out of the text (see json_parts)."""
 
     def __init__(self, generator):
         self._generator = generator
@@ -102,7 +117,7 @@ class _Reader:
         template = "".join(self._template)
         result = f"{template!r} % ({', '.join(self._args)},)" if self._args else repr(template)
         body = "\n    ".join(self.lines + [f"return {result}, p"])
-        return f"def {name}(b, p):\n    {body}\n"
+        return f"def {name}(b, p, s):\n    {body}\n"
 
 
 class _Generator:
@@ -175,7 +190,7 @@ class _Generator:
             reader.statement("(n,) = _U32(b, p); p += 4")
         text = reader.var()
         if base == "uint8":  # uint8[] and char[]: base64 of the bytes as they are
-            reader.statement(f"{text} = _b64(memoryview(b)[p:p + {count}]).decode(); p += {count}")  # (no copy)
+            reader.statement(f"{text} = _b64text(memoryview(b)[p:p + {count}], s); p += {count}")  # (no copy)
             reader.text('"')
             reader.value(text)
             reader.text('"')
@@ -199,7 +214,7 @@ class _Generator:
         else:
             item = self.reader(message_class(base))
             reader.statement(f"{text} = []")
-            reader.statement(f"for _ in range({count}):\n        t, p = {item}(b, p); {text}.append(t)")
+            reader.statement(f"for _ in range({count}):\n        t, p = {item}(b, p, s); {text}.append(t)")
             reader.statement(f"{text} = ','.join({text})")
         reader.text("[")
         reader.value(text)
@@ -209,11 +224,30 @@ class _Generator:
 _cache = {}
 
 
-def json_text(cls):
-    """A function bytes -> the JSON text of the message of class cls serialized in them (see the module)."""
+def json_parts(cls):
+    """A function bytes -> (text, spliced) for the message of class cls serialized in them: its JSON text with a
+    SPLICE_MARK where each big base64 string goes, and those strings (bytes, ASCII) in order."""
     convert = _cache.get(cls)
     if convert is None:
         generator = _Generator()
         read = generator.namespace[generator.reader(cls, top=True)]
-        convert = _cache[cls] = lambda data: read(data, 0)[0]
+
+        def convert(data):
+            spliced = []
+            return read(data, 0, spliced)[0], spliced
+        _cache[cls] = convert
     return convert
+
+
+def joined(text, spliced):
+    """The whole text of what json_parts gave."""
+    if not spliced:
+        return text
+    pieces = text.split(SPLICE_MARK)
+    return "".join(itertools.chain.from_iterable(zip(pieces, [part.decode() for part in spliced] + [""])))
+
+
+def json_text(cls):
+    """A function bytes -> the JSON text of the message of class cls serialized in them (see the module)."""
+    parts = json_parts(cls)
+    return lambda data: joined(*parts(data))

@@ -203,6 +203,36 @@ def test_cbor_and_cbor_raw_are_binary_frames(ws, node):
         pub.close()
 
 
+def test_a_camera_image_arrives_whole_as_json_cbor_and_fragments(ws, node):
+    # big enough that its data goes to the socket as a part of its own (frames.SplicedFrame)
+    from sensor_msgs.msg import Image as RosImage
+    data = bytes(range(256)) * 3600
+    image = RosImage(height=480, width=640, encoding="rgb8", step=1920, data=data)
+    image.header.frame_id = "cam\u00e9ra"
+    expected = {"height": 480, "width": 640, "encoding": "rgb8", "is_bigendian": 0, "step": 1920}
+    pub = Publisher(node, "/bridge_test/camera", RosImage, image)
+    try:
+        for options in ({}, {"compression": "cbor"}, {"fragment_size": 400_000}):
+            ws.send({"op": "subscribe", "topic": "/bridge_test/camera", "type": "sensor_msgs/Image", **options})
+            if "fragment_size" in options:
+                parts = [ws.recv_op("fragment", num=num) for num in range(4)]
+                assert {p["total"] for p in parts} == {4} and len({p["id"] for p in parts}) == 1
+                frame = json.loads("".join(p["data"] for p in parts))
+            elif options:
+                frame = cbor2.loads(binary_frame(ws))
+            else:
+                frame = ws.recv_op("publish", topic="/bridge_test/camera")
+            ws.send({"op": "unsubscribe", "topic": "/bridge_test/camera"})
+            msg = frame["msg"]
+            got = msg.pop("data")
+            assert (got if options.get("compression") else base64.b64decode(got, validate=True)) == data, options
+            assert msg.pop("header")["frame_id"] == "cam\u00e9ra"
+            assert msg == expected, options
+            ping(ws)  # nothing else pending: the next subscription's first frame is its own
+    finally:
+        pub.close()
+
+
 def test_call_service_with_positional_args_and_timeout(ws, node):
     from std_srvs.srv import SetBool, SetBoolResponse
     slow = threading.Event()

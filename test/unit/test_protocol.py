@@ -9,7 +9,7 @@ import pytest
 from std_msgs.msg import Int32, String
 
 from rosbridge import protocol
-from rosbridge.frames import TopicMessage, Utf8Text
+from rosbridge.frames import SplicedFrame, TopicMessage, Utf8Text
 from rosbridge.backend import Backend
 from rosbridge.globs import Globs
 
@@ -348,6 +348,19 @@ def test_closed_session_releases_and_stops_sending(h):
 def test_string_messages_keep_unicode():
     msg = received("/s", String("grüß 🐢"), 0.0)
     assert json.loads(msg.frames("none", None)[0])["msg"]["data"] == "grüß 🐢"
+
+
+def test_a_camera_image_goes_out_with_its_base64_as_a_part_of_its_own():
+    from sensor_msgs.msg import Image
+    from rosbridge.convert import dumps, to_json
+    image = Image(height=480, width=640, encoding="rgb8", step=1920, data=bytes(range(256)) * 3600)
+    msg = received("/camera", image, 0.0)
+    (frame,) = msg.frames("none", None)
+    assert isinstance(frame, SplicedFrame) and frame.text
+    assert bytes(frame) == dumps({"op": "publish", "topic": "/camera", "msg": to_json(image)}).encode()
+    assert len(frame) == len(bytes(frame)) and max(map(len, frame.parts)) == 4 * 3600 * 256 // 3
+    fragments = msg.frames("none", 500_000)  # other options: the whole text, as before
+    assert len(fragments) == 3 and all(isinstance(f, Utf8Text) for f in fragments)
 
 
 def test_png_bomb_is_refused_before_unpacking():

@@ -1,18 +1,23 @@
 """rosbridge.wire against genpy: for every message type on this machine, random messages serialized by genpy give
 exactly the JSON text the bridge wrote before (genpy deserialization, convert.to_json, convert.dumps)."""
+import base64
 import math
 
 import genpy
+import genpy.dynamic
 import pytest
 import rosmsg
 import rospkg
 from hypothesis import given, strategies as st
+from sensor_msgs.msg import CompressedImage
+from std_msgs.msg import Header
 
 from test_convert import AllTypes, serialized
 from test_convert_properties import SETTINGS, messages
 from rosbridge.convert import dumps, to_json
+from rosbridge.encoding import BIG_BYTES
 from rosbridge.types import UnknownType, message_class
-from rosbridge.wire import json_text
+from rosbridge.wire import SPLICE_MARK, joined, json_parts, json_text
 
 
 def installed_message_classes():
@@ -76,6 +81,32 @@ def test_a_large_image_as_base64():
     assert json_text(type(image))(data) == genpy_json_text(type(image), data)
 
 
+def _spliced_type():
+    """Big byte arrays before, inside and after an array of nested messages."""
+    separator = "=" * 80 + "\n"
+    definition = "uint8[] first\nsensor_msgs/CompressedImage[] images\nstring between\nuint8[] last\n" + "".join(
+        f"{separator}MSG: {cls._type}\n{cls._full_text}\n" for cls in (CompressedImage, Header))
+    return genpy.dynamic.generate_dynamic("test_wire/Spliced", definition)["test_wire/Spliced"]
+
+
+def test_big_byte_arrays_are_left_out_of_the_text_in_order():
+    cls = _spliced_type()
+    blobs = [bytes([i]) * (60_000 + i) for i in range(4)]  # each over 64 KB in base64
+    msg = cls(first=blobs[0], images=[CompressedImage(format="jpeg", data=blobs[1]), CompressedImage(data=b"ab"),
+                                      CompressedImage(data=blobs[2])], between="x", last=blobs[3])
+    data = serialized(msg)
+    text, spliced = json_parts(cls)(data)
+    assert text.count(SPLICE_MARK) == 4 and len(text) < 2000
+    assert spliced == [base64.b64encode(blob) for blob in blobs]
+    assert joined(text, spliced) == json_text(cls)(data) == genpy_json_text(cls, data)
+
+
+def test_a_byte_array_just_under_the_limit_stays_in_the_text():
+    msg = AllTypes(bytes=b"x" * (BIG_BYTES // 4 * 3 - 3))  # base64: BIG_BYTES - 4 characters
+    text, spliced = json_parts(AllTypes)(serialized(msg))
+    assert spliced == [] and SPLICE_MARK not in text
+
+
 def test_readers_are_made_once_per_type():
-    assert json_text(message_class("geometry_msgs/Twist")) is json_text(message_class("geometry_msgs/Twist"))
+    assert json_parts(message_class("geometry_msgs/Twist")) is json_parts(message_class("geometry_msgs/Twist"))
     assert genpy.Message  # (genpy's 'rosmsg' decoding error handler is registered by importing it)
