@@ -102,14 +102,15 @@ def ping(client):
 class RawWebSocket:
     """A websocket client written on a bare socket, so a test can stop reading or stop mid-frame."""
 
-    def __init__(self, port, recv_buffer=None):
+    def __init__(self, port, recv_buffer=None, early=b""):
+        """early: bytes sent in the same write as the handshake's request (frames a client sends at once)."""
         self.sock = socket.create_connection(("127.0.0.1", port), timeout=10)
         if recv_buffer:
             self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, recv_buffer)
         key = base64.b64encode(os.urandom(16)).decode()
         self.sock.sendall((f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n"
                            f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n\r\n")
-                          .encode())
+                          .encode() + early)
         reply = b""
         while b"\r\n\r\n" not in reply:
             chunk = self.sock.recv(1)  # byte by byte: nothing after the handshake is consumed
@@ -151,6 +152,15 @@ class RawWebSocket:
             assert chunk, "the server closed the connection"
             data += chunk
         return data
+
+    def closed_by_server(self):
+        """True once the server has closed the connection (what it sent before is discarded)."""
+        try:
+            while self.sock.recv(65536):
+                pass
+        except ConnectionResetError:
+            pass
+        return True
 
     def send_text(self, text, cut_after=None):
         """Sends one text frame (mask of zeros: the payload is sent as is); with cut_after, only the header
