@@ -1,6 +1,5 @@
 """One websocket client on the event loop: reads its frames in turns with the other clients (budget.py), feeds
 them to its protocol Session, and writes the Session's frames as fast as the client reads them."""
-import asyncio
 import struct
 import time
 
@@ -15,53 +14,11 @@ from rosbridge.encoding import BIG_BYTES
 from rosbridge.frames import SplicedFrame, Utf8Text
 from rosbridge.origins import origin_allowed
 from rosbridge.pages import SECURITY_HEADERS
+from rosbridge.websocket_protocol import FairProtocol
 
 # Frames waiting for a client go to its socket together, up to this many bytes per write: one system call for a
 # burst of small messages instead of one each.
 WRITE_BATCH_BYTES = 64 * 1024
-READ_CHUNK = 64 * 1024  # bytes read from a client at once: every frame in them parsed without another read
-
-
-class FairProtocol(tornado.websocket.WebSocketProtocol13):
-    """Tornado's RFC 6455 protocol, with two changes:
-    - every frame a client sends, pings included, counts against its budget: Tornado's reading task only waits
-      for what `_handle_message` returns (on_message's result, never a ping's), and without waiting it reads on
-      for as long as the client's data lasts, holding the loop;
-    - the frames are read from the stream a chunk at a time, not piece by piece: Tornado's frame parser asks
-      for each frame's header, mask and payload separately (`_read_bytes`), and each stream read costs it a
-      future and a few calls - most of the work of taking a small frame (bench/README.md)."""
-
-    def start_reading(self):
-        self._unparsed = bytearray()  # read from the stream, not parsed yet (under two reads' worth: a big
-        # payload's rest is read at once and not kept here)
-
-    async def _read_bytes(self, n):
-        unparsed = self._unparsed
-        while len(unparsed) < n:
-            missing = n - len(unparsed)
-            if missing > READ_CHUNK:  # the rest of a big payload (its length is under max_message_size)
-                data = bytes(unparsed) + await self.stream.read_bytes(missing)
-                unparsed.clear()
-                break
-            unparsed += await self.stream.read_bytes(READ_CHUNK, partial=True)
-        else:
-            data = bytes(unparsed[:n])
-            del unparsed[:n]
-        self._wire_bytes_in += n
-        return data
-
-    def _handle_message(self, opcode, data):
-        handled = super()._handle_message(opcode, data)
-        delay = self.handler.budget.after_frame(len(data))
-        if delay is None:
-            return handled
-        return _after(handled, delay)
-
-
-async def _after(handled, delay):
-    if handled is not None:
-        await handled
-    await asyncio.sleep(delay)
 
 
 class BridgeSocket(tornado.websocket.WebSocketHandler):
@@ -104,8 +61,7 @@ class BridgeSocket(tornado.websocket.WebSocketHandler):
     def get_websocket_protocol(self):
         websocket = super().get_websocket_protocol()
         if websocket is not None:
-            websocket.__class__ = FairProtocol  # same state and settings, fair reading (see FairProtocol)
-            websocket.start_reading()
+            websocket.__class__ = FairProtocol  # same state and settings, its own reading (websocket_protocol.py)
         return websocket
 
     def check_origin(self, origin):
@@ -136,7 +92,8 @@ class BridgeSocket(tornado.websocket.WebSocketHandler):
     def on_ping(self, data):
         # Tornado has queued the pong: a client that pings but never reads would grow that buffer forever
         stream = self.ws_connection.stream if self.ws_connection is not None else None
-        if stream is not None and len(stream._write_buffer) > self.bridge.config.max_queue_bytes:
+        if stream is not None and not stream.closed() \
+                and len(stream._write_buffer) > self.bridge.config.max_queue_bytes:
             self.close(1008, "not reading (pongs piling up)")
 
     def on_close(self):

@@ -136,6 +136,18 @@ def test_a_broken_frame_ends_that_connection_only(port, frame):
         other.close()
 
 
+def test_a_broken_close_frame_after_a_full_turn_of_frames_still_ends_the_connection(port):
+    # the frames after a turn's worth (budget.FRAMES_PER_TURN) are taken a moment later: what breaks there must
+    # end the connection all the same
+    client = RawWebSocket(port)
+    try:
+        pings = b"".join(RawWebSocket.frame(b"%d" % i, opcode=0x9) for i in range(40))
+        client.sock.sendall(pings + RawWebSocket.frame(struct.pack("!H", 1000) + b"\xff reason", opcode=0x8))
+        assert client.closed_by_server()
+    finally:
+        client.close()
+
+
 def test_a_frame_over_the_websocket_limit_is_refused_with_1009_before_its_payload(port):
     client = RawWebSocket(port)
     try:  # the default max_message_size is 8 MB: the bridge takes frames up to 4x that
