@@ -3,9 +3,10 @@ and no Python dict in between.
 
 The bytes come from the bridge's own TCPROS links (rosbridge.ros_side.links).
 `json_text(cls)` gives a function bytes -> text for one message type, generated from its fields once and cached
-(as genpy generates its deserializers). `json_parts(cls)` gives the same text with each big base64 string (an
-image's data) left out, so that the frame can carry those bytes as they are, not copied into one text. The text is exactly `convert.dumps(convert.to_json(msg))` for the message
+(as genpy generates its deserializers). The text is exactly `convert.dumps(convert.to_json(msg))` for the message
 genpy would deserialize from those bytes; the tests compare the two for every message type on the machine.
+`json_parts(cls)` gives the same text with each big base64 string (an image's data) left out, so that the frame
+can carry those bytes as they are instead of copying them into one text.
 Consecutive fixed-size fields, nested messages' included, are read with one struct call and written with one
 %-format; variable-size fields (strings, arrays) are written to their own text first."""
 import base64
