@@ -227,5 +227,8 @@ class FairProtocol(tornado.websocket.WebSocketProtocol13):
             if not is_final:
                 self._fragmented_message_opcode, self._fragmented_message_buffer = opcode, bytearray(data)
         if is_final:
+            unpacked = self._message_bytes_in
             self._handle_message(opcode, data)
+            # a deflated message counts as what it unpacks to (Tornado adds that to _message_bytes_in)
+            length = max(length, self._message_bytes_in - unpacked)
         return end, self.handler.budget.after_frame(length)

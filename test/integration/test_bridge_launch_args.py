@@ -177,6 +177,24 @@ def test_wss(ros, tmp_path):
         proc.stop()
 
 
+def test_deflated_frames_count_against_the_byte_budget_as_what_they_unpack_to(ros):
+    # a 100 KB message of one repeated character deflates to a few hundred bytes: counted as sent, 30 of them
+    # would pass a 1 MB/s budget at once
+    proc, port = start_bridge(ros, node_name="deflate_budget_bridge", use_compression="true",
+                              max_bytes_per_second=1_000_000)
+    try:
+        ws = WsClient(f"ws://127.0.0.1:{port}/", compression_options={})
+        assert ws.conn.protocol._compressor is not None  # permessage-deflate was negotiated
+        start = time.monotonic()
+        for n in range(30):
+            ws.send({"op": "set_level", "level": "x" * 100_000, "id": n})
+        assert [ws.recv(timeout=30)["id"] for _ in range(30)] == list(range(30))
+        assert time.monotonic() - start > 1.0  # 3 MB unpacked at 1 MB/s, after a burst of 1 MB
+        ws.close()
+    finally:
+        proc.stop()
+
+
 def test_compression_and_delay_between_messages(ros, node):
     from std_msgs.msg import String
     proc, port = start_bridge(ros, node_name="deflate_bridge", use_compression="true", delay_between_messages=0.05)
