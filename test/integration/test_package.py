@@ -50,21 +50,29 @@ def test_installed_messages_nodes_launch_file_and_page(ros, install_space):
                           text=True, timeout=60)
     assert "float32 linear_velocity" in show.stdout, show.stdout + show.stderr
 
-    sim = ros.spawn(installed(ros, install_space, "rosrun turtlesim turtlesim_node __name:=installed_sim"),
-                    "installed_sim")
-    sim.wait_output("Spawning turtle [turtle1]", 30)
-    publishers = dict((topic, nodes) for topic, nodes in ros.master().getSystemState()[0])
-    assert "/installed_sim" in publishers["/turtle1/pose"]
+    run_sim_and_bridge(ros, install_space, "installed")
 
-    port = free_port()
-    bridge = ros.spawn(installed(ros, install_space, "roslaunch turtlesim rosbridge_websocket.launch "
-                                 f"port:={port} address:=127.0.0.1 node_name:=installed_bridge"), "installed_bridge")
 
-    assert "<canvas" in wait_for(lambda: fetch(f"http://127.0.0.1:{port}/"), 30,
-                                 what=f"the page from the installed bridge ({bridge.log_path})")
-    assert "ROSLIB" in fetch(f"http://127.0.0.1:{port}/vendor/roslib.min.js")
-    bridge.stop()
-    sim.stop()
+def run_sim_and_bridge(ros, space, name):
+    """`rosrun turtlesim turtlesim_node` and the bridge's launch file from `space` (its setup.bash): the turtle's
+    pose is published, the bridge serves the page and roslib. Both are stopped whatever happens: a turtlesim
+    left running would answer the later modules' /turtle1."""
+    sim = ros.spawn(installed(ros, space, f"rosrun turtlesim turtlesim_node __name:={name}_sim"), f"{name}_sim")
+    bridge = None
+    try:
+        sim.wait_output("Spawning turtle [turtle1]", 30)
+        wait_for(lambda: f"/{name}_sim" in dict(ros.master().getSystemState()[0]).get("/turtle1/pose", []), 30,
+                 what=f"/{name}_sim's /turtle1/pose at the master")  # (registered a moment after its log line)
+        port = free_port()
+        bridge = ros.spawn(installed(ros, space, "roslaunch turtlesim rosbridge_websocket.launch "
+                                     f"port:={port} address:=127.0.0.1 node_name:={name}_bridge"), f"{name}_bridge")
+        assert "<canvas" in wait_for(lambda: fetch(f"http://127.0.0.1:{port}/"), 30,
+                                     what=f"the page from the {name} bridge ({bridge.log_path})")
+        assert "ROSLIB" in fetch(f"http://127.0.0.1:{port}/vendor/roslib.min.js")
+    finally:
+        if bridge is not None:
+            bridge.stop()
+        sim.stop()
 
 
 # Every type a tutorial command, the page, the demo or a test reads the definition of (`rosmsg show`,
@@ -100,16 +108,7 @@ def test_the_readme_workspace_route(ros, tmp_path):
         res = subprocess.run(command, cwd=cwd, env=env, capture_output=True, text=True, timeout=900)
         assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
 
-    devel = tmp_path / "catkin_ws" / "devel"
-    sim = ros.spawn(installed(ros, devel, "rosrun turtlesim turtlesim_node __name:=workspace_sim"), "workspace_sim")
-    sim.wait_output("Spawning turtle [turtle1]", 30)
-    port = free_port()
-    bridge = ros.spawn(installed(ros, devel, "roslaunch turtlesim rosbridge_websocket.launch "
-                                 f"port:={port} address:=127.0.0.1 node_name:=workspace_bridge"), "workspace_bridge")
-    assert "<canvas" in wait_for(lambda: fetch(f"http://127.0.0.1:{port}/"), 30, what="the page")
-    assert "ROSLIB" in fetch(f"http://127.0.0.1:{port}/vendor/roslib.min.js")
-    bridge.stop()
-    sim.stop()
+    run_sim_and_bridge(ros, tmp_path / "catkin_ws" / "devel", "workspace")
 
 
 def fetch(url):
