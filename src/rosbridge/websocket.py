@@ -159,10 +159,11 @@ class BridgeSocket(tornado.websocket.WebSocketHandler):
         stream, joined = conn.stream, []
         for frame in frames:
             if isinstance(frame, SplicedFrame):
-                parts = frame.parts
+                parts, size = frame.parts, len(frame)
             else:
-                parts = (frame.encode() if isinstance(frame, str) else frame,)
-            joined.append(websocket_header(sum(map(len, parts)), 0x2 if _is_binary(frame) else 0x1))
+                payload = frame.encode() if isinstance(frame, str) else frame
+                parts, size = (payload,), len(payload)
+            joined.append(websocket_header(size, 0x2 if _is_binary(frame) else 0x1))
             for part in parts:
                 if len(part) < BIG_BYTES:
                     joined.append(part)
