@@ -26,7 +26,9 @@ def ip(*args, check=True):
 
 
 def netns_unavailable():
-    """Why network namespaces cannot be made here (None when they can)."""
+    """Why network namespaces cannot be used here (None when they can). Tries what the test does: make a
+    namespace, run a command in it with `ip netns exec` (which remounts /sys: that fails in a chroot or a
+    container without the right to mount), and delete it."""
     if os.geteuid() != 0:
         return "needs root to create network namespaces"
     probe = f"tsim-probe-{os.getpid()}"
@@ -36,8 +38,16 @@ def netns_unavailable():
         return "iproute2 (`ip`) is not installed"
     if res.returncode != 0:
         return f"`ip netns add` fails here: {res.stderr.strip()}"
-    ip("netns", "del", probe, check=False)
-    return None
+    try:
+        res = subprocess.run(["ip", "netns", "exec", probe, "true"], capture_output=True, text=True, timeout=30)
+        reason = None if res.returncode == 0 else \
+            f"`ip netns exec` fails here: {res.stderr.strip() or f'exit status {res.returncode}'}"
+    except subprocess.TimeoutExpired:
+        reason = "`ip netns exec NAME true` did not finish within 30 s"
+    res = ip("netns", "del", probe, check=False)
+    if not reason and res.returncode != 0:
+        reason = f"`ip netns del` fails here: {res.stderr.strip()}"
+    return reason
 
 
 class Lan:
