@@ -30,7 +30,9 @@ def message_class(type_name):
         cls = roslib.message.get_message_class(type_name)
     except Exception:  # roslib raises a variety of errors for packages it cannot find
         cls = None
-    if cls is None or not issubclass(cls, genpy.Message):
+    # roslib returns whatever the package's module has under that name (`std_msgs/sys` is a module), and
+    # rospy/AnyMsg is a message class standing for any type: only a class generated for this very name counts
+    if not (isinstance(cls, type) and issubclass(cls, genpy.Message) and cls._type == type_name):
         raise UnknownType(f"unknown message type {type_name!r}")
     return cls
 
@@ -43,6 +45,6 @@ def service_class(type_name):
         cls = roslib.message.get_service_class(type_name)
     except Exception:
         cls = None
-    if cls is None or not hasattr(cls, "_request_class"):
+    if not (isinstance(cls, type) and hasattr(cls, "_request_class") and getattr(cls, "_type", None) == type_name):
         raise UnknownType(f"unknown service type {type_name!r}")
     return cls

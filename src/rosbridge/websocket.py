@@ -11,6 +11,7 @@ import tornado.websocket
 from rosbridge import protocol
 from rosbridge.budget import ClientBudget
 from rosbridge.encoding import BIG_BYTES
+from rosbridge.errors import log_bug
 from rosbridge.frames import SplicedFrame, Utf8Text
 from rosbridge.origins import origin_allowed
 from rosbridge.pages import SECURITY_HEADERS
@@ -121,6 +122,12 @@ class BridgeSocket(tornado.websocket.WebSocketHandler):
                 frame = session.take_frame()
                 if frame is None:
                     break
+                if isinstance(frame, str):
+                    try:
+                        frame = Utf8Text(frame.encode())
+                    except UnicodeEncodeError:  # a bug (dumps escapes what UTF-8 lacks): skip it, go on
+                        log_bug("encoding an outgoing frame")
+                        continue
                 frames.append(frame)
                 size += len(frame)
                 if one_at_a_time:
@@ -161,8 +168,7 @@ class BridgeSocket(tornado.websocket.WebSocketHandler):
             if isinstance(frame, SplicedFrame):
                 parts, size = frame.parts, len(frame)
             else:
-                payload = frame.encode() if isinstance(frame, str) else frame
-                parts, size = (payload,), len(payload)
+                parts, size = (frame,), len(frame)
             joined.append(websocket_header(size, 0x2 if _is_binary(frame) else 0x1))
             for part in parts:
                 if len(part) < BIG_BYTES:

@@ -79,6 +79,12 @@ def binary_frame(ws):
      "'throttle_rate' must be a number"),
     ('{"op": "subscribe", "topic": "/bridge_test/never_published", "id": "x"}', "cannot infer"),
     ('{"op": "advertise", "topic": "/a", "type": "std_msgs/NoSuchType", "id": "x"}', "std_msgs/NoSuchType"),
+    # names that resolve to something in a message package that is not a message class
+    ('{"op": "advertise", "topic": "/a", "type": "std_msgs/sys", "id": "x"}', "unknown message type"),
+    ('{"op": "advertise", "topic": "/a", "type": "std_msgs/genpy", "id": "x"}', "unknown message type"),
+    ('{"op": "subscribe", "topic": "/a", "type": "std_msgs/struct", "id": "x"}', "unknown message type"),
+    ('{"op": "advertise", "topic": "/a", "type": "rospy/AnyMsg", "id": "x"}', "unknown message type"),
+    ('{"op": "advertise_service", "service": "/a", "type": "std_srvs/sys", "id": "x"}', "unknown service type"),
     ('{"op": "publish", "topic": "/bridge_test/typeless", "msg": {}, "id": "x"}', "cannot infer"),
     ('{"op": "publish", "topic": "/a", "msg": [1], "id": "x"}', "'msg' must be an object"),
     ('{"op": "call_service", "service": "/a", "args": 3, "id": "x"}', "'args' must be an object or a list"),
@@ -102,6 +108,15 @@ def test_bad_input_gets_an_error_and_the_connection_goes_on(ws, frame, expected)
     sent = json.loads(frame) if frame.startswith("{") else None
     if isinstance(sent, dict) and "id" in sent and not isinstance(sent["id"], (dict, list)):
         assert reply.get("id") == sent["id"]
+    assert ping(ws)
+
+
+@pytest.mark.parametrize("request_id", ["\\ud800", "a\\udfff", "\\\\\\ud800"])
+def test_a_lone_surrogate_echoed_back_does_not_silence_the_client(ws, request_id):
+    """JSON may escape half of a surrogate pair alone; echoed in a status, it must not stop the client's output."""
+    ws.send('{"op": "set_level", "level": "x", "id": "%s"}' % request_id)
+    reply = ws.recv()
+    assert reply["op"] == "status" and reply["id"] == json.loads('"%s"' % request_id), reply
     assert ping(ws)
 
 

@@ -331,3 +331,10 @@ def test_all_types_round_trip():
 def test_image_round_trip():
     image = deserialized(sensor_msgs.msg.Image(height=2, width=2, encoding="mono8", step=2, data=b"\x00\x01\xfe\xff"))
     assert round_trip(image) == image
+
+
+@pytest.mark.parametrize("text", ["\ud800", "a\udfff b", "\\\ud800", "\udc00\ud800", "é 😀 \ud83d"])
+def test_dumps_keeps_surrogates_escaped_so_the_text_has_utf8(text):
+    encoded = dumps({"s": text})
+    encoded.encode()  # (raises for a raw lone surrogate)
+    assert json.loads(encoded) == {"s": text}
