@@ -4,6 +4,7 @@ import hashlib
 import inspect
 import io
 import json
+import tracemalloc
 
 import pytest
 from std_msgs.msg import Int32, String
@@ -281,6 +282,19 @@ def test_empty_fragments_count_against_the_budget():
         h.send({"op": "fragment", "id": "empty", "data": "", "num": num, "total": 5000})
     assert any("max_message_size" in reply["msg"] for reply in h.replies())
     assert h.session._fragments.bytes <= 10_000
+
+
+def test_what_empty_fragments_hold_in_memory_stays_within_the_budget():
+    budget = 1_000_000
+    h = Harness(max_message_size=budget)
+    tracemalloc.start()
+    try:
+        for num in range(budget // 50):  # more parts than the budget can count
+            h.send({"op": "fragment", "id": "empty", "data": "", "num": num, "total": budget})
+        _, held = tracemalloc.get_traced_memory()  # (the peak)
+    finally:
+        tracemalloc.stop()
+    assert held <= budget
 
 
 def test_nested_fragments_are_refused(h):
