@@ -1,5 +1,6 @@
 // The page: one Connection; each time it is connected, every panel is given the new RosSession, and on loss it
 // is taken back. Panels hold no connection of their own (see connection.js).
+import { readAddress, keepInAddress } from './address.js';
 import { Connection, bridgeUrl } from './connection.js';
 import * as turtle from './panels/turtle.js';
 import { TopicsPanel } from './panels/topics.js';
@@ -33,8 +34,14 @@ function showTab(name) {
   }
 }
 
-for (const name of Object.keys(panels)) $(`tab-button-${name}`).addEventListener('click', () => showTab(name));
-showTab('topics');
+for (const name of Object.keys(panels)) {
+  $(`tab-button-${name}`).addEventListener('click', () => {
+    showTab(name);
+    keepInAddress('tab', [name]);
+  });
+}
+const [asked] = readAddress('tab');
+showTab(Object.hasOwn(panels, asked) ? asked : 'topics');
 
 let lastState = null;
 

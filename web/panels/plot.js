@@ -1,10 +1,12 @@
 // Plot: numeric fields of open topics over the last 30 s, several series at once (uPlot, from npm, served
 // locally). Click a number in an open topic's tree to add it; Pause holds the picture; the axes autoscale.
 import uPlot from '../vendor/uPlot.esm.js';
+import { readAddress, keepInAddress } from '../address.js';
 
 const WINDOW_S = 30;
 const REDRAW_MS = 100;
 const COLOURS = ['#3fd68c', '#ffc247', '#ff6b7d', '#6b79ff', '#4dd0e1', '#f06292'];
+const PLOT_PARAM = 'plot';  // ?plot=/turtle1/pose:x&plot=/odom:pose.pose.position.x, kept in the page's address
 
 export class Plot {
   constructor(root) {
@@ -25,6 +27,10 @@ export class Plot {
     });
     new ResizeObserver(() => this.chart?.setSize(this.size())).observe(this.area);
     setInterval(() => this.paused || this.redraw(), REDRAW_MS);
+    for (const kept of readAddress(PLOT_PARAM)) {
+      const [, topic, path] = /^([^:]+):(.+)$/.exec(kept) ?? [];  // (ROS names hold no ':', field paths no '.')
+      if (topic) this.add(topic, path.split('.'));
+    }
   }
 
   add(topic, path) {
@@ -54,6 +60,7 @@ export class Plot {
     this.chart?.destroy();
     this.chart = null;
     this.root.hidden = !this.series.length;
+    keepInAddress(PLOT_PARAM, this.series.map(s => `${s.topic}:${s.path.join('.')}`));
     this.legend.replaceChildren(...this.series.map((series, i) => {
       const item = document.createElement('li');
       item.innerHTML = '<span class="swatch"></span><code></code> <button type="button" class="link">remove</button>';

@@ -1,6 +1,7 @@
 // Topics (rostopic list / info / echo / hz / bw, rosmsg show): the list with types, publisher and subscriber
 // counts; an opened topic shows its info, its definition and its latest message as a live tree (pausable),
 // with its rate and bandwidth. Several can be open; closing one unsubscribes.
+import { readAddress, keepInAddress } from '../address.js';
 import { definitionText, messageTree } from './messages.js';
 import { Panel, showName } from './panel.js';
 import { Plot } from './plot.js';
@@ -12,6 +13,7 @@ const THROTTLE_MS = 50;
 const FAST_SAMPLES = 50;  // arrivals needed before a topic is judged fast (messages also arrive in bursts)
 const RENDER_MS = 150;
 const INFO_EVERY_S = 3;  // the tree is redrawn at most this often, whatever the topic's rate
+const TOPIC_PARAM = 'topic';  // ?topic=/turtle1/pose&topic=/odom: the open topics, kept in the page's address
 
 export class TopicsPanel extends Panel {
   constructor(root) {
@@ -22,6 +24,7 @@ export class TopicsPanel extends Panel {
     this.plot = new Plot(root.querySelector('.plot'));
     this.visible = false;
     this.open = new Map();  // topic name -> OpenTopic (kept across reconnections)
+    this.wanted = readAddress(TOPIC_PARAM);  // topics of the address not listed yet: opened once they are
     this.timer = null;
   }
 
@@ -67,6 +70,8 @@ export class TopicsPanel extends Panel {
       [cells[2].textContent, cells[3].textContent, cells[4].textContent] = [String(pubs), String(subs), rate];
       return row;
     }));
+    const types = new Map(rows.map(([name, type]) => [name, type]));
+    for (const name of this.wanted.filter(n => types.has(n))) this.openTopic(name, types.get(name));
   }
 
   openTopic(name, type) {
@@ -77,10 +82,17 @@ export class TopicsPanel extends Panel {
     const topic = new OpenTopic(name, type, this.plot, () => {
       this.open.delete(name);
       topic.element.remove();
+      this.keepInAddress();
     });
     this.open.set(name, topic);
+    this.wanted = this.wanted.filter(n => n !== name);
     this.openArea.prepend(topic.element);
     if (this.session) topic.attach(this.session);
+    this.keepInAddress();
+  }
+
+  keepInAddress() {
+    keepInAddress(TOPIC_PARAM, [...this.open.keys(), ...this.wanted]);
   }
 }
 

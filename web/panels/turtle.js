@@ -3,6 +3,7 @@
 // beyond what the current RosSession gave it, all dropped in detach().
 import { WorldView, WORLD_M } from './world.js';
 import { Driver } from './drive.js';
+import { readAddress, keepInAddress } from '../address.js';
 
 const DISCOVERY_MS = 2000;  // how often the set of turtles (and of Twist topics to drive) is refreshed
 const DRIVE_PARAM = 'drive';  // ?drive=/rover/cmd_vel: the Twist topic driven, kept in the page's address
@@ -144,7 +145,7 @@ function showTarget() {
 }
 
 function startingTarget() {
-  const asked = new URLSearchParams(location.search).get(DRIVE_PARAM)?.trim();
+  const asked = readAddress(DRIVE_PARAM)[0]?.trim();
   const valid = asked && /^\/[A-Za-z][\w]*(\/[A-Za-z][\w]*)*$/.test(asked);
   if (asked && !valid) feedback(`“${asked}” is not a topic name: driving /turtle1/cmd_vel.`, 'error');
   const name = valid ? asked : '/turtle1/cmd_vel';
@@ -209,9 +210,7 @@ const driver = new Driver({
 function switchTarget() {
   driver.stop();
   showTarget();
-  const address = new URL(location.href);
-  address.searchParams.set(DRIVE_PARAM, target());
-  history.replaceState(null, '', address);
+  keepInAddress(DRIVE_PARAM, [target()]);
   if (session) commandTopic();
 }
 
