@@ -277,3 +277,42 @@ def test_clicking_a_number_plots_it_live(open_page):
         }
         return n;"""
     wait_for(lambda: page.js(line) > 50, 10, what="the x series drawn in its colour")
+
+
+def open_topics(page):
+    return page.js("return [...document.querySelectorAll('.open-topic')].map(e => e.dataset.topic)")
+
+
+def shown_tab(page):
+    return page.js("return document.querySelector('[role=tab][aria-selected=true]').id")
+
+
+def test_a_reload_or_the_link_on_another_device_shows_the_same_topics_plots_and_tab(open_page, chatter):
+    page = open_page()
+    open_topic(page, "/turtle1/pose")
+    open_topic(page, chatter)
+    leaf = '.open-topic[data-topic="/turtle1/pose"] li.plottable'
+    wait_for(lambda: page.driver.find_elements(By.CSS_SELECTOR, leaf), 15, what="the pose's numbers")
+    press(page, leaf)  # x
+    wait_for(lambda: "/turtle1/pose x" in text_of(page, ".plot-series"), 5, what="the series")
+    tab(page, "services")
+    seen = open_topics(page)
+    assert seen == [chatter, "/turtle1/pose"]  # the newest on top
+
+    for reopened in (page, open_page("phone", url=page.driver.current_url)):
+        if reopened is page:
+            page.driver.refresh()
+            page.wait_state("connected")
+        assert shown_tab(reopened) == "tab-button-services"
+        assert reopened.el("tab-topics").get_attribute("hidden") is not None
+        tab(reopened, "topics")
+        wait_for(lambda: open_topics(reopened) == seen, 20, what="the same topics open")
+        opened = f'.open-topic[data-topic="{chatter}"]'
+        wait_for(lambda: "hello" in text_of(reopened, f"{opened} .message"), 15, what="their messages")
+        assert "/turtle1/pose x" in text_of(reopened, ".plot-series")
+        reopened.driver.find_element(By.CSS_SELECTOR, f"{opened} .close").click()
+    page.driver.refresh()  # closing is kept too
+    page.wait_state("connected")
+    tab(page, "topics")
+    wait_for(lambda: open_topics(page) == ["/turtle1/pose"], 20, what="the closed topic left out")
+
