@@ -53,5 +53,11 @@ class Backend(abc.ABC):
         methods take the client's spelling and resolve it themselves."""
 
     @abc.abstractmethod
+    def after_pending(self, session, then):
+        """Whether ROS work that the client's requests so far started (off the loop) is still under way: if so,
+        then() runs on the loop once it is done, and True is returned; else False (then is not called). The
+        protocol holds the client's next requests meanwhile, so that they take effect in the order sent."""
+
+    @abc.abstractmethod
     def release(self, session):
         """The client left: release everything it held."""

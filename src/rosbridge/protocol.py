@@ -4,6 +4,7 @@ contract. Pure: no rospy, no tornado; the server gives it a clock, a timer and a
 
 The jobs around it have rooms of their own: reassembly.py (fragment and png ops), subscription.py (merging and
 throttling), outgoing.py (the bounded outgoing queue), frames.py (encoding what goes out), auth.py (rosauth)."""
+import collections
 import json
 import math
 
@@ -20,6 +21,10 @@ from rosbridge.subscription import MAX_THROTTLE_RATE, Subscription
 STATUS_LEVELS = ("info", "warning", "error", "none")
 # ops the ROS side may refuse later, off the loop (see Session.ros_refused), and the field naming what they ask
 LATER_REFUSALS = {"subscribe": "topic", "advertise": "topic", "publish": "topic", "advertise_service": "service"}
+# ops whose ROS side may still be under way (off the loop) when they return: the client's next requests wait for
+# it, so that e.g. a call of a service it just advertised finds the service
+ORDERED_OPS = frozenset(("advertise", "unadvertise", "subscribe", "unsubscribe", "advertise_service",
+                         "unadvertise_service"))
 LARGEST_INT = 2**63 - 1  # the widest integer ROS has (int64/uint64 aside); any count or time fits
 
 
@@ -113,11 +118,17 @@ class Session:
     queue (take_frame) when `wake` is called, and calls `closed` when the connection is gone.
 
     clock() -> seconds since the epoch; call_later(delay, fn) runs fn on the loop later; wake() says frames
-    are waiting; close(reason) asks the server to close the connection after the queued frames."""
+    are waiting; close(reason) asks the server to close the connection after the queued frames.
 
-    def __init__(self, backend, config, clock, call_later, wake, close, name="client"):
+    A client's requests take effect in the order it sent them: after an ORDERED_OPS request whose ROS side is
+    still under way, the next ones are held (`holding` is true: the server stops reading the client meanwhile,
+    so what is held stays small) and handled once it is done; then resume_reading() is called."""
+
+    def __init__(self, backend, config, clock, call_later, wake, close, name="client", resume_reading=None):
         self.backend, self.config, self.name = backend, config, name
         self._clock, self._call_later, self._wake, self._close = clock, call_later, wake, close
+        self._resume_reading = resume_reading
+        self._held = None  # frames received while an earlier request's ROS side is under way, in order
         self.subscriptions = {}
         self.advertised = set()
         self._ids = {}  # (op, name) -> the id of the latest such request, for refusals that come later
@@ -129,7 +140,14 @@ class Session:
         self._fragments = Fragments(config.max_message_size, config.fragment_timeout)
 
     # ---- incoming -------------------------------------------------------------------------------
+    @property
+    def holding(self):
+        return self._held is not None
+
     def handle_text(self, text, depth=0):
+        if self._held is not None and depth == 0:
+            self._held.append((self.handle_text, text))
+            return
         limit = self.config.max_message_size
         if limit and len(text) > limit:
             self.status("error", f"message of {len(text)} bytes refused: over max_message_size ({limit} bytes)")
@@ -142,6 +160,9 @@ class Session:
         self.handle_request(request, depth)
 
     def handle_binary(self, data):
+        if self._held is not None:
+            self._held.append((self.handle_binary, data))
+            return
         self.status("error", f"binary frame of {len(data)} bytes refused: rosbridge v2 clients send JSON text "
                              "frames (binary frames are only sent by the server, for CBOR)")
 
@@ -168,6 +189,8 @@ class Session:
             getattr(self, "_op_" + op)(request, depth)
             if op in LATER_REFUSALS and request_id is not None:
                 self._remember_id(op, request[LATER_REFUSALS[op]], request_id)
+            if op in ORDERED_OPS and self._held is None and self.backend.after_pending(self, self._settled):
+                self._held = collections.deque()
         except ClientError as error:
             self.status("error", str(error), request_id)
             if op == "call_service" and isinstance(request.get("service"), str) and self.authenticated:
@@ -180,6 +203,20 @@ class Session:
             self.status("error", f"{op}: internal error (logged by the bridge)", request_id)
             if op == "auth" and not self.authenticated:
                 self.close("authentication failed")
+
+    def _settled(self):
+        """The ROS side of the request that held the next ones is done: handle those, in order, until one of
+        them holds the rest again."""
+        held, self._held = self._held, None
+        while held and not self.is_closed:
+            handle, frame = held.popleft()
+            handle(frame)
+            if self._held is not None:
+                held.extend(self._held)  # (nothing arrives meanwhile: this is one turn of the loop)
+                self._held = held
+                return
+        if self._resume_reading is not None and not self.is_closed:
+            self._resume_reading()
 
     def _remember_id(self, op, name, request_id):
         ids = self._ids
@@ -368,6 +405,7 @@ class Session:
         if self.is_closed:
             return
         self.is_closed = True
+        self._held = None
         for subscription in self.subscriptions.values():
             subscription.close()
         self.subscriptions.clear()

@@ -22,6 +22,19 @@ class RecordingBackend(Backend):
     def __init__(self):
         self.calls = []
         self.refuse = {}
+        self.busy = False  # whether ROS work is under way (after_pending then waits)
+        self.waiting = []
+
+    def after_pending(self, session, then):
+        if self.busy:
+            self.waiting.append(then)
+        return self.busy
+
+    def finish_pending(self, busy_again=False):
+        """The ROS work is done; busy_again: the requests handled now start more."""
+        waiting, self.waiting, self.busy = self.waiting, [], busy_again
+        for then in waiting:
+            then()
 
     @staticmethod
     def resolve_name(name):
@@ -397,3 +410,41 @@ def test_refused_call_service_fails_the_call():
     replies = [r for r in h.replies() if r["op"] == "service_response"]  # each after its status error
     assert [(r["id"], r["result"]) for r in replies] == [("c1", False), ("c2", False)]
     assert "services_glob" in replies[0]["values"] and "compression" in replies[1]["values"]
+
+
+def test_requests_wait_for_the_ros_side_of_an_earlier_one_and_keep_their_order():
+    resumed = []
+    h = Harness()
+    h.session._resume_reading = lambda: resumed.append(True)
+    h.backend.busy = True  # the ROS side makes the service off the loop
+    h.send({"op": "advertise_service", "service": "/adder", "type": "std_srvs/Trigger"})
+    assert h.session.holding
+    h.send({"op": "call_service", "service": "/adder", "id": "c1"})
+    h.send({"op": "subscribe", "topic": "/a", "type": "std_msgs/String"})
+    h.send({"op": "call_service", "service": "/adder", "id": "c2"})
+    assert [call[0] for call in h.backend.calls] == ["advertise_service"]
+    h.backend.finish_pending(busy_again=True)  # the subscribe starts ROS work too
+    assert [call[0] for call in h.backend.calls] == ["advertise_service", "call_service", "subscribe"]
+    assert h.session.holding and not resumed
+    h.backend.finish_pending()
+    assert [call[0] for call in h.backend.calls] == ["advertise_service", "call_service", "subscribe",
+                                                     "call_service"]
+    assert not h.session.holding and resumed == [True]
+
+
+def test_a_request_refused_at_once_holds_nothing():
+    h = Harness()
+    h.backend.busy = True
+    h.backend.refuse["advertise"] = "no"
+    h.send({"op": "advertise", "topic": "/a", "type": "std_msgs/String"})
+    assert not h.session.holding
+
+
+def test_a_client_that_leaves_while_held_drops_what_it_sent():
+    h = Harness()
+    h.backend.busy = True
+    h.send({"op": "subscribe", "topic": "/a", "type": "std_msgs/String"})
+    h.send({"op": "call_service", "service": "/x", "id": "c1"})
+    h.session.closed()
+    h.backend.finish_pending()
+    assert "call_service" not in [call[0] for call in h.backend.calls]

@@ -56,6 +56,9 @@ class MemoryBackend(Backend):
     def unsubscribe(self, session, topic):
         self._record("unsubscribe", topic)
 
+    def after_pending(self, session, then):
+        return False  # (the ROS side is done at once here; test_protocol.py holds requests)
+
     def release(self, session):
         self._record("release")
 

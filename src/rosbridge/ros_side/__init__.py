@@ -13,7 +13,8 @@ Threads, what each may touch, and how work crosses between them:
   timer. Nothing here asks the master or makes a rospy object.
 - The worker (one thread, RosWorker): asks the master (GraphSnapshot, only it touches that) and makes and drops
   rospy subscribers, publishers and services, in the order the loop submitted them. Each job's outcome goes
-  back to the loop (IOLoop.add_callback); an object's fields written by a job (`_subscriber`, `_publisher`,
+  back to the loop (IOLoop.add_callback), and after it the requests a client sent meanwhile, held by
+  its Session until the ROS work before them is done (RosWorker.after_submitted); an object's fields written by a job (`_subscriber`, `_publisher`,
   `server`) are read only by later jobs or after the loop got the outcome. It writes TopicLinks' two tables
   (a topic's entry before its rospy object is made, and removed before it is dropped); rospy's threads and the
   loop only read them (single dict operations).

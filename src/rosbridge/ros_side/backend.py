@@ -17,7 +17,7 @@ MAX_CALLS_PENDING_PER_CLIENT = 1000  # running or waiting
 
 class RosBackend(Backend):
     def __init__(self, loop, rosapi=None, unregister_timeout=10.0, service_timeout=60.0):
-        worker = RosWorker(loop)
+        worker = self._worker = RosWorker(loop)
         links = TopicLinks(loop, lambda text: rospy.logwarn_throttle(60, "bridge topics: " + text))
         self._publishers = Publishers(loop, worker, links, unregister_timeout)
         self._subscribers = Subscribers(loop, worker, links)
@@ -60,6 +60,10 @@ class RosBackend(Backend):
 
     def service_response(self, session, service, call_id, result, values):
         self._provided.respond(session, self.resolve_name(service), call_id, result, values)
+
+    def after_pending(self, session, then):
+        # (the worker runs every client's jobs in one order: waiting for all submitted so far is exact)
+        return self._worker.after_submitted(then)
 
     def release(self, session):
         self._publishers.release(session)

@@ -1,6 +1,7 @@
 """The ROS work that can block, on one thread of its own: asking the master, and making or dropping rospy
 publishers, subscribers and services (each a call to the master). With the master slow or stopped, only this
 thread waits; the event loop goes on serving every client."""
+import collections
 import gc
 import queue
 import threading
@@ -20,12 +21,33 @@ class RosWorker:
         self._jobs = queue.SimpleQueue()
         self.graph = GraphSnapshot()
         self._garbage = False  # (worker only)
+        self._submitted = self._finished = 0  # jobs submitted, and those whose outcome the loop has had (loop)
+        self._waiters = collections.deque()  # (jobs that must be finished first, fn), in that order (loop)
         threading.Thread(target=self._run, name="ros worker", daemon=True).start()
 
     def submit(self, job, done=None):
-        """Runs job() on the worker in order; then done(error, result) on the loop (error: the exception job
-        raised, or None)."""
+        """On the loop: runs job() on the worker in order; then done(error, result) on the loop (error: the
+        exception job raised, or None)."""
+        self._submitted += 1
         self._jobs.put((job, done))
+
+    def after_submitted(self, fn):
+        """On the loop: if a job submitted so far is not finished, fn() runs on the loop once every one is (after
+        their `done`), and True is returned; else False."""
+        if self._finished == self._submitted:
+            return False
+        self._waiters.append((self._submitted, fn))
+        return True
+
+    def _job_finished(self, done, error, result):
+        self._finished += 1
+        try:
+            if done is not None:
+                done(error, result)
+        finally:
+            waiters = self._waiters
+            while waiters and waiters[0][0] <= self._finished:
+                waiters.popleft()[1]()
 
     def dropped(self):
         """On the worker, after dropping rospy objects: their sockets and epoll descriptors are freed only when
@@ -46,8 +68,7 @@ class RosWorker:
                 result, error = job(), None
             except Exception as exception:  # handed to `done`, which tells the client or logs the bug
                 result, error = None, exception
-            if done is not None:
-                self._loop.add_callback(done, error, result)
+            self._loop.add_callback(self._job_finished, done, error, result)
 
 
 class GraphSnapshot:
