@@ -4,6 +4,7 @@
 const FIRST_RETRY_MS = 500;
 const MAX_RETRY_MS = 5000;
 const CALL_TIMEOUT_S = 10;
+const REFUSAL_MS = 500;  // a publish the bridge has not refused by then counts as published
 
 export class Connection {
   // onState(state, detail): state is 'connecting' | 'connected' | 'closed' | 'error'.
@@ -78,16 +79,56 @@ export class RosSession {
     };
   }
 
-  // A publisher: publish(message) sends a plain object; close() unadvertises.
-  advertise(name, type, options = {}) {
-    const topic = new ROSLIB.Topic({ ros: this.ros, name, messageType: type, ...options });
-    this.topics.add(topic);
-    topic.advertise();
+  // A publisher. publish(message) sends a plain object and resolves once the bridge has had REFUSAL_MS to refuse
+  // it, or rejects with the bridge's error (a status op carrying the id of this publisher's advertise or publish;
+  // roslibjs emits it as 'status:<id>'). An error that comes when no publish waits goes to onError (e.g. the
+  // advertise refused at once). close() unadvertises. The ops are sent here rather than by a ROSLIB.Topic, which
+  // gives each publish a fresh id that its caller cannot know.
+  advertise(name, type, { latch = false, queue_size = 100, onError = () => {} } = {}) {
+    const [advertiseId, publishId] = ['advertise', 'publish'].map(op => `${op}:${name}:${++this.ros.idCounter}`);
+    const advertise = () => this.ros.callOnConnection({ op: 'advertise', id: advertiseId, topic: name, type, latch,
+      queue_size });
+    const waiting = new Set();  // the reject of each publish still within REFUSAL_MS
+    let refusal = null;  // the bridge's error for the advertise: the errors of the publishes that follow add nothing
+    const fail = text => {
+      if (!waiting.size) onError(text);
+      for (const reject of waiting) reject(new Error(text));
+      waiting.clear();
+    };
+    const listeners = {
+      [`status:${advertiseId}`]: status => {
+        if (this.closed || status.level !== 'error') return;
+        refusal = status.msg;
+        fail(status.msg);
+      },
+      [`status:${publishId}`]: status => this.closed || status.level !== 'error' || refusal || fail(status.msg),
+    };
+    for (const [event, listener] of Object.entries(listeners)) this.ros.on(event, listener);
+    advertise();
+    let open = true;
     return {
-      publish: message => this.closed || topic.publish(new ROSLIB.Message(message)),
+      publish: message => new Promise((resolve, reject) => {
+        if (this.closed || !open) {
+          reject(new Error('not connected'));
+          return;
+        }
+        if (refusal !== null) {  // ask again: what stood in the way may be gone
+          refusal = null;
+          advertise();
+        }
+        this.ros.callOnConnection({ op: 'publish', id: publishId, topic: name, msg: message, latch });
+        waiting.add(reject);
+        setTimeout(() => {
+          if (!waiting.delete(reject)) return;
+          if (this.closed) reject(new Error('the connection closed'));
+          else resolve();
+        }, REFUSAL_MS);
+      }),
       close: () => {
-        if (!this.topics.delete(topic) || this.closed) return;
-        topic.unadvertise();
+        if (!open) return;
+        open = false;
+        for (const [event, listener] of Object.entries(listeners)) this.ros.off(event, listener);
+        if (!this.closed) this.ros.callOnConnection({ op: 'unadvertise', id: advertiseId, topic: name });
       },
     };
   }

@@ -1,6 +1,7 @@
 """The console: the tutorial's terminal windows in the page (rostopic, rosmsg, rosservice, rosparam, rosnode,
 rqt_console), driven in headless Chromium against a real bridge, turtlesim and the stock CLI tools."""
 import threading
+import time
 
 import pytest
 from selenium.webdriver.common.by import By
@@ -210,16 +211,7 @@ def test_publish_any_type_from_its_generated_form(open_page, listen):
     from std_msgs.msg import Float64
     received = listen("/console/level", Float64)
     page = open_page()
-    tab(page, "publish")
-    for selector, value in ((".publish-topic", "/console/level"), (".publish-type", "std_msgs/Float64")):
-        box = page.driver.find_element(By.CSS_SELECTOR, f"#tab-publish {selector}")
-        box.clear()
-        box.send_keys(value)
-    page.driver.find_element(By.CSS_SELECTOR, "#tab-publish .publish-load").click()
-    data = '#tab-publish input[data-path="data"]'
-    wait_for(lambda: page.driver.find_elements(By.CSS_SELECTOR, data), 10, what="the Float64 form")
-    page.driver.find_element(By.CSS_SELECTOR, data).clear()
-    page.driver.find_element(By.CSS_SELECTOR, data).send_keys("2.5")
+    publish_form(page, "/console/level", "std_msgs/Float64", {"data": "2.5"})
     page.driver.find_element(By.CSS_SELECTOR, "#tab-publish .publish-repeat").click()
     wait_for(lambda: received.count() >= 5, 15, what="messages at the rate")
     assert received.last.data == 2.5
@@ -315,4 +307,33 @@ def test_a_reload_or_the_link_on_another_device_shows_the_same_topics_plots_and_
     page.wait_state("connected")
     tab(page, "topics")
     wait_for(lambda: open_topics(page) == ["/turtle1/pose"], 20, what="the closed topic left out")
+
+
+def publish_form(page, topic, msg_type, fields):
+    """Fills the Publish tab's topic and type, loads the form and fills its fields ({path: text})."""
+    tab(page, "publish")
+    for selector, value in ((".publish-topic", topic), (".publish-type", msg_type)):
+        box = page.driver.find_element(By.CSS_SELECTOR, f"#tab-publish {selector}")
+        box.clear()
+        box.send_keys(value)
+    page.driver.find_element(By.CSS_SELECTOR, "#tab-publish .publish-load").click()
+    for path, value in fields.items():
+        field = f'#tab-publish input[data-path="{path}"]'
+        wait_for(lambda: page.driver.find_elements(By.CSS_SELECTOR, field), 10, what=f"the {msg_type} form")
+        page.driver.find_element(By.CSS_SELECTOR, field).clear()
+        page.driver.find_element(By.CSS_SELECTOR, field).send_keys(value)
+
+
+def test_publishing_what_the_bridge_refuses_shows_its_error_not_success(open_page):
+    page = open_page()  # the page itself publishes Twists on /turtle1/cmd_vel (its drive panel)
+    publish_form(page, "/turtle1/cmd_vel", "std_msgs/String", {"data": "hello"})
+    status = "#tab-publish .publish-status"
+    for button in (".publish-once", ".publish-repeat"):
+        page.driver.find_element(By.CSS_SELECTOR, f"#tab-publish {button}").click()
+        wait_for(lambda: "already publishes it as geometry_msgs/Twist" in text_of(page, status), 10,
+                 what="the bridge's error")
+        assert "error" in page.driver.find_element(By.CSS_SELECTOR, status).get_attribute("class")
+        time.sleep(1.0)  # success is not claimed afterwards either
+        assert "Published" not in text_of(page, status) and "already publishes" in text_of(page, status)
+    assert text_of(page, "#tab-publish .publish-repeat") == "Publish at rate"  # the refused repeat stopped
 

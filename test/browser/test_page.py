@@ -108,6 +108,7 @@ def test_an_invalid_number_is_reported_inline_and_publishes_nothing(open_page, w
     page.fill("angular", "0")
     page.el("publish").click()  # a valid publish first, so a later one would surely be received
     wait_for(lambda: commands.count() == 1, 15, what="the valid Twist")
+    wait_for(lambda: "Published" in page.feedback().splitlines()[0], 5, what="Published")  # (once not refused)
     for bad in ("abc", "", "1.2.3"):
         page.fill("angular", bad)
         page.el("publish").click()
@@ -156,7 +157,7 @@ def test_drives_any_twist_topic_kept_in_the_address_and_stop_sends_zero(open_pag
     page.el("stop").click()  # stops while the key is still held
     wait_for(lambda: (rover.last.linear.x, rover.last.angular.z) == (0, 0), 10, what="the zero Twist")
     keys.key_up(Keys.ARROW_UP).perform()
-    assert "Stopped: a zero Twist on /rover_test/cmd_vel" in page.feedback()
+    wait_for(lambda: "Stopped: a zero Twist on /rover_test/cmd_vel" in page.feedback(), 5, what="Stopped")
     assert "drive a turtle" in page.el("teleport-form").text  # not a turtle: nothing to teleport
     page.js("arguments[0].click()", page.el("teleport"))
     assert "not a turtle's cmd_vel" in page.js("return document.getElementById('service-status').textContent")
@@ -354,3 +355,20 @@ def test_screenshots_desktop_and_phone(open_page, world, node, ros):
         assert small == []  # touch targets
         assert page.console_errors() == []
         assert page.foreign_urls() == []
+
+
+def test_driving_a_topic_the_bridge_refuses_shows_its_error_not_success(open_page, bridge_url, node):
+    from std_msgs.msg import String
+    other = node.Publisher("/drive_test/cmd_vel", String, queue_size=1)  # not a Twist topic
+    try:
+        page = open_page(url=bridge_url + "?drive=/drive_test/cmd_vel")
+        page.el("publish").click()
+        wait_for(lambda: "published as std_msgs/String" in page.feedback(), 10, what="the bridge's error")
+        time.sleep(1.0)
+        assert "Published" not in page.feedback()
+        page.el("stop").click()
+        wait_for(lambda: page.feedback().splitlines()[0].count("std_msgs/String"), 10, what="the error again")
+        assert "Stopped" not in page.feedback()
+    finally:
+        other.unregister()
+

@@ -17,7 +17,7 @@ export class PublishPanel {
     this.publisher = null;  // {topic, type, publish, close} on the current session
     this.timer = null;
     root.querySelector('button.publish-load').addEventListener('click', () => this.load());
-    root.querySelector('button.publish-once').addEventListener('click', () => this.publish());
+    root.querySelector('button.publish-once').addEventListener('click', () => this.publishOnce());
     root.querySelector('button.publish-repeat').addEventListener('click', () => this.toggleRepeat());
     this.topicInput.addEventListener('change', () => this.guessType());
   }
@@ -61,7 +61,13 @@ export class PublishPanel {
     }
   }
 
-  publish() {
+  publishOnce() {
+    const topic = this.topicInput.value.trim();
+    this.send()?.then(() => this.say(`Published on ${topic}.`, 'ok'), error => this.refused(topic, error));
+  }
+
+  // Sends the form's message; a promise of its fate, or undefined (said why) when nothing could be sent.
+  send() {
     const topic = this.topicInput.value.trim();
     if (!this.session) return this.say('Not connected: nothing published.', 'error');
     if (!this.form) return this.say('Load a message type first.', 'error');
@@ -70,11 +76,16 @@ export class PublishPanel {
     if (message === null) return this.say('Nothing published: fix the highlighted fields.', 'error');
     if (this.publisher?.topic !== topic || this.publisher?.type !== this.formType) {
       this.publisher?.close();
-      this.publisher = { topic, type: this.formType, ...this.session.advertise(topic, this.formType) };
+      const onError = text => this.refused(topic, new Error(text));
+      this.publisher = { topic, type: this.formType, ...this.session.advertise(topic, this.formType, { onError }) };
     }
-    this.publisher.publish(message);
-    this.say(`Published on ${topic}.`, 'ok');
-    return true;
+    this.say(`Publishing on ${topic}…`, 'info');
+    return this.publisher.publish(message);
+  }
+
+  refused(topic, error) {
+    this.stopRepeat();
+    this.say(`Not published on ${topic}: ${error.message}`, 'error');
   }
 
   toggleRepeat() {
@@ -85,10 +96,17 @@ export class PublishPanel {
     const rate = Number(this.rateInput.value.replace(',', '.'));
     if (!(rate > 0 && rate <= MAX_RATE_HZ)) {
       this.say(`Rate: a number of Hz, up to ${MAX_RATE_HZ}.`, 'error');
-    } else if (this.publish()) {
-      this.timer = setInterval(() => this.publish() || this.stopRepeat(), 1000 / rate);
-      this.root.querySelector('button.publish-repeat').textContent = 'Stop';
+      return;
     }
+    const topic = this.topicInput.value.trim();
+    const repeat = () => {
+      const sent = this.send();
+      sent?.catch(error => this.refused(topic, error));
+      return sent;
+    };
+    if (!repeat()) return;
+    this.timer = setInterval(() => repeat() || this.stopRepeat(), 1000 / rate);
+    this.root.querySelector('button.publish-repeat').textContent = 'Stop';
   }
 
   stopRepeat() {
@@ -97,9 +115,8 @@ export class PublishPanel {
     this.root.querySelector('button.publish-repeat').textContent = 'Publish at rate';
   }
 
-  say(text, kind) {  // (false: so that `return this.say(...)` says nothing was done)
+  say(text, kind) {  // (undefined: so that `return this.say(...)` says nothing was sent)
     this.status.textContent = text;
     this.status.className = `publish-status ${kind}`;
-    return false;
   }
 }

@@ -52,6 +52,7 @@ function readNumbers(ids, options) {
 
 export function feedback(text, kind = 'info') {
   const list = $('feedback');
+  if (list.firstChild?.lastChild.textContent === text) list.firstChild.remove();  // (e.g. every drive command refused)
   const item = document.createElement('li');
   item.className = kind;
   const time = new Date().toLocaleTimeString([], { hour12: false });
@@ -162,19 +163,31 @@ function commandTopic() {
   const name = target();
   if (cmdVel?.name !== name) {
     cmdVel?.publisher.close();
-    cmdVel = { name, publisher: session.advertise(name, 'geometry_msgs/Twist', { queue_size: 1 }) };
+    const onError = text => feedback(`Cannot drive ${name}: ${text}`, 'error');
+    cmdVel = { name, publisher: session.advertise(name, 'geometry_msgs/Twist', { queue_size: 1, onError }) };
   }
   return cmdVel.publisher;
 }
 
-// Never queued while disconnected: a stale command must not move the turtle after a reconnect.
+// Resolves once the bridge had time to refuse the Twist, rejects with its error; null when not connected (never
+// queued while disconnected: a stale command must not move the turtle after a reconnect).
 function publishTwist(linear, angular) {
-  if (!session) return false;
-  (cmdVel?.publisher ?? commandTopic()).publish({
+  if (!session) return null;
+  return (cmdVel?.publisher ?? commandTopic()).publish({
     linear: { x: linear, y: 0, z: 0 },
     angular: { x: 0, y: 0, z: angular },
   });
-  return true;
+}
+
+// Says what became of a Twist sent on the driven topic: `done` once the bridge had time to refuse it.
+function report(sent, done) {
+  const name = target();
+  if (!sent) {
+    feedback('Nothing published: not connected to the bridge.', 'error');
+    return;
+  }
+  sent.then(() => done && feedback(done, 'ok'),
+    error => feedback(`Not published on ${name}: ${error.message}`, 'error'));
 }
 
 function tutorialSpeeds() {
@@ -189,15 +202,12 @@ $('twist-form').addEventListener('submit', e => {
     feedback('Nothing published: fix the highlighted number.', 'error');
     return;
   }
-  if (publishTwist(speeds.linear, speeds.angular)) {
-    feedback(`Published linear.x = ${speeds.linear}, angular.z = ${speeds.angular} on ${target()}.`, 'ok');
-  } else {
-    feedback('Nothing published: not connected to the bridge.', 'error');
-  }
+  report(publishTwist(speeds.linear, speeds.angular),
+    `Published linear.x = ${speeds.linear}, angular.z = ${speeds.angular} on ${target()}.`);
 });
 
 const driver = new Driver({
-  publish: publishTwist,
+  publish: (linear, angular) => session && report(publishTwist(linear, angular)),
   // Full stick = the tutorial speeds' magnitudes; the keys give the direction.
   speeds: () => {
     const speeds = tutorialSpeeds();
@@ -218,8 +228,7 @@ $('target').addEventListener('change', switchTarget);
 
 $('stop').addEventListener('click', () => {
   driver.stop();
-  if (publishTwist(0, 0)) feedback(`Stopped: a zero Twist on ${target()}.`, 'ok');
-  else feedback('Not connected to the bridge: nothing could be sent.', 'error');
+  report(publishTwist(0, 0), `Stopped: a zero Twist on ${target()}.`);
 });
 
 // ---- services ----------------------------------------------------------------------------------
