@@ -146,6 +146,8 @@ def test_a_service_called_from_its_generated_form(open_page, ros):
     wait_for(lambda: page.driver.find_elements(By.CSS_SELECTOR, field.format("name")), 10, what="the kill form")
     page.driver.find_element(By.CSS_SELECTOR, field.format("name")).send_keys("nobody")
     page.driver.find_element(By.CSS_SELECTOR, "#tab-services button[type=submit]").click()
+    assert "cannot be undone" in text_of(page, "#tab-services .confirm")  # /kill asks first
+    page.driver.find_element(By.CSS_SELECTOR, "#tab-services .confirm button.yes").click()
     wait_for(lambda: "failed" in text_of(page, ".service-result"), 15, what="the error")
 
 
@@ -337,3 +339,32 @@ def test_publishing_what_the_bridge_refuses_shows_its_error_not_success(open_pag
         assert "Published" not in text_of(page, status) and "already publishes" in text_of(page, status)
     assert text_of(page, "#tab-publish .publish-repeat") == "Publish at rate"  # the refused repeat stopped
 
+
+def param_row(page, name):
+    row = f'#tab-params tr[data-param="{name}"]'
+    wait_for(lambda: page.driver.find_elements(By.CSS_SELECTOR, row), 20, what=f"{name} listed")
+    return row
+
+
+def test_a_deleted_parameter_comes_back_with_undo_and_a_refused_value_is_reported(open_page, ros):
+    ros.run(["rosparam", "set", "/console_undo", "[1, 2.5, x]"])
+    page = open_page()
+    tab(page, "params")
+    row = param_row(page, "/console_undo")
+    value = page.driver.find_element(By.CSS_SELECTOR, f"{row} input")
+    value.clear()
+    value.send_keys("[1, null]")  # a list, as the parameter holds, but ROS parameters cannot hold null
+    page.driver.find_element(By.CSS_SELECTOR, f"{row} button[type=submit]").click()
+    wait_for(lambda: "cannot hold" in text_of(page, f"{row} .err"), 10, what="the bridge's error under the field")
+
+    page.driver.find_element(By.CSS_SELECTOR, f"{row} .delete").click()
+    wait_for(lambda: ros.run(["rosparam", "get", "/console_undo"], check=False).returncode != 0, 10,
+             what="the parameter deleted")
+    wait_for(lambda: not page.driver.find_elements(By.CSS_SELECTOR, row), 10, what="its row gone")
+    status = "#tab-params .param-status"
+    assert "Deleted /console_undo" in text_of(page, status)
+    page.driver.find_element(By.CSS_SELECTOR, f"{status} button.undo").click()
+    wait_for(lambda: ros.run(["rosparam", "get", "/console_undo"], check=False).stdout.split() ==
+             ["-", "1", "-", "2.5", "-", "x"], 10, what="the old value set back")
+    param_row(page, "/console_undo")
+    assert "Restored /console_undo" in text_of(page, status)

@@ -6,6 +6,7 @@ import time
 import pytest
 from geometry_msgs.msg import Twist
 from selenium.webdriver.common.action_chains import ActionChains
+from selenium.webdriver.common.by import By
 from selenium.webdriver.common.keys import Keys
 from selenium.webdriver.support.ui import Select
 from std_srvs.srv import Empty
@@ -237,6 +238,11 @@ def test_touch_joystick_on_a_phone(open_page, world, listen):
     wait_for(lambda: commands.last.angular.z == 0, 10, what="the zero Twist")
 
 
+def confirm(page):
+    """Answers yes to the question an irreversible button asks."""
+    page.driver.find_element(By.CSS_SELECTOR, ".confirm button.yes").click()
+
+
 def open_page_seeing_turtle1(open_page, screen="desktop"):
     page = open_page(screen)
     wait_for(lambda: page.pose(), 15, what="turtle1 in the world view")
@@ -264,6 +270,7 @@ def test_clear_reset_and_spawn_buttons(open_page, world, node, sim, ros):
     wait_for(lambda: page.js("return window.turtleView.segmentCount") > 0, 10, what="a trail")
 
     page.el("clear").click()
+    confirm(page)
     wait_for(lambda: "cleared" in page.el("service-status").text, 10, what="clear to answer")
     sim.wait_output("Clearing turtlesim.")
     assert page.js("return window.turtleView.segmentCount") == 0
@@ -287,6 +294,7 @@ def test_clear_reset_and_spawn_buttons(open_page, world, node, sim, ros):
     assert "error" in page.el("service-status").get_attribute("class")
 
     page.el("reset").click()
+    confirm(page)
     wait_for(lambda: "reset" in page.el("service-status").text, 10, what="reset to answer")
     sim.wait_output("Resetting turtlesim.")
     wait_for(lambda: page.pose("webturtle") is None, 15, what="webturtle gone from the view")
@@ -372,3 +380,19 @@ def test_driving_a_topic_the_bridge_refuses_shows_its_error_not_success(open_pag
     finally:
         other.unregister()
 
+
+def test_reset_and_clear_ask_first(open_page, world, node, sim):
+    page = open_page_seeing_turtle1(open_page)
+    ros_call(node, "/spawn", Spawn, 2.0, 2.0, 0.0, "keepme")
+    wait_for(lambda: page.pose("keepme"), 15, what="keepme in the world view")
+    for button in ("reset", "clear"):
+        page.el(button).click()
+        question = page.driver.find_element(By.CSS_SELECTOR, ".confirm")
+        assert "cannot be undone" in question.text
+        question.find_element(By.CSS_SELECTOR, "button.cancel").click()
+        assert not page.driver.find_elements(By.CSS_SELECTOR, ".confirm")
+        assert page.el(button).is_displayed()
+    time.sleep(1.0)
+    assert "Resetting" not in sim.output().split("Spawning turtle [keepme]")[-1]
+    assert "Clearing" not in sim.output().split("Spawning turtle [keepme]")[-1]
+    assert page.pose("keepme")

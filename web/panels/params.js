@@ -7,6 +7,7 @@ export class ParamsPanel extends Panel {
     super(root, 'Could not list parameters');
     this.list = root.querySelector('.param-list tbody');
     this.count = root.querySelector('.param-count');
+    this.result = root.querySelector('.param-status');
   }
 
   async load(session) {
@@ -46,7 +47,7 @@ export class ParamsPanel extends Panel {
     if (problem || !this.session) return;
     try {
       await this.session.rosapi('set_param', { name, value: JSON.stringify(value) });
-      this.status.textContent = `Set ${name} = ${JSON.stringify(value)}.`;
+      this.say(`Set ${name} = ${JSON.stringify(value)}.`, 'ok');
       this.refresh();
     } catch (err) {
       error.textContent = `Not set: ${err.message}`;
@@ -54,15 +55,42 @@ export class ParamsPanel extends Panel {
     }
   }
 
+  // Deleting takes one click; Undo sets the value it had just before back.
   async remove(name) {
     if (!this.session) return;
     try {
+      const { value } = await this.session.rosapi('get_param', { name });
       await this.session.rosapi('delete_param', { name });
-      this.status.textContent = `Deleted ${name}.`;
+      this.say(`Deleted ${name}.`, 'ok', () => this.restore(name, value));
       this.refresh();
     } catch (err) {
-      this.status.textContent = `Could not delete ${name}: ${err.message}`;
+      this.say(`Could not delete ${name}: ${err.message}`, 'error');
     }
+  }
+
+  async restore(name, value) {
+    if (!this.session) return;
+    try {
+      await this.session.rosapi('set_param', { name, value });
+      this.say(`Restored ${name} = ${value}.`, 'ok');
+      this.refresh();
+    } catch (err) {
+      this.say(`Could not restore ${name}: ${err.message}`, 'error');
+    }
+  }
+
+  // What the last Set or Delete did (the panel's status line is for listing failures, and cleared by the next
+  // listing); with an Undo button when given one.
+  say(text, kind, undo) {
+    this.result.className = `param-status ${kind}`;
+    this.result.textContent = text;
+    if (!undo) return;
+    const button = document.createElement('button');
+    button.type = 'button';
+    button.className = 'undo';
+    button.textContent = 'Undo';
+    button.addEventListener('click', undo);
+    this.result.append(' ', button);
   }
 }
 

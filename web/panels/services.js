@@ -2,6 +2,10 @@
 // form generated from its request definition; calling it shows the response, or the error.
 import { definitionText, messageForm, messageTree } from './messages.js';
 import { Panel, fillSelect } from './panel.js';
+import { confirmFirst } from './confirm.js';
+
+// Services whose call cannot be undone (turtlesim's /kill, /clear, /reset, rosapi's delete_param...): asked first.
+const IRREVERSIBLE = /\/(kill|clear|reset|delete\w*|shutdown)$/;
 
 export class ServicesPanel extends Panel {
   constructor(root) {
@@ -11,6 +15,7 @@ export class ServicesPanel extends Panel {
     this.formArea = root.querySelector('.service-form');
     this.result = root.querySelector('.service-result');
     this.form = null;
+    this.asking = false;
     this.select.addEventListener('change', () => this.choose(this.select.value));
     root.querySelector('form').addEventListener('submit', e => {
       e.preventDefault();
@@ -65,6 +70,14 @@ export class ServicesPanel extends Panel {
       return;
     }
     const { name, type } = this.chosen;
+    if (IRREVERSIBLE.test(name)) {
+      if (this.asking) return;  // (Enter in a field while the question is shown)
+      this.asking = true;
+      const agreed = await confirmFirst(this.root.querySelector('button[type=submit]'),
+        `Call ${name}? This cannot be undone.`, 'Call');
+      this.asking = false;
+      if (!agreed) return;
+    }
     this.result.textContent = `Calling ${name}…`;
     try {
       const response = await this.session.call(name, type, request);

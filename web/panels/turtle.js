@@ -4,6 +4,7 @@
 import { WorldView, WORLD_M } from './world.js';
 import { Driver } from './drive.js';
 import { readAddress, keepInAddress } from '../address.js';
+import { confirmFirst } from './confirm.js';
 
 const DISCOVERY_MS = 2000;  // how often the set of turtles (and of Twist topics to drive) is refreshed
 const DRIVE_PARAM = 'drive';  // ?drive=/rover/cmd_vel: the Twist topic driven, kept in the page's address
@@ -247,15 +248,23 @@ async function callService(name, type, args, done) {
   }
 }
 
-$('clear').addEventListener('click', () => callService('/clear', 'std_srvs/Empty', {}, () => {
-  view.clearTrails();
-  return 'Trails cleared.';
-}));
+$('clear').addEventListener('click', async () => {
+  if (!await confirmFirst($('clear'), 'Clear every trail? This cannot be undone.', 'Clear trails')) return;
+  callService('/clear', 'std_srvs/Empty', {}, () => {
+    view.clearTrails();
+    return 'Trails cleared.';
+  });
+});
 
-$('reset').addEventListener('click', () => callService('/reset', 'std_srvs/Empty', {}, () => {
-  view.forgetTurtles();
-  return 'World reset: turtle1 is back in the centre.';
-}));
+$('reset').addEventListener('click', async () => {
+  const question = 'Reset the world? Every turtle but a new turtle1 is removed, with the trails. ' +
+    'This cannot be undone.';
+  if (!await confirmFirst($('reset'), question, 'Reset')) return;
+  callService('/reset', 'std_srvs/Empty', {}, () => {
+    view.forgetTurtles();
+    return 'World reset: turtle1 is back in the centre.';
+  });
+});
 
 $('spawn-form').addEventListener('submit', e => {
   e.preventDefault();
