@@ -2,6 +2,7 @@
 (symlinks included), never the npm tree or dot files, and with headers that stop a browser from sniffing types
 or another site from framing the page (a framed control page could be clicked into driving the robot)."""
 import os
+import re
 
 import tornado.web
 
@@ -13,6 +14,7 @@ SECURITY_HEADERS = {
 PAGE_FILE_KINDS = {".html", ".js", ".mjs", ".css", ".png", ".svg", ".ico", ".jpg", ".jpeg", ".webp", ".woff2",
                    ".map"}
 HIDDEN_FOLDERS = {"node_modules"}
+VENDOR_FILE = re.compile(r"\bvendor/([\w.-]+)")  # how the page's own files name a library (tools/setup installs them)
 
 
 class PageFiles(tornado.web.StaticFileHandler):
@@ -28,3 +30,16 @@ class PageFiles(tornado.web.StaticFileHandler):
                 or os.path.splitext(real)[1].lower() not in PAGE_FILE_KINDS):
             raise tornado.web.HTTPError(404)
         return super().validate_absolute_path(root, absolute_path)
+
+
+def missing_files(web_root):
+    """The files of web_root/vendor/ that the page's own .html and .js files name but that are absent, sorted."""
+    named = set()
+    for folder, subfolders, files in os.walk(web_root):
+        subfolders[:] = [name for name in subfolders if name not in HIDDEN_FOLDERS | {"vendor"}
+                         and not name.startswith(".")]
+        for name in files:
+            if os.path.splitext(name)[1] in (".html", ".js"):
+                with open(os.path.join(folder, name), encoding="utf-8", errors="replace") as page_file:
+                    named.update(VENDOR_FILE.findall(page_file.read()))
+    return sorted(name for name in named if not os.path.isfile(os.path.join(web_root, "vendor", name)))

@@ -18,7 +18,7 @@ import tornado.web
 from rosbridge import protocol
 from rosbridge.accepting import accept_connections
 from rosbridge.globs import Globs, parse_globs
-from rosbridge.pages import PageFiles
+from rosbridge.pages import PageFiles, missing_files
 from rosbridge.ros_side import RosBackend
 from rosbridge.ros_side.recovery import MasterWatch
 from rosbridge.rosapi import Rosapi
@@ -111,6 +111,9 @@ def main():
     web_root = current.web_root or str(Path(rospkg.RosPack().get_path("turtlesim")) / "web")
     if web_root.lower() == "none":
         web_root = ""
+    if web_root and (missing := missing_files(web_root)):
+        rospy.logwarn("The page in %s lacks %s (its vendor/ folder): run bash tools/setup in the turtlesim source "
+                      "folder, which installs them from npm", web_root, ", ".join(missing))
     max_frame = 4 * current.max_message_size or 1 << 30
     app = tornado.web.Application(
         routes(bridge, web_root),
