@@ -1,4 +1,5 @@
-"""One client's outgoing frames: a bounded queue that drops the oldest when the client reads too slowly."""
+"""A bounded queue of outgoing frames that drops the oldest when its reader is too slow: a websocket client's
+(protocol.Session), and a ROS subscriber's of a topic the bridge publishes (ros_side/links.py)."""
 import collections
 
 
@@ -30,6 +31,12 @@ class FrameQueue:
         frame = self._frames.popleft()
         self.bytes -= len(frame)
         return frame
+
+    def take_all(self):
+        """Every frame waiting, oldest first; the queue is then empty."""
+        frames = list(self._frames)
+        self.clear()
+        return frames
 
     def take_dropped(self):
         dropped, self.dropped = self.dropped, 0

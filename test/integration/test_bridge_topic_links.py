@@ -4,6 +4,7 @@ the bridge), one that refuses it, a subscriber that stops reading."""
 import socket
 import struct
 import threading
+import time
 import xmlrpc.client
 from xmlrpc.server import SimpleXMLRPCServer
 
@@ -11,7 +12,7 @@ import pytest
 from std_msgs.msg import String
 
 from bridge_client import WsClient
-from harness import start_bridge, wait_for
+from harness import ProcStat, node_pid, start_bridge, wait_for
 
 from rosbridge import tcpros
 
@@ -131,6 +132,36 @@ def test_a_subscriber_that_stops_reading_holds_up_nobody_and_gets_whole_messages
                 assert size == len(message) - 4 and rest == filler, "a torn message"
                 numbers.append(int(number))
         assert numbers == sorted(numbers) and len(numbers) < count, "the queue (10) held more than it may"
+    finally:
+        stuck.close()
+        reader.unregister()
+        ws.close()
+
+
+def test_what_waits_for_a_stuck_subscriber_is_bounded_in_bytes_whatever_its_queue_size(bridge, ros, node):
+    """A client may ask for any queue_size: the messages waiting for a subscriber that does not read stay within
+    a byte bound (the newest kept), so big messages cannot pile up in the bridge."""
+    topic, count, filler = "/links_test/stuck_big", 60, "x" * 3_000_000  # 180 MB in all
+    ws = WsClient(f"ws://127.0.0.1:{bridge}/")
+    ws.send({"op": "advertise", "topic": topic, "type": "std_msgs/String", "queue_size": 2**62})
+    got = []
+    reader = node.Subscriber(topic, String, lambda m: got.append(int(m.data.split(":")[0])), queue_size=2)
+    wait_for(lambda: reader.get_num_connections() >= 1, 20, what="the reading subscriber connected")
+    bridge_node = xmlrpc.client.ServerProxy(ros.master().lookupNode("/links_bridge"))
+    _, _, (_, host, port) = bridge_node.requestTopic("/stuck_subscriber", topic, [["TCPROS"]])
+    stuck = socket.socket()
+    stuck.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    stuck.connect((host, port))
+    bridge_memory = ProcStat(node_pid(ros, "/links_bridge"))
+    try:
+        stuck.sendall(tcpros.encode_header(tcpros.subscriber_header(topic, String, "/stuck_subscriber")))
+        time.sleep(1)
+        before = bridge_memory.rss_mb()
+        for i in range(count):
+            ws.send({"op": "publish", "topic": topic, "msg": {"data": f"{i}:{filler}"}})
+        wait_for(lambda: got and got[-1] == count - 1, 60, what="the reading subscriber to get the last message")
+        grown = bridge_memory.rss_mb() - before
+        assert grown < 100, f"the bridge grew {grown:.0f} MB holding messages for a subscriber that does not read"
     finally:
         stuck.close()
         reader.unregister()

@@ -7,7 +7,6 @@ rospy still does the rest of being a node: it registers the bridge's publishers 
 the connections in getBusInfo (each link is a rospy Transport in its topic's list). TopicLinks joins in as the
 first of rospy's protocol handlers: it makes the connections of the topics the bridge's clients use, and leaves
 the node's own topics (/rosout, /client_count) to rospy's TCPROS handler."""
-import collections
 import datetime
 import errno
 import os
@@ -19,13 +18,13 @@ import tornado.gen
 import tornado.netutil
 import tornado.tcpserver
 import tornado.util
-from rospy.impl.registration import RegManager, get_registration_listeners, get_topic_manager
-from rospy.impl.tcpros import get_tcpros_handler
-from rospy.impl.transport import INBOUND, OUTBOUND, ProtocolHandler, Transport
 from tornado.iostream import StreamClosedError
 
 from rosbridge import tcpros
+from rosbridge.borrowed import (INBOUND, OUTBOUND, ProtocolHandler, Transport, get_tcpros_handler,
+                                get_topic_manager, handle_connection, node_protocol_handlers)
 from rosbridge.accepting import accept_connections
+from rosbridge.outgoing import FrameQueue
 
 TCPROS = "TCPROS"
 CONNECT_TIMEOUT = 10.0  # seconds for a publisher to accept the bridge's connection and answer its header
@@ -34,6 +33,7 @@ CONNECT_RETRIES = (0.5, 1, 2, 4, 8, 16, 32, 32)  # seconds before each new try w
 HANDSHAKE_TIMEOUT = 10.0  # seconds for a subscriber to send its header once connected
 READ_CHUNK = 1 << 16  # bytes read at once from a publisher (one wake of the loop for every message in them)
 LINK_QUEUE_LIMIT = 10_000  # messages waiting for a slow subscriber when the topic's queue_size is 0 (unbounded)
+LINK_QUEUE_BYTES = 32_000_000  # and bytes, whatever the queue_size (a client's: up to 2^63); the newest is kept
 
 
 async def read_header(stream):
@@ -208,15 +208,15 @@ class InboundLink(Link):
 class OutboundLink(Link):
     """One subscriber of a topic the bridge publishes. Each message goes straight to the socket while the kernel
     takes it (no future, no further turn of the loop: what a topic at a fixed rate pays on every message); once
-    the socket is backed up, the stream writes the rest and the next messages wait (at most queue_limit, the
-    oldest dropped first), then go out together."""
+    the socket is backed up, the stream writes the rest and the next messages wait (at most queue_limit of them
+    and LINK_QUEUE_BYTES, the oldest dropped first), then go out together."""
 
     def __init__(self, loop, topic, stream, callerid, queue_limit):
         super().__init__(loop, OUTBOUND, topic)
         self.stream, self.endpoint_id = stream, callerid
         self.local_endpoint = stream.socket.getsockname()[:2]
         self.remote_endpoint = stream.socket.getpeername()[:2]
-        self._waiting = collections.deque(maxlen=queue_limit)
+        self._waiting = FrameQueue(queue_limit, LINK_QUEUE_BYTES)
         self._writing = False
 
     def _close_socket(self):
@@ -228,7 +228,7 @@ class OutboundLink(Link):
     def send(self, framed):
         self.stat_num_msg += 1
         if self._writing:
-            self._waiting.append(framed)
+            self._waiting.push(framed)
             return
         sock = self.stream.socket
         if sock is None:  # the stream is closed: watch() closes the link
@@ -258,10 +258,8 @@ class OutboundLink(Link):
         self._writing = False
         if written.exception() is not None:
             self.close()
-        elif self._waiting:
-            data = b"".join(self._waiting)
-            self._waiting.clear()
-            self._write(data)
+        elif len(self._waiting):
+            self._write(b"".join(self._waiting.take_all()))
 
     async def watch(self):
         """Until the subscriber leaves (it sends nothing after its header: anything it does send is dropped)."""
@@ -289,10 +287,8 @@ class TopicLinks(ProtocolHandler):
         self._sockets = tornado.netutil.bind_sockets(0, rosgraph.network.get_bind_address())
         self._port = self._sockets[0].getsockname()[1]
         self._host = rosgraph.network.get_host_name()
-        accept_connections(self._server._handle_connection, self._sockets, refusal_log, loop)
-        node = next(listener.handler for listener in get_registration_listeners().listeners
-                    if isinstance(listener, RegManager))
-        node.protocol_handlers.insert(0, self)
+        accept_connections(handle_connection(self._server), self._sockets, refusal_log, loop)
+        node_protocol_handlers().insert(0, self)
 
     # rospy's ProtocolHandler interface: called on rospy's threads
     def supports(self, protocol):
