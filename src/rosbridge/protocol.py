@@ -29,23 +29,22 @@ LARGEST_INT = 2**63 - 1  # the widest integer ROS has (int64/uint64 aside); any 
 
 
 class Config:
-    """The per-server settings the protocol needs (see settings.py for each)."""
+    """The settings the protocol needs, taken from the server's Settings (settings.py says what each means);
+    keyword arguments override single ones (the unit tests')."""
+    FROM_SETTINGS = ("max_message_size", "fragment_timeout", "max_queue", "authenticate", "auth_time_delta",
+                     "max_topics_per_client")
 
-    def __init__(self, max_message_size=settings.default("max_message_size"),
-                 fragment_timeout=settings.default("fragment_timeout"), max_queue=settings.default("max_queue"),
-                 globs=None, authenticate=False, auth_secret=None,
-                 auth_time_delta=settings.default("auth_time_delta"),
-                 max_topics_per_client=settings.default("max_topics_per_client")):
-        self.max_message_size = max_message_size
-        self.fragment_timeout = fragment_timeout
-        # what may wait for one slow client before the oldest frames are dropped: frames, and bytes
-        self.max_queue = max_queue
-        self.max_queue_bytes = max(32_000_000, 2 * max_message_size)
+    def __init__(self, current=None, globs=None, auth_secret=None, **overrides):
+        current = current or settings.Settings()
+        unknown = set(overrides) - set(self.FROM_SETTINGS)
+        if unknown:
+            raise TypeError(f"Config: unknown settings {sorted(unknown)}")
+        for name in self.FROM_SETTINGS:
+            setattr(self, name, overrides.get(name, getattr(current, name)))
+        # what may wait for one slow client before the oldest frames are dropped: frames (max_queue), and bytes
+        self.max_queue_bytes = max(32_000_000, 2 * self.max_message_size)
         self.globs = globs or globs_module.Globs()
-        self.authenticate = authenticate
         self.auth_secret = auth_secret
-        self.auth_time_delta = auth_time_delta
-        self.max_topics_per_client = max_topics_per_client
 
 
 # JSON types of the fields of each op: (python types, name shown to the client)

@@ -17,6 +17,7 @@ import tornado.web
 
 from rosbridge import protocol
 from rosbridge.accepting import accept_connections
+from rosbridge.borrowed import handle_connection
 from rosbridge.globs import Globs, parse_globs
 from rosbridge.pages import PageFiles, missing_files
 from rosbridge.ros_side import RosBackend
@@ -98,10 +99,7 @@ def main():
             secret = Path(current.secret_file).read_text().strip()
         else:
             rospy.logerr("authenticate is on but secret_file is not set: every client will be refused")
-    config = protocol.Config(max_message_size=current.max_message_size, fragment_timeout=current.fragment_timeout,
-                             max_queue=current.max_queue, globs=globs, authenticate=current.authenticate,
-                             auth_secret=secret, auth_time_delta=current.auth_time_delta,
-                             max_topics_per_client=current.max_topics_per_client)
+    config = protocol.Config(current, globs, auth_secret=secret)
     loop = tornado.ioloop.IOLoop.current()
     rosapi = Rosapi(rosgraph.get_master_uri(), rospy.get_name(), globs, rospy.Time.now)
     backend = RosBackend(loop, rosapi=rosapi, unregister_timeout=current.unregister_timeout)
@@ -114,19 +112,13 @@ def main():
     if web_root and (missing := missing_files(web_root)):
         rospy.logwarn("The page in %s lacks %s (its vendor/ folder): run bash tools/setup in the turtlesim source "
                       "folder, which installs them from npm", web_root, ", ".join(missing))
-    max_frame = 4 * current.max_message_size or 1 << 30
-    app = tornado.web.Application(
-        routes(bridge, web_root),
-        # Tornado closes the socket on frames over its limit; ours answers an error and keeps it open
-        websocket_max_message_size=max_frame,
-        websocket_ping_interval=current.websocket_ping_interval or None,
-        websocket_ping_timeout=current.websocket_ping_timeout)
+    app = tornado.web.Application(routes(bridge, web_root))
     ssl_options = {"certfile": current.certfile, "keyfile": current.keyfile} if current.ssl else None
     sockets = tornado.netutil.bind_sockets(current.port, current.address or None)
     # a connection that sends no request within IDLE_TIMEOUT is closed: idle sockets must not hold descriptors
-    server = tornado.httpserver.HTTPServer(app, ssl_options=ssl_options, max_buffer_size=max_frame,
+    server = tornado.httpserver.HTTPServer(app, ssl_options=ssl_options,
                                            idle_connection_timeout=IDLE_TIMEOUT)
-    accept_connections(server._handle_connection, sockets, lambda text: bridge.log_refusal("fds", text), loop)
+    accept_connections(handle_connection(server), sockets, lambda text: bridge.log_refusal("fds", text), loop)
     port = sockets[0].getsockname()[1]
     rospy.set_param("~actual_port", port)
     MasterWatch(after_recovery=lambda: rospy.set_param("~actual_port", port))

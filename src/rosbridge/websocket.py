@@ -1,107 +1,195 @@
-"""One websocket client on the event loop: reads its frames in turns with the other clients (budget.py), feeds
-them to its protocol Session, and writes the Session's frames as fast as the client reads them."""
-import struct
+"""The websocket clients on the event loop. BridgeSocket answers the opening handshake (or serves the page on
+a plain GET); then a ClientConnection owns the connection's stream (Tornado's IOStream, through its public
+API) and moves bytes between it and two pure objects: websocket_frames.FrameReader (what the client sent,
+frame by frame) and the client's protocol Session. All of it runs on the loop's thread."""
 import time
 
 import tornado.ioloop
 import tornado.iostream
 import tornado.web
-import tornado.websocket
 
-from rosbridge import protocol
+from rosbridge import borrowed, protocol
+from rosbridge import websocket_frames as ws
 from rosbridge.budget import ClientBudget
 from rosbridge.encoding import BIG_BYTES
 from rosbridge.errors import log_bug
 from rosbridge.frames import SplicedFrame, Utf8Text
 from rosbridge.origins import origin_allowed
 from rosbridge.pages import SECURITY_HEADERS
-from rosbridge.websocket_protocol import FairProtocol
 
+READ_CHUNK = 64 * 1024  # bytes asked of a client's stream per read: every frame complete in them is taken at once
 # Frames waiting for a client go to its socket together, up to this many bytes per write: one system call for a
 # burst of small messages instead of one each.
 WRITE_BATCH_BYTES = 64 * 1024
+CLOSE_TIMEOUT = 5.0  # seconds a client has to answer our close frame before the connection is dropped
 
 
-class BridgeSocket(tornado.websocket.WebSocketHandler):
-    """One rosbridge client; a plain HTTP GET (or HEAD) of the same URL gets the index page instead."""
+class BridgeSocket(tornado.web.RequestHandler):
+    """GET / : the websocket handshake of a rosbridge client, or else (a plain GET or HEAD) the index page."""
 
     def initialize(self, bridge, index_page=None):
         self.bridge, self.index_page = bridge, index_page
-        self.session = None
-        self.budget = None
-        self._close_reason = None
-        self._loop = None
-        self._awaiting_drain = False  # frames were written that the socket has not taken yet
 
     def set_default_headers(self):
         for name, value in SECURITY_HEADERS.items():
             self.set_header(name, value)
 
-    async def get(self, *args, **kwargs):
-        if self.request.headers.get("Upgrade", "").lower() != "websocket":
+    def get(self):
+        headers = self.request.headers
+        if headers.get("Upgrade", "").lower() != "websocket":
             if self.index_page is None:
                 raise tornado.web.HTTPError(404)
             self.set_header("Content-Type", "text/html; charset=UTF-8")
             self.finish(self.index_page.read_bytes())
             return
-        if len(self.bridge.clients) >= self.bridge.settings.max_clients:
-            self.bridge.log_refusal("max_clients", f"a client refused: {len(self.bridge.clients)} connected "
-                                    f"(max_clients {self.bridge.settings.max_clients})")
-            self.set_status(503)
-            self.finish("too many clients")
+        refusal = ws.handshake_error(headers) or self._policy_refusal(headers.get("Origin"))
+        if refusal is not None:
+            status, text = refusal
+            self.set_status(status)
+            if status == 426:
+                self.set_header("Sec-WebSocket-Version", "13")
+            self.finish(text)
             return
-        await super().get(*args, **kwargs)
+        extensions, deflate = None, None
+        if self.bridge.settings.use_compression:
+            extensions, deflate = ws.negotiate_deflate(headers.get("Sec-WebSocket-Extensions", ""))
+        answer = ["HTTP/1.1 101 Switching Protocols", "Upgrade: websocket", "Connection: Upgrade",
+                  "Sec-WebSocket-Accept: " + ws.accept_key(headers["Sec-WebSocket-Key"])]
+        if extensions:
+            answer.append("Sec-WebSocket-Extensions: " + extensions)
+        connection = ClientConnection(self.bridge, self.detach(), self.request.remote_ip, deflate)
+        connection.start(("\r\n".join(answer) + "\r\n\r\n").encode())
 
-    def head(self, *args, **kwargs):
+    def head(self):
         if self.index_page is None:
             raise tornado.web.HTTPError(404)
         self.set_header("Content-Type", "text/html; charset=UTF-8")
         self.set_header("Content-Length", self.index_page.stat().st_size)
         self.finish()
 
-    def get_websocket_protocol(self):
-        websocket = super().get_websocket_protocol()
-        if websocket is not None:
-            websocket.__class__ = FairProtocol  # same state and settings, its own reading (websocket_protocol.py)
-        return websocket
+    def _policy_refusal(self, origin):
+        """(status, text) if the bridge turns this client away: a web page it does not allow, or too many."""
+        bridge, peer = self.bridge, self.request.remote_ip
+        if origin is not None:
+            same_origin = origin.lower().partition("://")[2] == self.request.host.lower()
+            if not origin_allowed(origin, same_origin, peer, bridge.allowed_origins):
+                bridge.refused_origin(origin, peer)
+                return 403, "Cross origin websockets not allowed"
+        if len(bridge.clients) >= bridge.settings.max_clients:
+            bridge.log_refusal("max_clients", f"a client refused: {len(bridge.clients)} connected "
+                               f"(max_clients {bridge.settings.max_clients})")
+            return 503, "too many clients"
+        return None
 
-    def check_origin(self, origin):
-        peer = self.request.remote_ip
-        if origin_allowed(origin, super().check_origin(origin), peer, self.bridge.allowed_origins):
-            return True
-        self.bridge.refused_origin(origin, peer)
-        return False
 
-    def get_compression_options(self):
-        return {} if self.bridge.settings.use_compression else None
+class ClientConnection:
+    """One websocket client after the handshake.
 
-    def open(self, *args):
-        loop = self._loop = tornado.ioloop.IOLoop.current()
-        settings = self.bridge.settings
+    Reading: one read of the stream at a time, asked for only when every frame of the last one has been taken,
+    so that what waits in the bridge is at most one frame being received and one read. The frames are taken in
+    turns with the other clients: after a turn's worth (budget.py), or while the Session holds the client's
+    next requests, the rest waits, and the client's socket with it (backpressure).
+
+    Writing: the Session's queued frames go to the stream while it takes them; once the stream is backed up, the
+    rest stays in the Session's bounded queue until it has drained."""
+
+    def __init__(self, bridge, stream, peer, deflate):
+        self.bridge, self._stream, self._deflate = bridge, stream, deflate
+        settings = bridge.settings
+        self._loop = tornado.ioloop.IOLoop.current()
+        max_frame = 4 * settings.max_message_size or 1 << 30  # bigger ones are refused by the Session, politely
+        self._reader = ws.FrameReader(max_frame, deflate=deflate is not None, unmask=borrowed.websocket_mask)
         self.budget = ClientBudget(settings.max_frames_per_second, settings.max_bytes_per_second, time.monotonic)
-        self.session = protocol.Session(self.bridge.backend, self.bridge.config, time.time, loop.call_later,
-                                        self._wake, self._close_after_sending, name=self.request.remote_ip)
-        self.set_nodelay(True)
+        self.session = protocol.Session(bridge.backend, bridge.config, time.time, self._loop.call_later,
+                                        self._wake, self._close_after_sending, name=peer,
+                                        resume_reading=self._resume)
+        self._waiting = None  # what reading waits for: "read", "turn" (a timer), "session", or "end"
+        self._turn_timer = None
+        self._closing = False  # our close frame is sent: nothing else goes out
+        self._close_reason = None  # the Session asked to close once its queue is sent
+        self._drop_timer = None
+        self._awaiting_drain = False  # written data the socket has not taken yet
+        self._control_unsent = 0  # bytes of pongs written since the socket last drained
+        self._pinger, self._ping_sent = None, None
+
+    def start(self, handshake_answer):
+        stream = self._stream
+        stream.set_close_callback(self._on_stream_closed)
+        stream.set_nodelay(True)
+        stream.write(handshake_answer)
         self.bridge.client_opened(self)
+        interval = self.bridge.settings.websocket_ping_interval
+        if interval:
+            self._pinger = tornado.ioloop.PeriodicCallback(self._ping, interval * 1000)
+            self._pinger.start()
+        self._take_frames()
 
-    def on_message(self, message):
-        if isinstance(message, bytes):
-            self.session.handle_binary(message)
-        else:
-            self.session.handle_text(message)
+    # ---- reading ---------------------------------------------------------------------------------
+    def _read(self):
+        self._waiting = "read"
+        try:
+            self._stream.read_bytes(READ_CHUNK, partial=True).add_done_callback(self._received)
+        except tornado.iostream.StreamClosedError:
+            self._waiting = "end"
 
-    def on_ping(self, data):
-        # Tornado has queued the pong: a client that pings but never reads would grow that buffer forever
-        stream = self.ws_connection.stream if self.ws_connection is not None else None
-        if stream is not None and not stream.closed() \
-                and len(stream._write_buffer) > self.bridge.config.max_queue_bytes:
-            self.close(1008, "not reading (pongs piling up)")
+    def _received(self, read):
+        if read.cancelled() or read.exception() is not None:  # closed (the close callback cleans up)
+            self._waiting = "end"
+            return
+        self._reader.receive(read.result())
+        self._take_frames()
 
-    def on_close(self):
-        if self.session is not None:
-            self.session.closed()
-        self.bridge.client_closed(self)
+    def _resume(self):
+        """The Session handles the client's requests again."""
+        if self._waiting == "session":
+            self._loop.add_callback(self._take_frames)
 
+    def _take_frames(self):
+        """Handles the frames received, one turn's worth at most; reads again once none is left."""
+        self._turn_timer, self._waiting = None, None
+        reader, budget, session = self._reader, self.budget, self.session
+        try:
+            while not self._stream.closed():
+                if session.holding:
+                    self._waiting = "session"
+                    return
+                event = reader.next_event()
+                if event is None:
+                    self._read()
+                    return
+                kind, payload, size = event
+                if kind == ws.TEXT:
+                    if not self._closing:  # (after our close frame, only the client's close matters)
+                        session.handle_text(payload)
+                elif kind != ws.PART:
+                    self._handle_other(kind, payload)
+                    if self._waiting == "end":
+                        return
+                delay = budget.after_frame(size)
+                if delay is not None:  # (0: the other clients' turn first)
+                    self._waiting, self._turn_timer = "turn", self._loop.call_later(delay, self._take_frames)
+                    return
+        except ws.ProtocolError as error:
+            self._waiting = "end"
+            self.close(error.code, error.reason, then_drop=True)
+        except Exception:  # a bug: this client is dropped, the others go on
+            self._waiting = "end"
+            log_bug("reading a websocket client's frames")
+            self._stream.close()
+
+    def _handle_other(self, kind, payload):
+        if kind == ws.BINARY:
+            if not self._closing:
+                self.session.handle_binary(payload)
+        elif kind == ws.PING:
+            self._write_control(ws.control_frame(ws.PONG, payload))
+        elif kind == ws.PONG:
+            self._ping_sent = None
+        elif kind == ws.CLOSE:  # answered (unless it answers ours), then the connection ends
+            code, _ = payload
+            self.close(None if code == ws.NO_STATUS else code, then_drop=True)
+
+    # ---- writing ---------------------------------------------------------------------------------
     def _wake(self):
         self._loop.add_callback(self._flush)
 
@@ -110,13 +198,12 @@ class BridgeSocket(tornado.websocket.WebSocketHandler):
         self._wake()
 
     def _flush(self):
-        """Writes the session's queued frames until the socket is backed up, then resumes when it has
-        drained: a slow client's backlog stays in the session's bounded queue, not in Tornado's buffer."""
+        """Writes the Session's queued frames until the stream is backed up; _drained goes on from there."""
         if self._awaiting_drain:
-            return  # _drained flushes again
-        conn, session = self.ws_connection, self.session
+            return
+        session, stream = self.session, self._stream
         one_at_a_time = bool(self.bridge.settings.delay_between_messages)
-        while conn is not None and not conn.is_closing():
+        while not self._closing and not stream.closed():
             frames, size = [], 0
             while size < WRITE_BATCH_BYTES:
                 frame = session.take_frame()
@@ -133,17 +220,15 @@ class BridgeSocket(tornado.websocket.WebSocketHandler):
                 if one_at_a_time:
                     break
             if frames:
-                try:
-                    written = self._write(conn, frames)
-                except (tornado.iostream.StreamClosedError, tornado.websocket.WebSocketClosedError):
-                    return
-                if conn.stream.writing():
+                written = self._write(frames)
+                if stream.writing():
                     self._awaiting_drain = True
                     written.add_done_callback(self._drained)
                     return
+                self._control_unsent = 0
             if frame is None:  # the queue is empty: the next frame queued wakes us again
                 if self._close_reason is not None:
-                    self.close(1008, self._close_reason)
+                    self.close(ws.POLICY, self._close_reason)
                 return
             if one_at_a_time:
                 self._loop.call_later(self.bridge.settings.delay_between_messages, self._flush)
@@ -151,25 +236,23 @@ class BridgeSocket(tornado.websocket.WebSocketHandler):
 
     def _drained(self, written):
         self._awaiting_drain = False
+        self._control_unsent = 0
         if not written.cancelled() and written.exception() is None:
             self._flush()
 
-    def _write(self, conn, frames):
-        """Sends frames; returns the stream's write future. Without permessage-deflate they go straight to the
-        stream, small ones joined in one write, a big payload or part (an image) by reference, not copied: the
-        same bytes for every client, and none of the Task that write_message wraps around each frame."""
-        if self.bridge.settings.use_compression:
-            for frame in frames:
-                written = self.write_message(bytes(frame) if isinstance(frame, SplicedFrame) else frame,
-                                             binary=_is_binary(frame))
-            return written
-        stream, joined = conn.stream, []
+    def _write(self, frames):
+        """Writes frames to the stream; returns the future of the last write. Small ones are joined into one
+        write; a big payload or part (an image) goes by reference, not copied: the same bytes for every client.
+        With permessage-deflate, each frame is compressed for this client."""
+        stream, joined = self._stream, []
         for frame in frames:
-            if isinstance(frame, SplicedFrame):
-                parts, size = frame.parts, len(frame)
-            else:
-                parts, size = (frame,), len(frame)
-            joined.append(websocket_header(size, 0x2 if _is_binary(frame) else 0x1))
+            opcode = ws.TEXT if _is_text(frame) else ws.BINARY
+            if self._deflate is not None:
+                payload = self._deflate.compress(bytes(frame))
+                joined += (ws.frame_header(len(payload), opcode, compressed=True), payload)
+                continue
+            parts = frame.parts if isinstance(frame, SplicedFrame) else (frame,)
+            joined.append(ws.frame_header(len(frame), opcode))
             for part in parts:
                 if len(part) < BIG_BYTES:
                     joined.append(part)
@@ -179,17 +262,67 @@ class BridgeSocket(tornado.websocket.WebSocketHandler):
                     stream.write(part)
         return stream.write(b"".join(joined))  # (done once everything before it is written too)
 
+    def _write_control(self, frame):
+        """A pong: a client that pings but never reads must not grow what waits for its socket."""
+        if self._closing or self._stream.closed():
+            return
+        self._control_unsent += len(frame)
+        if self._control_unsent > self.bridge.config.max_queue_bytes:
+            self.close(ws.POLICY, "not reading (pongs piling up)", then_drop=True)
+            return
+        written = self._stream.write(frame)
+        if not self._stream.writing():
+            self._control_unsent = 0
+        elif not self._awaiting_drain:
+            self._awaiting_drain = True
+            written.add_done_callback(self._drained)
 
-def _is_binary(frame):
+    # ---- keeping alive, closing ------------------------------------------------------------------
+    def _ping(self):
+        """Every websocket_ping_interval: a ping; a client that has not answered the last one within
+        websocket_ping_timeout is gone (a dropped link sends no FIN)."""
+        now = time.monotonic()
+        if self._ping_sent is not None:
+            if now - self._ping_sent > self.bridge.settings.websocket_ping_timeout:
+                self._stream.close()
+            return
+        if not self._closing and not self._stream.closed():
+            self._ping_sent = now
+            self._stream.write(ws.control_frame(ws.PING))
+
+    def close(self, code=ws.NORMAL, reason="", then_drop=False):
+        """Sends a close frame (code None: without a status) and stops sending anything else. The connection
+        ends when the client answers it, or CLOSE_TIMEOUT later; with then_drop (the client closed, broke the
+        protocol, or does not read), once the frame is written, and nothing more is read."""
+        stream = self._stream
+        if stream.closed():
+            return
+        if then_drop:
+            self._waiting = "end"
+        if not self._closing:
+            self._closing = True
+            written = stream.write(ws.close_frame(code, reason))
+            if then_drop:
+                written.add_done_callback(lambda _: stream.close())
+        elif then_drop:
+            stream.close()
+            return
+        if self._drop_timer is None:
+            self._drop_timer = self._loop.call_later(CLOSE_TIMEOUT, stream.close)
+
+    def _on_stream_closed(self):
+        for timer in (self._turn_timer, self._drop_timer):
+            if timer is not None:
+                self._loop.remove_timeout(timer)
+        if self._pinger is not None:
+            self._pinger.stop()
+        self._waiting = "end"
+        self._reader = None  # (what it holds goes now, not with the session)
+        self.session.closed()
+        self.bridge.client_closed(self)
+
+
+def _is_text(frame):
     if isinstance(frame, SplicedFrame):
-        return not frame.text
-    return not isinstance(frame, str) and not isinstance(frame, Utf8Text)
-
-
-def websocket_header(length, opcode):
-    """The header of an unmasked, unfragmented server-to-client websocket frame (RFC 6455 section 5.2)."""
-    if length < 126:
-        return struct.pack("!BB", 0x80 | opcode, length)
-    if length <= 0xFFFF:
-        return struct.pack("!BBH", 0x80 | opcode, 126, length)
-    return struct.pack("!BBQ", 0x80 | opcode, 127, length)
+        return frame.text
+    return isinstance(frame, (str, Utf8Text))

@@ -9,8 +9,8 @@ import xmlrpc.client
 
 import rosgraph
 import rospy
-import rospy.core
-import rospy.impl.registration
+
+from rosbridge.borrowed import get_node_uri, get_service_manager, get_topic_manager
 
 POLL_PERIOD = 1.0  # seconds between looks at the master
 MASTER_TIMEOUT = 3.0  # seconds one look may take
@@ -68,13 +68,13 @@ def register_again(master_uri):
     """Registers this node's publications, subscriptions and services with the master, and tells its
     subscriptions who publishes now (the master's answer), as a master's publisherUpdate would."""
     master, me = _proxy(master_uri), rospy.get_name()
-    node_uri = rospy.core.get_node_uri()
-    topics = rospy.impl.registration.get_topic_manager()
+    node_uri = get_node_uri()
+    topics = get_topic_manager()
     for topic, type_name in topics.get_publications():
         master.registerPublisher(me, topic, type_name, node_uri)
     for topic, type_name in topics.get_subscriptions():
         code, _, publishers = master.registerSubscriber(me, topic, type_name, node_uri)
         if code == 1:
             _proxy(node_uri).publisherUpdate("/master", topic, publishers)
-    for service, service_uri in rospy.impl.registration.get_service_manager().get_services():
+    for service, service_uri in get_service_manager().get_services():
         master.registerService(me, service, service_uri, node_uri)

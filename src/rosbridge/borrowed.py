@@ -1,0 +1,47 @@
+"""Every name the bridge takes from the inside of Tornado and rospy (not their documented API), in one place,
+each with why. test/unit/test_borrowed.py checks each against the installed versions (Debian 12: Tornado 6.2,
+rospy 1.15; Debian 13: Tornado 6.4, rospy 1.17), so that a version that moves one fails there, by name, and
+not somewhere in a client's connection.
+
+Everything else the bridge uses of Tornado (RequestHandler.detach, IOStream.read_bytes / write /
+set_close_callback, IOLoop.add_handler, TCPServer) and of rospy is their public API."""
+import rospy.core
+import rospy.impl.masterslave
+import rospy.impl.registration
+import rospy.impl.tcpros
+import rospy.impl.transport
+import tornado.util
+
+# Tornado: unmasking a client's websocket payload in C (tornado.speedups), 15-30x faster than any pure Python
+# way for a camera image; the pure one, websocket_frames.xor_mask, gives the same bytes.
+_mask = tornado.util._websocket_mask
+
+
+def websocket_mask(mask, data):
+    return _mask(mask, bytes(data))  # (it takes read-only bytes only)
+
+
+def handle_connection(server):
+    """Tornado: TCPServer's set-up of one accepted connection (TLS wrapping, then handle_stream). Accepting is
+    ours (accepting.py, which pauses when file descriptors run short); TCPServer.add_sockets cannot pause."""
+    return server._handle_connection
+
+
+# rospy's implementation package (rospy.impl): the bridge's own TCPROS links (ros_side/links.py) join rospy's
+# node as a protocol handler, so that rospy still registers the topics and lists the links in getBusInfo, while
+# the loop moves the messages.
+Transport = rospy.impl.transport.Transport  # a link's base: what rospy lists and closes
+ProtocolHandler = rospy.impl.transport.ProtocolHandler  # what the node asks to connect a topic
+INBOUND, OUTBOUND = rospy.impl.transport.INBOUND, rospy.impl.transport.OUTBOUND
+get_tcpros_handler = rospy.impl.tcpros.get_tcpros_handler  # rospy's own handler, for the node's other topics
+get_topic_manager = rospy.impl.registration.get_topic_manager  # topics' impls: add_connection, the lists
+get_service_manager = rospy.impl.registration.get_service_manager  # the node's services, to register again
+get_node_uri = rospy.core.get_node_uri  # this node's XML-RPC address, to register again
+
+
+def node_protocol_handlers():
+    """The list of protocol handlers of this node's XML-RPC handler (rospy.impl.masterslave.ROSHandler), which
+    it asks in order; the bridge's links go first."""
+    manager = next(listener for listener in rospy.impl.registration.get_registration_listeners().listeners
+                   if isinstance(listener, rospy.impl.registration.RegManager))
+    return manager.handler.protocol_handlers

@@ -1,0 +1,254 @@
+"""RFC 6455 websockets, server side, without I/O (as h11 is for HTTP, or tcpros.FrameReader for TCPROS): the
+opening handshake's answer, a FrameReader that turns what a client sent into its messages and control frames,
+and the bytes of the server's own frames; permessage-deflate (RFC 7692) both ways. Pure: no tornado, no
+sockets; the shell (websocket.py) moves the bytes.
+
+A client's frames come out one event per frame, so that whoever reads can weigh every frame a client sends
+(budget.py), the parts of a fragmented message and the control frames included."""
+import base64
+import hashlib
+import struct
+import zlib
+
+CONTINUATION, TEXT, BINARY, CLOSE, PING, PONG = 0x0, 0x1, 0x2, 0x8, 0x9, 0xA
+PART = -1  # the event of a frame that only carries part of a message
+_FIN, _RSV1, _RESERVED, _MASKED = 0x80, 0x40, 0x70, 0x80
+
+# close codes (RFC 6455 section 7.4.1)
+NORMAL, GOING_AWAY, PROTOCOL_ERROR, NO_STATUS, INVALID_DATA, POLICY, TOO_BIG = 1000, 1001, 1002, 1005, 1007, 1008, 1009
+_SENDABLE_CODES = {1000, 1001, 1002, 1003, 1007, 1008, 1009, 1010, 1011, 1012, 1013, 1014}  # and 3000-4999
+
+_GUID = b"258EAFA5-E914-47DA-95CA-C5AB0DC85B11"
+_LENGTH_16, _LENGTH_64, _CODE = struct.Struct("!H"), struct.Struct("!Q"), struct.Struct("!H")
+_DEFLATE_TAIL = b"\x00\x00\xff\xff"  # what a sync flush ends with, left off on the wire (RFC 7692 7.2.1)
+SERVER_WINDOW_BITS = 12  # our compressor's window: 4 KB of history, about 30 KB of memory per client
+
+
+class ProtocolError(Exception):
+    """The client broke the protocol: the connection ends with this close code and reason."""
+
+    def __init__(self, code, reason):
+        super().__init__(reason)
+        self.code, self.reason = code, reason
+
+
+def accept_key(key):
+    """Sec-WebSocket-Accept for a client's Sec-WebSocket-Key."""
+    return base64.b64encode(hashlib.sha1(key.encode() + _GUID).digest()).decode()
+
+
+def handshake_error(headers):
+    """Why a GET with these request headers (a case-insensitive mapping) cannot be a websocket, as
+    (HTTP status, text), or None if it can."""
+    if "upgrade" not in headers.get("Connection", "").lower():
+        return 400, "Connection header must include 'Upgrade'"
+    if headers.get("Sec-WebSocket-Version") != "13":
+        return 426, "only websocket version 13 is supported (Sec-WebSocket-Version: 13)"
+    key = headers.get("Sec-WebSocket-Key", "")
+    try:
+        if len(base64.b64decode(key, validate=True)) != 16:
+            raise ValueError
+    except ValueError:
+        return 400, "Sec-WebSocket-Key must be 16 bytes in base64"
+    return None
+
+
+def negotiate_deflate(offers):
+    """The answer to a client's Sec-WebSocket-Extensions header: (our Sec-WebSocket-Extensions value, the
+    Deflate to write with), or (None, None) if no permessage-deflate offer can be taken. We never keep our own
+    context between messages (server_no_context_takeover: no history held per client between messages)."""
+    for offer in offers.split(","):
+        name, *params = [part.strip() for part in offer.split(";")]
+        if name != "permessage-deflate":
+            continue
+        asked, ok = {}, True
+        for param in params:
+            key, _, value = param.partition("=")
+            key, value = key.strip(), value.strip().strip('"')
+            if key in asked or key not in ("server_no_context_takeover", "client_no_context_takeover",
+                                           "server_max_window_bits", "client_max_window_bits"):
+                ok = False
+            asked[key] = value
+        bits = asked.get("server_max_window_bits", "15") or "x"
+        if not ok or not bits.isdigit() or not 9 <= int(bits) <= 15:
+            continue  # (zlib writes raw deflate with windows of 9 to 15 bits only)
+        answer = ["permessage-deflate", "server_no_context_takeover"]
+        if "server_max_window_bits" in asked:
+            answer.append(f"server_max_window_bits={bits}")
+        if "client_no_context_takeover" in asked:
+            answer.append("client_no_context_takeover")
+        return "; ".join(answer), Deflate(min(int(bits), SERVER_WINDOW_BITS))
+    return None, None
+
+
+class Deflate:
+    """Compresses the server's messages (each on its own: no context kept between them)."""
+
+    def __init__(self, window_bits=SERVER_WINDOW_BITS):
+        self._compressor = zlib.compressobj(6, zlib.DEFLATED, -max(window_bits, 9), 5)
+
+    def compress(self, payload):
+        data = self._compressor.compress(payload) + self._compressor.flush(zlib.Z_FULL_FLUSH)
+        return data[:-4] if data.endswith(_DEFLATE_TAIL) else data + b"\x00"  # (an empty block: RFC 7692 7.2.3.6)
+
+
+def frame_header(length, opcode, compressed=False):
+    """The header of a server frame: unmasked, final (RFC 6455 section 5.2)."""
+    first = _FIN | opcode | (_RSV1 if compressed else 0)
+    if length < 126:
+        return bytes((first, length))
+    if length <= 0xFFFF:
+        return bytes((first, 126)) + _LENGTH_16.pack(length)
+    return bytes((first, 127)) + _LENGTH_64.pack(length)
+
+
+def control_frame(opcode, payload=b""):
+    """A ping, pong or close frame of the server (payload: at most 125 bytes)."""
+    return frame_header(len(payload), opcode) + payload
+
+
+def close_frame(code=None, reason=""):
+    """A close frame; code None: without a status (what answers a client's close without one)."""
+    if code is None:
+        return control_frame(CLOSE)
+    return control_frame(CLOSE, _CODE.pack(code) + reason.encode()[:123])
+
+
+def xor_mask(mask, data):
+    """data unmasked with a client's 4-byte mask (the shell may pass a faster one to FrameReader)."""
+    count = len(data)
+    key = (mask * (count // 4 + 1))[:count]
+    return (int.from_bytes(data, "little") ^ int.from_bytes(key, "little")).to_bytes(count, "little")
+
+
+class FrameReader:
+    """The frames of one client. `receive(data)` takes what was read; each `next_event()` gives the next frame's
+    event, or None until more bytes come:
+      (TEXT, str, size)    a whole text message (UTF-8 checked)
+      (BINARY, bytes, size) a whole binary message
+      (PART, None, size)   a frame holding part of a message that is not complete yet
+      (PING, bytes, size), (PONG, bytes, size)
+      (CLOSE, (code, reason), size)    code NO_STATUS if the client gave none
+    size: the frame's payload bytes, or for the last frame of a compressed message what the whole message
+    unpacked to beyond the frames before. A frame that breaks the protocol raises ProtocolError, and so does
+    a message over max_size bytes (TOO_BIG, before its payload is read); the reader is done after that.
+
+    What it holds: at most one incomplete frame (max_size bytes) and the bytes given to it beyond that, which
+    the shell keeps small by reading only when next_event() has said None; and one message being put together
+    (max_size bytes)."""
+
+    def __init__(self, max_size, deflate=False, unmask=xor_mask):
+        self.max_size, self._unmask = max_size, unmask
+        self._buffer = bytearray()
+        self._start = 0  # where the next frame starts in _buffer
+        self._parts = None  # the fragments of the message being put together
+        self._opcode = None  # the opcode of that message
+        self._compressed = False  # whether it is compressed
+        self._inflater = zlib.decompressobj(-15) if deflate else None
+
+    @property
+    def buffered(self):
+        """Bytes received and not taken yet."""
+        return len(self._buffer) - self._start
+
+    def receive(self, data):
+        if self._start:
+            del self._buffer[:self._start]
+            self._start = 0
+        self._buffer += data
+
+    def next_event(self):
+        buf, start = self._buffer, self._start
+        available = len(buf) - start
+        if available < 2:
+            return None
+        first, second = buf[start], buf[start + 1]
+        opcode, length, head = first & 0x0F, second & 0x7F, 2
+        if first & _RESERVED and not (first & _RESERVED == _RSV1 and self._inflater is not None and opcode in
+                                      (TEXT, BINARY)):
+            raise ProtocolError(PROTOCOL_ERROR, "reserved bits set without an extension that uses them")
+        if not second & _MASKED:
+            raise ProtocolError(PROTOCOL_ERROR, "a client's frames must be masked")
+        if opcode & 0x8:
+            if length > 125 or not first & _FIN:
+                raise ProtocolError(PROTOCOL_ERROR, "control frames must be final and at most 125 bytes")
+            if opcode not in (CLOSE, PING, PONG):
+                raise ProtocolError(PROTOCOL_ERROR, f"unknown opcode {opcode}")
+        elif opcode == CONTINUATION:
+            if self._parts is None:
+                raise ProtocolError(PROTOCOL_ERROR, "continuation frame without a message to continue")
+        elif opcode in (TEXT, BINARY):
+            if self._parts is not None:
+                raise ProtocolError(PROTOCOL_ERROR, "new message before the last one was finished")
+        else:
+            raise ProtocolError(PROTOCOL_ERROR, f"unknown opcode {opcode}")
+        if length == 126:
+            if available < 4:
+                return None
+            (length,), head = _LENGTH_16.unpack_from(buf, start + 2), 4
+        elif length == 127:
+            if available < 10:
+                return None
+            (length,), head = _LENGTH_64.unpack_from(buf, start + 2), 10
+        if length + (self._held() if opcode == CONTINUATION else 0) > self.max_size:
+            raise ProtocolError(TOO_BIG, "message too big")
+        payload_at = start + head + 4
+        end = payload_at + length
+        if len(buf) < end:
+            return None
+        self._start = end
+        if length:
+            with memoryview(buf) as view:
+                payload = self._unmask(view[payload_at - 4:payload_at].tobytes(), view[payload_at:end])
+        else:
+            payload = b""
+        if opcode & 0x8:
+            return self._control(opcode, payload)
+        if opcode != CONTINUATION:
+            self._opcode, self._compressed = opcode, bool(first & _RSV1)
+            if not first & _FIN:
+                self._parts = [payload]
+                return PART, None, length
+        elif not first & _FIN:
+            self._parts.append(payload)
+            return PART, None, length
+        else:
+            self._parts.append(payload)
+            payload, self._parts = b"".join(self._parts), None
+        size = length
+        if self._compressed:  # weighed as what it unpacks to, less what its earlier frames weighed
+            earlier = len(payload) - length
+            payload = self._inflate(payload)
+            size = max(length, len(payload) - earlier)
+        if self._opcode == TEXT:
+            try:
+                return TEXT, payload.decode(), size
+            except UnicodeDecodeError:
+                raise ProtocolError(INVALID_DATA, "text message is not valid UTF-8") from None
+        return BINARY, payload, size
+
+    def _held(self):
+        return sum(map(len, self._parts)) if self._parts else 0
+
+    def _inflate(self, payload):
+        inflater = self._inflater
+        data = inflater.decompress(payload + _DEFLATE_TAIL, self.max_size + 1)
+        if len(data) > self.max_size or inflater.unconsumed_tail:
+            raise ProtocolError(TOO_BIG, "message too big (unpacked)")
+        return data
+
+    def _control(self, opcode, payload):
+        if opcode != CLOSE:
+            return opcode, payload, len(payload)
+        if not payload:
+            return CLOSE, (NO_STATUS, ""), 0
+        if len(payload) < 2:
+            raise ProtocolError(PROTOCOL_ERROR, "close frame with a 1-byte payload")
+        (code,) = _CODE.unpack_from(payload)
+        if code not in _SENDABLE_CODES and not 3000 <= code <= 4999:
+            raise ProtocolError(PROTOCOL_ERROR, f"invalid close code {code}")
+        try:
+            reason = payload[2:].decode()
+        except UnicodeDecodeError:
+            raise ProtocolError(INVALID_DATA, "close reason is not valid UTF-8") from None
+        return CLOSE, (code, reason), len(payload)

@@ -1,0 +1,232 @@
+"""rosbridge.websocket_frames without sockets: a client's bytes in any pieces, every frame kind, every way of
+breaking RFC 6455, permessage-deflate both ways; and the budget's turns over a reader fed a flood."""
+import os
+import struct
+import zlib
+
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from rosbridge import websocket_frames as ws
+from rosbridge.budget import FRAMES_PER_TURN, ClientBudget
+
+
+def client_frame(payload, opcode=ws.TEXT, fin=True, rsv1=False, masked=True, length=None):
+    """A frame as a client sends it (masked with a random key)."""
+    length = len(payload) if length is None else length
+    first = (0x80 if fin else 0) | (0x40 if rsv1 else 0) | opcode
+    if length < 126:
+        head = struct.pack("!BB", first, (0x80 if masked else 0) | length)
+    elif length < 1 << 16:
+        head = struct.pack("!BBH", first, (0x80 if masked else 0) | 126, length)
+    else:
+        head = struct.pack("!BBQ", first, (0x80 if masked else 0) | 127, length)
+    if not masked:
+        return head + payload
+    key = os.urandom(4)
+    return head + key + ws.xor_mask(key, payload)
+
+
+def events(reader):
+    out = []
+    while (event := reader.next_event()) is not None:
+        out.append(event)
+    return out
+
+
+def test_handshake_answer_is_rfc_6455s_example():
+    assert ws.accept_key("dGhlIHNhbXBsZSBub25jZQ==") == "s3pPLMBiTxaQ9kYGzzhZRbK+xOo="
+
+
+@pytest.mark.parametrize("headers, status", [
+    ({"Connection": "Upgrade", "Sec-WebSocket-Version": "13", "Sec-WebSocket-Key": "dGhlIHNhbXBsZSBub25jZQ=="},
+     None),
+    ({"Connection": "keep-alive, Upgrade", "Sec-WebSocket-Version": "13",
+      "Sec-WebSocket-Key": "dGhlIHNhbXBsZSBub25jZQ=="}, None),
+    ({"Connection": "keep-alive", "Sec-WebSocket-Version": "13", "Sec-WebSocket-Key": "dGhlIHNhbXBsZSBub25jZQ=="},
+     400),
+    ({"Connection": "Upgrade", "Sec-WebSocket-Version": "8", "Sec-WebSocket-Key": "dGhlIHNhbXBsZSBub25jZQ=="}, 426),
+    ({"Connection": "Upgrade", "Sec-WebSocket-Version": "13", "Sec-WebSocket-Key": "short"}, 400),
+    ({"Connection": "Upgrade", "Sec-WebSocket-Version": "13"}, 400),
+])
+def test_handshake_errors(headers, status):
+    error = ws.handshake_error(headers)
+    assert (error[0] if error else None) == status
+
+
+def test_frames_in_any_pieces_come_out_whole_and_in_order():
+    big = os.urandom(200_000)
+    data = b"".join([client_frame(b'{"op":"a"}'), client_frame(big, ws.BINARY), client_frame(b"one ", fin=False),
+                     client_frame(b"are you there", ws.PING), client_frame(b"two ", ws.CONTINUATION, fin=False),
+                     client_frame("trois é".encode(), ws.CONTINUATION), client_frame(b"", ws.PONG),
+                     client_frame(struct.pack("!H", 1000) + b"bye", ws.CLOSE)])
+    for size in (1, 2, 3, 7, 1000, 65536, len(data)):
+        reader = ws.FrameReader(1 << 20)
+        got = []
+        for at in range(0, len(data), size):
+            reader.receive(data[at:at + size])
+            got += events(reader)
+        assert [(kind, payload) for kind, payload, _ in got] == [
+            (ws.TEXT, '{"op":"a"}'), (ws.BINARY, big), (ws.PART, None), (ws.PING, b"are you there"),
+            (ws.PART, None), (ws.TEXT, "one two trois é"), (ws.PONG, b""), (ws.CLOSE, (1000, "bye"))]
+        assert [size for _, _, size in got] == [10, 200_000, 4, 13, 4, 8, 0, 5]
+        assert reader.buffered == 0
+
+
+@pytest.mark.parametrize("frame, code", [
+    (client_frame(b"x", masked=False), ws.PROTOCOL_ERROR),
+    (client_frame(b"x", rsv1=True), ws.PROTOCOL_ERROR),  # no extension negotiated
+    (client_frame(b"x", opcode=0x3), ws.PROTOCOL_ERROR),
+    (client_frame(b"x", opcode=0xB), ws.PROTOCOL_ERROR),
+    (client_frame(b"x" * 126, ws.PING), ws.PROTOCOL_ERROR),
+    (client_frame(b"x", ws.PING, fin=False), ws.PROTOCOL_ERROR),
+    (client_frame(b"x", ws.CONTINUATION), ws.PROTOCOL_ERROR),
+    (client_frame(b"a", fin=False) + client_frame(b"b"), ws.PROTOCOL_ERROR),
+    (client_frame(b"\xff\xfe"), ws.INVALID_DATA),
+    (client_frame(b"\x03", ws.CLOSE), ws.PROTOCOL_ERROR),
+    (client_frame(struct.pack("!H", 999), ws.CLOSE), ws.PROTOCOL_ERROR),
+    (client_frame(struct.pack("!H", 1005), ws.CLOSE), ws.PROTOCOL_ERROR),
+    (client_frame(struct.pack("!H", 1000) + b"\xff", ws.CLOSE), ws.INVALID_DATA),
+])
+def test_what_breaks_the_protocol_is_refused_with_its_close_code(frame, code):
+    reader = ws.FrameReader(1000)
+    reader.receive(frame)
+    with pytest.raises(ws.ProtocolError) as refused:
+        events(reader)
+    assert refused.value.code == code
+
+
+def test_a_message_over_the_limit_is_refused_before_its_payload_comes():
+    reader = ws.FrameReader(1000)
+    reader.receive(client_frame(b"", length=1001)[:4])  # the header only
+    with pytest.raises(ws.ProtocolError) as refused:
+        reader.next_event()
+    assert refused.value.code == ws.TOO_BIG
+    reader = ws.FrameReader(1000)  # and in parts
+    reader.receive(client_frame(b"x" * 600, fin=False) + client_frame(b"x" * 600, ws.CONTINUATION)[:4])
+    assert reader.next_event()[0] == ws.PART
+    with pytest.raises(ws.ProtocolError):
+        reader.next_event()
+
+
+def test_an_empty_close_has_no_status():
+    reader = ws.FrameReader(100)
+    reader.receive(client_frame(b"", ws.CLOSE))
+    assert reader.next_event() == (ws.CLOSE, (ws.NO_STATUS, ""), 0)
+
+
+@given(st.binary(max_size=300), st.binary(min_size=4, max_size=4))
+def test_the_pure_and_the_fast_unmasking_agree(data, key):
+    from rosbridge.borrowed import websocket_mask
+    assert ws.xor_mask(key, memoryview(data)) == websocket_mask(key, memoryview(data))
+    assert ws.xor_mask(key, ws.xor_mask(key, data)) == data
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from(["text", "binary", "ping"]), st.binary(max_size=300)), max_size=20),
+       st.lists(st.integers(1, 50), min_size=1, max_size=10))
+def test_any_sequence_of_frames_in_any_cuts_reads_back(messages, cuts):
+    frames, expected = [], []
+    for kind, payload in messages:
+        if kind == "text":
+            text = payload.decode("latin-1")
+            frames.append(client_frame(text.encode()))
+            expected.append((ws.TEXT, text))
+        elif kind == "binary":
+            frames.append(client_frame(payload, ws.BINARY))
+            expected.append((ws.BINARY, payload))
+        else:
+            frames.append(client_frame(payload[:125], ws.PING))
+            expected.append((ws.PING, payload[:125]))
+    data, reader, got, at, index = b"".join(frames), ws.FrameReader(1 << 16), [], 0, 0
+    while at < len(data):
+        size = cuts[index % len(cuts)]
+        reader.receive(data[at:at + size])
+        got += [(kind, payload) for kind, payload, _ in events(reader)]
+        at, index = at + size, index + 1
+    assert got == expected
+
+
+# ---- permessage-deflate ------------------------------------------------------------------------------
+@pytest.mark.parametrize("offer, answer", [
+    ("permessage-deflate; client_max_window_bits", "permessage-deflate; server_no_context_takeover"),
+    ("permessage-deflate", "permessage-deflate; server_no_context_takeover"),
+    ("x-webkit-deflate-frame, permessage-deflate; client_no_context_takeover",
+     "permessage-deflate; server_no_context_takeover; client_no_context_takeover"),
+    ("permessage-deflate; server_max_window_bits=10",
+     "permessage-deflate; server_no_context_takeover; server_max_window_bits=10"),
+    ("permessage-deflate; server_max_window_bits=8", None),  # zlib cannot write that window
+    ("permessage-deflate; mystery", None),
+    ("", None),
+])
+def test_deflate_negotiation(offer, answer):
+    assert ws.negotiate_deflate(offer)[0] == answer
+
+
+def client_deflated(compressor, payload):
+    data = compressor.compress(payload) + compressor.flush(zlib.Z_SYNC_FLUSH)
+    assert data.endswith(b"\x00\x00\xff\xff")
+    return data[:-4]
+
+
+def test_deflated_messages_are_unpacked_and_weighed_as_unpacked():
+    compressor = zlib.compressobj(9, zlib.DEFLATED, -15)  # the client keeps its context between messages
+    text = b'{"op":"publish","topic":"/a","msg":{"data":"' + b"a" * 50_000 + b'"}}'
+    reader = ws.FrameReader(1 << 20, deflate=True)
+    first, second = client_deflated(compressor, text), client_deflated(compressor, text)
+    reader.receive(client_frame(first, rsv1=True) + client_frame(second[:5], fin=False, rsv1=True)
+                   + client_frame(second[5:], ws.CONTINUATION) + client_frame(b"plain"))
+    got = events(reader)
+    assert [(kind, payload) for kind, payload, _ in got] == [
+        (ws.TEXT, text.decode()), (ws.PART, None), (ws.TEXT, text.decode()), (ws.TEXT, "plain")]
+    assert got[0][2] == len(text) and got[1][2] + got[2][2] == len(text)
+
+
+def test_a_small_deflated_message_that_unpacks_over_the_limit_is_refused():
+    compressor = zlib.compressobj(9, zlib.DEFLATED, -15)
+    bomb = client_deflated(compressor, b"0" * 2_000_000)  # a few kilobytes on the wire
+    reader = ws.FrameReader(1_000_000, deflate=True)
+    reader.receive(client_frame(bomb, rsv1=True))
+    with pytest.raises(ws.ProtocolError) as refused:
+        reader.next_event()
+    assert refused.value.code == ws.TOO_BIG
+
+
+def test_what_the_server_deflates_a_client_unpacks():
+    _, deflate = ws.negotiate_deflate("permessage-deflate")
+    decompressor = zlib.decompressobj(-15)
+    for payload in (b"", b"x", os.urandom(1000), b'{"op":"publish"}' * 1000):
+        packed = deflate.compress(payload)
+        assert decompressor.decompress(packed + b"\x00\x00\xff\xff") == payload
+
+
+def test_server_frames():
+    assert ws.frame_header(5, ws.TEXT) == b"\x81\x05"
+    assert ws.frame_header(300, ws.BINARY) == b"\x82\x7e\x01\x2c"
+    assert ws.frame_header(70_000, ws.TEXT, compressed=True) == b"\xc1\x7f" + struct.pack("!Q", 70_000)
+    assert ws.close_frame(1009, "message too big") == b"\x88\x11\x03\xf1message too big"
+    assert ws.close_frame() == b"\x88\x00"
+    assert ws.control_frame(ws.PONG, b"hi") == b"\x8a\x02hi"
+
+
+# ---- the budget over a reader -------------------------------------------------------------------------
+def test_a_flood_is_taken_in_turns_and_nothing_more_is_read_meanwhile():
+    """As the shell does: frames are taken until the budget ends the turn; the next read happens only when
+    the reader is empty, so what the bridge holds stays within one read however the budget answers."""
+    clock = [0.0]
+    budget = ClientBudget(0, 0, lambda: clock[0])  # no rate limit: every answer is "0 s, the others' turn"
+    reader, read_size, flood = ws.FrameReader(1000), 65536, client_frame(b"", ws.PING) * 100_000
+    at, turns, most_held, pongs = 0, 0, 0, 0
+    while at < len(flood) or reader.buffered:
+        event = reader.next_event()
+        if event is None:
+            reader.receive(flood[at:at + read_size])
+            at += read_size
+            most_held = max(most_held, reader.buffered)
+            continue
+        pongs += 1
+        if budget.after_frame(event[2]) is not None:
+            turns += 1
+    assert pongs == 100_000 and turns == 100_000 // FRAMES_PER_TURN
+    assert most_held < read_size + 6  # (one read, and the start of a 6-byte frame)
+
