@@ -22,6 +22,7 @@ READ_CHUNK = 64 * 1024  # bytes asked of a client's stream per read: every frame
 # burst of small messages instead of one each.
 WRITE_BATCH_BYTES = 64 * 1024
 CLOSE_TIMEOUT = 5.0  # seconds a client has to answer our close frame before the connection is dropped
+MAX_PONGS_UNSENT = 1 << 20  # bytes of pongs waiting for a client's socket: beyond, it is not reading; closed
 
 
 class BridgeSocket(tornado.web.RequestHandler):
@@ -267,7 +268,7 @@ class ClientConnection:
         if self._closing or self._stream.closed():
             return
         self._control_unsent += len(frame)
-        if self._control_unsent > self.bridge.config.max_queue_bytes:
+        if self._control_unsent > MAX_PONGS_UNSENT:
             self.close(ws.POLICY, "not reading (pongs piling up)", then_drop=True)
             return
         written = self._stream.write(frame)

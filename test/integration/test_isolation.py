@@ -17,6 +17,10 @@ MAX_GAP = 0.5
 MAX_CALL_TIME = 1.0
 
 
+# MB; what the bridge may hold for a client that does not read its pongs is bounded by far less
+MAX_RSS_GROWTH = {"pings_never_read": 40}
+
+
 @pytest.fixture(scope="module")
 def turtlesim(ros):
     turtle = ros.spawn(["rosrun", "turtlesim", "turtlesim_node", "__name:=isolation_turtle"], "isolation_turtle")
@@ -41,7 +45,8 @@ def test_a_hostile_client_does_not_hurt_a_well_behaved_one(ros, turtlesim, abuse
         assert got["attacker_exit"] == 0, got["attacker"]
         assert got["gap"] < MAX_GAP, f"{abuse}: the victim went {got['gap']:.2f} s without a pose"
         assert got["slowest_call"] < MAX_CALL_TIME, f"{abuse}: a get_time took {got['slowest_call']:.2f} s"
-        assert got["rss_growth"] < 200, f"{abuse}: the bridge grew by {got['rss_growth']:.0f} MB"
+        assert got["rss_growth"] < MAX_RSS_GROWTH.get(abuse, 200), \
+            f"{abuse}: the bridge grew by {got['rss_growth']:.0f} MB"
         assert proc.alive()
     finally:
         proc.stop()
