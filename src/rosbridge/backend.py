@@ -1,12 +1,29 @@
-"""The contract between the protocol (one Session per client) and the ROS side (ros_side.RosBackend).
+"""The contract between the protocol (one Session per client) and the ROS side (ros_side.RosBackend), both
+ways: Backend is what the protocol may ask of the ROS side, Client what the ROS side may call on a client.
 
-Every method runs on the event-loop thread. A method that refuses raises a ClientError whose text goes back
-to the client; any other exception is a bug. Work that can block (the master, making rospy objects) is done
-off the loop: a refusal found out there comes later, through `session.ros_refused(op, name, text)`.
-`session` is the calling client's Session: the ROS side hands messages back through
-`session.deliver(TopicMessage)` and calls of a client's service through
-`session.request_service(call_id, service, args)`, all on the loop."""
+Every method of both runs on the event-loop thread. A Backend method that refuses raises a ClientError whose
+text goes back to the client; any other exception is a bug. Work that can block (the master, making rospy
+objects) is done off the loop: a refusal found out there comes later, through `Client.ros_refused`."""
 import abc
+import typing
+
+
+class Client(typing.Protocol):
+    """What the ROS side may call on a client (protocol.Session), on the loop only: other threads hand their
+    results to the loop first (IOLoop.add_callback; ros_side/__init__.py says who does)."""
+    is_closed: bool  # the client left: nothing more is sent to it
+
+    def deliver(self, message) -> None:
+        """A frames.TopicMessage of a topic the client subscribes to."""
+
+    def ros_refused(self, op: str, name: str, text: str) -> None:
+        """The ROS side could not do what an earlier `op` on `name` asked (found out off the loop)."""
+
+    def request_service(self, call_id: str, service: str, args: dict) -> None:
+        """A ROS call of a service the client provides, to be answered with service_response."""
+
+    def status(self, level: str, msg: str, request_id=None) -> None:
+        """A status message for the client (shown at its status level)."""
 
 
 class Backend(abc.ABC):

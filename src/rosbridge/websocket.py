@@ -134,7 +134,7 @@ class ClientConnection:
             self._waiting = "end"
 
     def _received(self, read):
-        if read.cancelled() or read.exception() is not None:  # closed (the close callback cleans up)
+        if self._reader is None or read.cancelled() or read.exception() is not None:  # closed: see _on_stream_closed
             self._waiting = "end"
             return
         self._reader.receive(read.result())

@@ -61,6 +61,14 @@ def test_the_ros_backend_implements_the_contract_with_its_signatures():
         assert list(inspect.signature(getattr(RosBackend, name)).parameters) == list(contract), name
 
 
+def test_the_session_implements_what_the_ros_side_may_call_on_a_client():
+    from rosbridge.backend import Client
+    for name in [n for n in vars(Client) if not n.startswith("_")]:
+        contract = inspect.signature(getattr(Client, name)).parameters
+        assert list(inspect.signature(getattr(protocol.Session, name)).parameters) == list(contract), name
+    assert "is_closed" in vars(Harness().session)
+
+
 class Harness:
     def __init__(self, **config):
         self.now = 1000.0
