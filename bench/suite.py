@@ -74,7 +74,7 @@ class Run:
 
     def bridge(self, **launch_args):
         """A fresh bridge (the launch file, as a user starts it): (Proc, websocket URL, ProcStat of the server)."""
-        proc, port = harness.start_bridge(self.ros, **launch_args)
+        proc, port = harness.launch_bridge(self.ros, **launch_args)
         return proc, f"ws://127.0.0.1:{port}", harness.ProcStat(harness.node_pid(self.ros, "/rosbridge_websocket"))
 
     def transport(self, *args):
@@ -118,12 +118,15 @@ def rospy_pubsub(run, kind, count, rate=0, queue_size=100):
     return figures
 
 
-def bridge_in(run, url, server, kind, count, rate=0):
+FRAME_BY_FRAME = ("--one-frame-per-write",)  # a synchronous client: one send per frame (ws_roles.py)
+
+
+def bridge_in(run, url, server, kind, count, rate=0, client_args=()):
     """Websocket client publishes (as fast as it can, or at `rate` Hz) through the bridge -> rospy subscriber."""
     topic = run.topic("in")
     sub = run.role("ros_roles.py", "count", "--topic", topic, "--kind", kind, "--count", count)
     client = run.role("ws_roles.py", "publish", "--url", url, "--topic", topic, "--kind", kind, "--count", count,
-                      "--publish-rate", rate)
+                      "--publish-rate", rate, *client_args)
     run.ready(client), run.ready(sub)
     cpu = Cpu(server)
     run.go(client)
@@ -159,14 +162,15 @@ def bridge_out(run, url, server, kind, count, compression="none", rate=0, queue_
     return figures
 
 
-def transport_in(run, count, rate=0, forward=False):
+def transport_in(run, count, rate=0, forward=False, client_args=()):
     """The bare server receiving; with `forward`, also writing each message to a plain TCP reader."""
     sink = run.role("tcp_sink.py") if forward else None
     if sink:
         run.ready(sink)
     forwarding = ("--forward", re.search(r"PORT (\d+)", sink.output()).group(1)) if sink else ()
     server, url, stat = run.transport("--no-echo", *forwarding)
-    client = run.role("ws_roles.py", "publish", "--url", url, "--count", count, "--publish-rate", rate)
+    client = run.role("ws_roles.py", "publish", "--url", url, "--count", count, "--publish-rate", rate,
+                      *client_args)
     run.ready(client)
     cpu = Cpu(stat)
     run.go(client)
@@ -306,25 +310,32 @@ def section_throughput(run, table, rounds, count):
     the bridge: a synchronous rospy publisher (a queued one paces itself, each message then wakes the loop on its
     own: that case is shown too), and a bridge whose max_queue holds the whole burst, so nothing is dropped."""
     queued, sync, ceil_in, ceil_out, into, out, paced = [], [], [], [], [], [], []
+    ceil_in_single, into_single = [], []
     for _ in range(rounds):
         queued.append(rospy_pubsub(run, "twist", count))
         sync.append(rospy_pubsub(run, "twist", count, queue_size=0))
         ceil_in.append(transport_in(run, count))
+        ceil_in_single.append(transport_in(run, count, client_args=FRAME_BY_FRAME))
         ceil_out.append(transport_out(run, count))
         # (no per-client frame limit: the default, 20,000 frames/s after a burst of as many, would be measured)
         bridge, url, server = run.bridge(max_queue=count, max_frames_per_second=0)
         into.append(bridge_in(run, url, server, "twist", count))
+        into_single.append(bridge_in(run, url, server, "twist", count, client_args=FRAME_BY_FRAME))
         out.append(bridge_out(run, url, server, "twist", count, queue_size=0))
         paced.append(bridge_out(run, url, server, "twist", count))
         run.stop(bridge)
-    queued, sync, ceil_in, ceil_out, into, out, paced = map(medians, (queued, sync, ceil_in, ceil_out, into, out,
-                                                                      paced))
-    table.row("client -> ROS: Twist delivered to a rospy subscriber", into["rate"], "msg/s",
-              "bare Tornado+JSON server receiving", ceil_in["rate"], ">= 0.6x", into["rate"] >= 0.6 * ceil_in["rate"])
-    table.row("client -> ROS: messages delivered", into["delivered"], "%", "all sent", 1.0, "100%",
-              into["delivered"] >= 1.0)
-    table.row("client -> ROS: bridge CPU per message", into["server_us"], "µs", "bare Tornado+JSON server",
-              ceil_in["server_us"], "<= 1.5x", into["server_us"] <= 1.5 * ceil_in["server_us"])
+    queued, sync, ceil_in, ceil_out, into, out, paced, ceil_in_single, into_single = map(
+        medians, (queued, sync, ceil_in, ceil_out, into, out, paced, ceil_in_single, into_single))
+    for client, bridged, ceiling in (("batching client", into, ceil_in),
+                                     ("one frame per write", into_single, ceil_in_single)):
+        table.row(f"client -> ROS ({client}): Twist delivered to a rospy subscriber", bridged["rate"], "msg/s",
+                  "bare Tornado+JSON server receiving", ceiling["rate"], ">= 0.6x",
+                  bridged["rate"] >= 0.6 * ceiling["rate"])
+        table.row(f"client -> ROS ({client}): messages delivered", bridged["delivered"], "%", "all sent", 1.0,
+                  "100%", bridged["delivered"] >= 1.0)
+        table.row(f"client -> ROS ({client}): bridge CPU per message", bridged["server_us"], "µs",
+                  "bare Tornado+JSON server", ceiling["server_us"], "<= 1.5x",
+                  bridged["server_us"] <= 1.5 * ceiling["server_us"])
     table.row("client -> ROS: vs plain rospy, queued publisher (queue_size=100)", into["rate"], "msg/s",
               "rospy pub -> sub", queued["rate"])
     table.row("client -> ROS: vs plain rospy, synchronous publisher", into["rate"], "msg/s",

@@ -189,24 +189,41 @@ def make_workdir(prefix):
     return Path(tempfile.mkdtemp(prefix=prefix))
 
 
-def start_bridge(ros, node_name="rosbridge_websocket", timeout=30.0, **launch_args):
-    """Runs `roslaunch turtlesim rosbridge_websocket.launch` on a free port of 127.0.0.1 (launch args may
-    override, e.g. authenticate="true"); returns (Proc, port) once the server listens. Give each bridge that
-    runs at the same time its own node_name."""
-    args = {"port": 0, "address": "127.0.0.1", "node_name": node_name, **launch_args}
-    param = f"/{node_name}/actual_port"
+def start_bridge(ros, node_name="rosbridge_websocket", timeout=30.0, **settings):
+    """Runs the bridge node (`rosrun turtlesim rosbridge_websocket`, its settings set as private parameters,
+    as the launch file sets them: text) on a free port of 127.0.0.1 (settings may override, e.g.
+    authenticate="true"); returns (Proc, port) once the server listens. Give each bridge that runs at the same
+    time its own node_name. The launch file itself is run by launch_bridge."""
     master = ros.master()
-    if master.hasParam(param):
-        master.deleteParam(param)
+    if master.hasParam(f"/{node_name}"):  # (what an earlier bridge of this name was given)
+        master.deleteParam(f"/{node_name}")
+    for name, value in {"port": 0, "address": "127.0.0.1", **settings}.items():
+        master.setParam(f"/{node_name}/{name}", str(value))
+    proc = ros.spawn(["rosrun", "turtlesim", "rosbridge_websocket", f"__name:={node_name}"], node_name)
+    return proc, _listening_port(ros, proc, node_name, timeout)
+
+
+def launch_bridge(ros, node_name="rosbridge_websocket", timeout=30.0, **launch_args):
+    """Runs `roslaunch turtlesim rosbridge_websocket.launch` (launch args may override the free port of
+    127.0.0.1), as a user starts it; returns (Proc, port) once the server listens."""
+    args = {"port": 0, "address": "127.0.0.1", "node_name": node_name, **launch_args}
+    if ros.master().hasParam(f"/{node_name}/actual_port"):  # (an earlier bridge's)
+        ros.master().deleteParam(f"/{node_name}/actual_port")
     proc = ros.spawn(["roslaunch", "turtlesim", "rosbridge_websocket.launch",
                       *(f"{key}:={value}" for key, value in args.items())], node_name)
+    return proc, _listening_port(ros, proc, node_name, timeout)
+
+
+def _listening_port(ros, proc, node_name, timeout):
+    """The port the bridge node writes to ~actual_port once it listens (the callers clear an earlier one)."""
+    master, param = ros.master(), f"/{node_name}/actual_port"
 
     def port():
         if not proc.alive():
             raise AssertionError(f"rosbridge exited early:\n{proc.output()}")
         return master.getParam(param) if master.hasParam(param) else None
 
-    return proc, wait_for(port, timeout, what=f"{param} (bridge log: {proc.log_path})")
+    return wait_for(port, timeout, what=f"{param} (bridge log: {proc.log_path})")
 
 
 def wait_publisher_connected(ros, publisher, topic, subscriber, timeout=20):

@@ -12,7 +12,7 @@ import pytest
 import tornado.httpclient
 
 from bridge_client import WsClient, ping
-from harness import start_bridge
+from harness import launch_bridge
 
 SECRET = "1234567890abcdef"
 
@@ -34,7 +34,7 @@ def auth_frame(**changes):
 def auth_bridge(ros, tmp_path_factory):
     secret_file = tmp_path_factory.mktemp("auth") / "secret"
     secret_file.write_text(SECRET + "\n")
-    proc, port = start_bridge(ros, node_name="auth_bridge", authenticate="true", secret_file=secret_file)
+    proc, port = launch_bridge(ros, node_name="auth_bridge", authenticate="true", secret_file=secret_file)
     yield f"ws://127.0.0.1:{port}/"
     proc.stop()
 
@@ -94,7 +94,7 @@ def test_expired_session_mac_is_refused(auth_bridge):
 
 @pytest.fixture(scope="module")
 def plain_bridge(ros):
-    proc, port = start_bridge(ros, node_name="options_bridge")
+    proc, port = launch_bridge(ros, node_name="options_bridge")
     yield port
     proc.stop()
 
@@ -118,7 +118,7 @@ def test_default_origin_policy_refuses_dns_rebinding(plain_bridge, host):
 
 
 def test_origin_allow_list(ros):
-    proc, port = start_bridge(ros, node_name="origin_bridge", allowed_origins="[http://good.example, https://*.lan]")
+    proc, port = launch_bridge(ros, node_name="origin_bridge", allowed_origins="[http://good.example, https://*.lan]")
     try:
         url = f"ws://127.0.0.1:{port}/"
         assert ping(WsClient(url, headers={"Origin": "http://good.example"}))
@@ -155,7 +155,7 @@ def test_http_get_serves_the_page_and_its_files(plain_bridge):
 
 
 def test_web_root_off(ros):
-    proc, port = start_bridge(ros, node_name="no_page_bridge", web_root="none")
+    proc, port = launch_bridge(ros, node_name="no_page_bridge", web_root="none")
     try:
         with pytest.raises(urllib.error.HTTPError, match="404"):  # no page, the websocket still works
             urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=10)
@@ -168,7 +168,7 @@ def test_wss(ros, tmp_path):
     cert, key = tmp_path / "cert.pem", tmp_path / "key.pem"
     subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "1", "-subj",
                     "/CN=127.0.0.1", "-keyout", str(key), "-out", str(cert)], check=True, capture_output=True)
-    proc, port = start_bridge(ros, node_name="wss_bridge", ssl="true", certfile=cert, keyfile=key)
+    proc, port = launch_bridge(ros, node_name="wss_bridge", ssl="true", certfile=cert, keyfile=key)
     try:
         context = ssl.create_default_context(cafile=str(cert))
         context.check_hostname = False
@@ -180,7 +180,7 @@ def test_wss(ros, tmp_path):
 def test_deflated_frames_count_against_the_byte_budget_as_what_they_unpack_to(ros):
     # a 100 KB message of one repeated character deflates to a few hundred bytes: counted as sent, 30 of them
     # would pass a 1 MB/s budget at once
-    proc, port = start_bridge(ros, node_name="deflate_budget_bridge", use_compression="true",
+    proc, port = launch_bridge(ros, node_name="deflate_budget_bridge", use_compression="true",
                               max_bytes_per_second=1_000_000)
     try:
         ws = WsClient(f"ws://127.0.0.1:{port}/", compression_options={})
@@ -197,7 +197,7 @@ def test_deflated_frames_count_against_the_byte_budget_as_what_they_unpack_to(ro
 
 def test_compression_and_delay_between_messages(ros, node):
     from std_msgs.msg import String
-    proc, port = start_bridge(ros, node_name="deflate_bridge", use_compression="true", delay_between_messages=0.05)
+    proc, port = launch_bridge(ros, node_name="deflate_bridge", use_compression="true", delay_between_messages=0.05)
     pub = node.Publisher("/options_test/deflate", String, queue_size=10, latch=True)
     pub.publish(String("squeeze me " * 100))
     try:
@@ -219,7 +219,7 @@ def test_compression_and_delay_between_messages(ros, node):
 def test_pings_keep_alive_and_drop_a_silent_peer(ros):
     """websocket_ping_interval/timeout: the bridge pings every interval; a peer that never answers (here a raw
     socket that completed the handshake and then went silent, like a phone that lost Wi-Fi) is dropped."""
-    proc, port = start_bridge(ros, node_name="ping_bridge", websocket_ping_interval=0.5, websocket_ping_timeout=1.5)
+    proc, port = launch_bridge(ros, node_name="ping_bridge", websocket_ping_interval=0.5, websocket_ping_timeout=1.5)
     try:
         answering = WsClient(f"ws://127.0.0.1:{port}/")  # Tornado's client answers pings while its loop runs
         with pytest.raises(asyncio.TimeoutError):
