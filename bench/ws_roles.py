@@ -1,6 +1,8 @@
 """Lean rosbridge websocket clients for the benchmarks (Tornado's client; no ROS imports), one role per process.
 
-  publish    advertises a topic, then on cue sends `count` publish ops as fast as the socket takes them
+  publish    advertises a topic, then on cue sends `count` publish ops as fast as the socket takes them; with
+             --one-frame-per-write, from a blocking socket that masks and sends each frame by itself, as
+             synchronous clients do (websocket-client, which roslibpy's users and scripts often use)
   subscribe  subscribes (optionally with compression) and counts the messages and bytes that arrive
   rtt        round trips: publishes pings at `rate` Hz and times the echoes coming back on another topic
   fanout     opens `clients` connections, all subscribed to one topic, and checks every one gets every message
@@ -8,11 +10,17 @@
 Same protocol with bench/suite.py as bench/ros_roles.py: READY, a line on stdin as the cue, `RESULT <json>`."""
 import argparse
 import asyncio
+import base64
 import json
+import os
 import resource
+import socket
+import struct
+import sys
 import time
 
 import cbor2
+from tornado.util import _websocket_mask  # (the client's masking cost is not what is measured)
 from tornado.websocket import websocket_connect
 
 import payloads
@@ -35,6 +43,7 @@ def main():
     p.add_argument("--clients", type=int, default=1)
     p.add_argument("--idle", type=float, default=2.0)
     p.add_argument("--timeout", type=float, default=60.0)
+    p.add_argument("--one-frame-per-write", action="store_true", help="publish: a blocking client, a send per frame")
     a = p.parse_args()
     soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
     resource.setrlimit(resource.RLIMIT_NOFILE, (hard, hard))
@@ -58,6 +67,8 @@ def decode(frame):
 
 
 async def publish(a):
+    if a.one_frame_per_write:
+        return publish_frame_by_frame(a)
     ws = await websocket_connect(a.url, max_message_size=MAX_FRAME)
     await send(ws, {"op": "advertise", "topic": a.topic, "type": payloads.TYPES[a.kind]})
     frame = payloads.publish_frame(a.kind, a.topic)
@@ -74,6 +85,39 @@ async def publish(a):
     await stats.cue()  # stay connected until the suite has counted (closing early could cut the bridge's backlog)
     ws.close()
     await asyncio.sleep(0.2)
+
+
+def publish_frame_by_frame(a):
+    """The publish role as a synchronous client: each frame masked with a fresh key and sent with its own
+    sendall (no batching, no event loop), waiting for nothing from the server."""
+    host, port = a.url.split("//")[1].rstrip("/").split(":")
+    sock = socket.create_connection((host, int(port)))
+    sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+    key = base64.b64encode(os.urandom(16)).decode()
+    sock.sendall(f"GET / HTTP/1.1\r\nHost: {host}:{port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                 f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n\r\n".encode())
+    answer = b""
+    while b"\r\n\r\n" not in answer:
+        answer += sock.recv(4096)
+    assert answer.startswith(b"HTTP/1.1 101"), answer
+
+    def frame(text):
+        data, mask = text.encode(), os.urandom(4)
+        head = struct.pack("!BB", 0x81, 0x80 | len(data)) if len(data) < 126 else \
+            struct.pack("!BBH", 0x81, 0x80 | 126, len(data))
+        return head + mask + _websocket_mask(mask, data)
+
+    sock.sendall(frame(json.dumps({"op": "advertise", "topic": a.topic, "type": payloads.TYPES[a.kind]})))
+    text = payloads.publish_frame(a.kind, a.topic)
+    print("READY", flush=True)
+    sys.stdin.readline()
+    start = time.monotonic()
+    for _ in range(a.count):
+        sock.sendall(frame(text))
+    elapsed = time.monotonic() - start
+    stats.result(sent=a.count, seconds=elapsed, frame_bytes=len(text))
+    sys.stdin.readline()
+    sock.close()
 
 
 async def subscribe(a):
