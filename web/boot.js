@@ -1,6 +1,8 @@
 // Loaded before the rest: when one of the page's libraries cannot be loaded (web/vendor/ missing, e.g. a clone
 // where tools/setup was not run), the page says which and how to get them, instead of "Connecting…" forever.
 // (The bridge warns of the same when it starts: pages.py finds the vendor/ files the page's files name.)
+// It is the one script that acts as it loads, not from app.js's start(): a file that fails to load is seen only by
+// a listener already in place, and app.js itself may be the module that cannot load.
 {
   const LIBRARIES = ['vendor/roslib.min.js', 'vendor/uPlot.esm.js', 'vendor/uPlot.min.css'];
   let reported = false;

@@ -368,3 +368,54 @@ def test_a_deleted_parameter_comes_back_with_undo_and_a_refused_value_is_reporte
              ["-", "1", "-", "2.5", "-", "x"], 10, what="the old value set back")
     param_row(page, "/console_undo")
     assert "Restored /console_undo" in text_of(page, status)
+
+
+def viewers_offered(page, topic):
+    return page.js(f"""return [...document.querySelectorAll('.open-topic[data-topic="{topic}"] button.view')]
+        .map(b => b.dataset.viewer)""")
+
+
+def pixels_like(page, canvas_selector, colour, tolerance=60):
+    """How many pixels of the canvas are close to colour (0 when there is no such canvas)."""
+    return page.js("""const [selector, colour, tol] = arguments;
+        const c = document.querySelector(selector);
+        if (!c || !c.width) return 0;
+        const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+        let n = 0;
+        for (let i = 0; i < d.length; i += 4) {
+          if (Math.abs(d[i] - colour[0]) + Math.abs(d[i + 1] - colour[1]) + Math.abs(d[i + 2] - colour[2]) < tol) n++;
+        }
+        return n;""", canvas_selector, list(colour), tolerance)
+
+
+def test_an_opened_topic_offers_the_viewers_of_its_type_and_the_address_keeps_the_one_shown(open_page, camera):
+    page = open_page()
+    open_topic(page, "/rosout")
+    open_topic(page, "/turtle1/pose")
+    open_topic(page, "/turtle_camera/image_raw")
+    wait_for(lambda: len(open_topics(page)) == 3, 10, what="three topics open")
+    assert viewers_offered(page, "/turtle1/pose") == ["turtle"]
+    assert viewers_offered(page, "/turtle_camera/image_raw") == ["image"]
+    assert viewers_offered(page, "/rosout") == []  # (no viewer declares rosgraph_msgs/Log)
+
+    pose = '.open-topic[data-topic="/turtle1/pose"]'
+    page.driver.find_element(By.CSS_SELECTOR, f'{pose} button.view[data-viewer="turtle"]').click()
+    wait_for(lambda: pixels_like(page, f"{pose} .viewer canvas", (46, 204, 113)) > 20, 10,
+             what="turtle1 drawn in its topic's world view")
+
+    image = '.open-topic[data-topic="/turtle_camera/image_raw"]'
+    page.driver.find_element(By.CSS_SELECTOR, f'{image} button.view[data-viewer="image"]').click()
+    wait_for(lambda: pixels_like(page, f"{image} .viewer canvas", (69, 86, 255)) > 50_000, 15,
+             what="the camera's picture (turtlesim's blue) in its topic")
+    wait_for(lambda: "fps" in text_of(page, f"{image} .camera-stats"), 5, what="its frame rate")
+    assert "bytes" in text_of(page, f"{image} .message")  # the tree shows the binary data's size, not the data
+
+    page.driver.refresh()
+    page.wait_state("connected")
+    wait_for(lambda: len(open_topics(page)) == 3, 20, what="the topics open again")
+    wait_for(lambda: pixels_like(page, f"{image} .viewer canvas", (69, 86, 255)) > 50_000, 15,
+             what="the picture shown again after a reload")
+    assert page.driver.find_element(By.CSS_SELECTOR, f'{pose} button.view').get_attribute("aria-pressed") == "true"
+    page.driver.find_element(By.CSS_SELECTOR, f'{image} button.view').click()  # hidden again, and so kept
+    assert page.driver.find_element(By.CSS_SELECTOR, f"{image} .viewer").get_attribute("hidden") is not None
+    assert "image_raw%3Aimage" not in page.driver.current_url and "pose%3Aturtle" in page.driver.current_url

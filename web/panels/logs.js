@@ -1,11 +1,24 @@
 // Logs (rqt_console): every node's log lines from /rosout_agg as they come, filtered by level, node and text;
 // the newest first, at most HISTORY kept.
+import { Panel } from './panel.js';
+
 const HISTORY = 1000;
 const LEVELS = { 1: 'DEBUG', 2: 'INFO', 4: 'WARN', 8: 'ERROR', 16: 'FATAL' };
 
-export class LogsPanel {
-  constructor(root) {
-    this.root = root;
+export class LogsPanel extends Panel {
+  constructor(root, page) {
+    super(root, page);
+    root.innerHTML = `
+      <p class="hint">Every node's log (/rosout_agg), newest first. <span class="log-count muted"></span></p>
+      <div class="row log-filters">
+        <label>Level <select class="log-level">
+          <option value="1">debug and up</option><option value="2" selected>info and up</option>
+          <option value="4">warnings and up</option><option value="8">errors and up</option></select></label>
+        <label>Node <select class="log-node"><option value="">every node</option></select></label>
+        <label>Text <input class="log-search" type="search" autocomplete="off" placeholder="search"></label>
+        <button type="button" class="log-clear">Clear</button>
+      </div>
+      <ol class="log-lines" aria-live="off"></ol>`;
     this.list = root.querySelector('.log-lines');
     this.level = root.querySelector('select.log-level');
     this.node = root.querySelector('select.log-node');
@@ -22,15 +35,14 @@ export class LogsPanel {
   }
 
   attach(session) {
+    super.attach(session);
     this.subscription = session.subscribe('/rosout_agg', 'rosgraph_msgs/Log', line => this.receive(line));
   }
 
   detach() {
-    this.subscription?.close();
-    this.subscription = null;
+    super.detach();
+    this.subscription = null;  // (gone with the socket)
   }
-
-  show() {}
 
   receive(line) {
     this.lines.unshift(line);

@@ -6,6 +6,7 @@
 const PRIMITIVES = new Set(['bool', 'int8', 'uint8', 'int16', 'uint16', 'int32', 'uint32', 'int64', 'uint64',
   'float32', 'float64', 'string', 'time', 'duration', 'byte', 'char']);
 const INTEGERS = /^u?int(8|16|32|64)$|^byte$|^char$/;
+const LONGEST_LEAF = 200;  // characters of a text shown in a message tree
 
 export function typedefMap(typedefs) {
   return new Map(typedefs.map(t => [t.type, t]));
@@ -36,42 +37,55 @@ export function definitionText(typedefs, type = typedefs[0]?.type) {
 // A live message as nested <details>; leaves show `name: value`. onLeaf(path, element) lets a panel make
 // numeric leaves clickable (path: e.g. ['pose', 'position', 'x']). `open` keeps the branches a person opened.
 export function messageTree(value, { onLeaf, open = new Set(), path = [] } = {}) {
-  if (value !== null && typeof value === 'object') {
-    const list = document.createElement('ul');
-    list.className = 'tree';
-    const entries = Array.isArray(value) ? value.map((v, i) => [String(i), v]) : Object.entries(value);
-    const shown = Array.isArray(value) ? entries.slice(0, 64) : entries;  // a long array stays readable
-    for (const [key, child] of shown) {
-      const item = document.createElement('li');
-      const childPath = [...path, key];
-      if (child !== null && typeof child === 'object') {
-        const details = document.createElement('details');
-        const id = childPath.join('.');
-        details.open = open.has(id) || childPath.length < 2;
-        details.addEventListener('toggle', () => (details.open ? open.add(id) : open.delete(id)));
-        const summary = document.createElement('summary');
-        summary.textContent = Array.isArray(child) ? `${key} [${child.length}]` : key;
-        details.append(summary, messageTree(child, { onLeaf, open, path: childPath }));
-        item.append(details);
-      } else {
-        item.innerHTML = '<span class="key"></span>: <span class="value"></span>';
-        item.firstChild.textContent = key;
-        item.lastChild.textContent = child === null ? 'null' : String(child);
-        if (onLeaf) onLeaf(childPath, item, child);
-      }
-      list.append(item);
-    }
-    if (shown.length < entries.length) {
-      const more = document.createElement('li');
-      more.className = 'muted';
-      more.textContent = `… ${entries.length - shown.length} more`;
-      list.append(more);
-    }
-    return list;
+  if (!isBranch(value)) {
+    const leaf = document.createElement('span');
+    leaf.textContent = leafText(value);
+    return leaf;
   }
-  const leaf = document.createElement('span');
-  leaf.textContent = String(value);
-  return leaf;
+  const list = document.createElement('ul');
+  list.className = 'tree';
+  const entries = Array.isArray(value) ? value.map((v, i) => [String(i), v]) : Object.entries(value);
+  const shown = Array.isArray(value) ? entries.slice(0, 64) : entries;  // a long array stays readable
+  for (const [key, child] of shown) {
+    const item = document.createElement('li');
+    const childPath = [...path, key];
+    if (isBranch(child)) {
+      const details = document.createElement('details');
+      const id = childPath.join('.');
+      details.open = open.has(id) || childPath.length < 2;
+      details.addEventListener('toggle', () => (details.open ? open.add(id) : open.delete(id)));
+      const summary = document.createElement('summary');
+      summary.textContent = Array.isArray(child) ? `${key} [${child.length}]` : key;
+      details.append(summary, messageTree(child, { onLeaf, open, path: childPath }));
+      item.append(details);
+    } else {
+      item.innerHTML = '<span class="key"></span>: <span class="value"></span>';
+      item.firstChild.textContent = key;
+      item.lastChild.textContent = leafText(child);
+      if (onLeaf) onLeaf(childPath, item, child);
+    }
+    list.append(item);
+  }
+  if (shown.length < entries.length) {
+    const more = document.createElement('li');
+    more.className = 'muted';
+    more.textContent = `… ${entries.length - shown.length} more`;
+    list.append(more);
+  }
+  return list;
+}
+
+// Binary arrays (a picture's data as CBOR gives them) are leaves, not branches of a million bytes.
+function isBranch(value) {
+  return value !== null && typeof value === 'object' && !ArrayBuffer.isView(value);
+}
+
+// A long text (a picture's data in base64, as JSON gives it) is cut: the tree is a summary, not a dump.
+function leafText(value) {
+  if (value === null) return 'null';
+  if (ArrayBuffer.isView(value)) return `(${value.byteLength} bytes)`;
+  const text = String(value);
+  return text.length > LONGEST_LEAF ? `${text.slice(0, LONGEST_LEAF)}… (${text.length} characters)` : text;
 }
 
 // A form for one message type: an input per primitive field (nested types as fieldsets, arrays as JSON text),

@@ -1,9 +1,14 @@
 // Nodes (rosnode list / info): every node; choosing one shows what it publishes, subscribes to and provides.
-import { Panel, fillSelect } from './panel.js';
+import { ListPanel, fillSelect } from './panel.js';
 
-export class NodesPanel extends Panel {
-  constructor(root) {
-    super(root, 'Could not list nodes');
+export class NodesPanel extends ListPanel {
+  constructor(root, page) {
+    super(root, page, 'Could not list nodes');
+    root.innerHTML = `
+      <p class="hint">rosnode list · info. <span class="node-count muted"></span></p>
+      <p class="panel-status error" role="status"></p>
+      <label for="node-name" class="sr-only">Node</label><select id="node-name" class="node-name"></select>
+      <div class="node-details"></div>`;
     this.select = root.querySelector('select.node-name');
     this.count = root.querySelector('.node-count');
     this.details = root.querySelector('.node-details');

@@ -1,22 +1,44 @@
-// What every console panel shares: it is given the connected RosSession (attach) and loses it (detach), and it
-// refreshes what it lists when shown. A subclass says what to list (load(session), resolving to plain data) and
-// how to show it (render(data)); a list that did not change is left alone, with a choice or a scroll in it.
+// The one shape of a panel. app.js makes each panel from its row in registry.js, with the element it lives in
+// (empty: the panel fills it) and the page's shared parts (app.js says which); then it hands the panel each
+// connected RosSession (attach) and takes it back when the socket goes (detach), and tells a console tab when it
+// is shown or hidden (show; the panels outside the console are shown once, at start). A panel that keeps a view
+// in the page's address (address.js) reads its key in its constructor and writes it when the person changes it.
+// Nothing happens when a panel's module is imported: the panel starts in its constructor.
 export class Panel {
-  constructor(root, failure) {
+  constructor(root, page) {
     this.root = root;
-    this.failure = failure;  // e.g. 'Could not list nodes'
-    this.status = root.querySelector('.panel-status');
+    this.page = page;
     this.session = null;
-    this.shown = null;
   }
 
   attach(session) {
     this.session = session;
-    this.refresh();
   }
 
   detach() {
     this.session = null;
+  }
+
+  show() {}
+}
+
+// A panel that lists something and refreshes it when shown. A subclass says what to list (load(session),
+// resolving to plain data) and how to show it (render(data)); a list that did not change is left alone, with a
+// choice or a scroll in it. Failures go to the panel's `.panel-status` line.
+export class ListPanel extends Panel {
+  constructor(root, page, failure) {
+    super(root, page);
+    this.failure = failure;  // e.g. 'Could not list nodes'
+    this.shown = null;
+  }
+
+  get status() {
+    return this.root.querySelector('.panel-status');
+  }
+
+  attach(session) {
+    super.attach(session);
+    this.refresh();
   }
 
   show(visible) {

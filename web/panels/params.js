@@ -1,10 +1,16 @@
 // Parameters (rosparam list / get / set / delete): every parameter with its value; editing keeps its type
 // (a number stays a number, a list a list); a value that does not fit is flagged under its field.
-import { Panel } from './panel.js';
+import { ListPanel } from './panel.js';
 
-export class ParamsPanel extends Panel {
-  constructor(root) {
-    super(root, 'Could not list parameters');
+export class ParamsPanel extends ListPanel {
+  constructor(root, page) {
+    super(root, page, 'Could not list parameters');
+    root.innerHTML = `
+      <p class="hint">rosparam list · get · set · delete: a value keeps its type (numbers, true/false,
+        JSON lists and dictionaries). <span class="param-count muted"></span></p>
+      <p class="panel-status error" role="status"></p>
+      <p class="param-status" role="status" aria-live="polite"></p>
+      <div class="scroll"><table class="param-list"><tbody></tbody></table></div>`;
     this.list = root.querySelector('.param-list tbody');
     this.count = root.querySelector('.param-count');
     this.result = root.querySelector('.param-status');

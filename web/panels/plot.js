@@ -11,6 +11,11 @@ const PLOT_PARAM = 'plot';  // ?plot=/turtle1/pose:x&plot=/odom:pose.pose.positi
 export class Plot {
   constructor(root) {
     this.root = root;
+    root.innerHTML = `
+      <div class="row"><strong>Plot</strong> <small class="muted">last ${WINDOW_S} s · click a number in a topic to add it</small>
+        <button type="button" class="plot-pause">Pause</button><button type="button" class="plot-clear">Clear</button></div>
+      <div class="plot-area"></div>
+      <ul class="plot-series"></ul>`;
     this.area = root.querySelector('.plot-area');
     this.legend = root.querySelector('.plot-series');
     this.pauseButton = root.querySelector('button.plot-pause');

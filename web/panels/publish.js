@@ -1,18 +1,32 @@
 // Publish anything (rostopic pub): a topic and a message type; a form generated from the type's definition;
 // publish once, or at a rate until stopped.
 import { messageForm } from './messages.js';
+import { Panel } from './panel.js';
 
 const MAX_RATE_HZ = 100;
 
-export class PublishPanel {
-  constructor(root) {
-    this.root = root;
+export class PublishPanel extends Panel {
+  constructor(root, page) {
+    super(root, page);
+    root.innerHTML = `
+      <p class="hint">rostopic pub, for any message type: a form made from its definition.</p>
+      <div class="row">
+        <label>Topic <input class="publish-topic" autocomplete="off" spellcheck="false" value="/turtle1/cmd_vel"></label>
+        <label>Type <input class="publish-type" autocomplete="off" spellcheck="false" value="geometry_msgs/Twist"></label>
+        <button type="button" class="publish-load">Load form</button>
+      </div>
+      <div class="publish-form service-form"></div>
+      <div class="row">
+        <button type="button" class="publish-once primary">Publish once</button>
+        <label>Rate <input class="publish-rate" inputmode="decimal" value="10" size="5"> Hz</label>
+        <button type="button" class="publish-repeat">Publish at rate</button>
+      </div>
+      <p class="publish-status" role="status" aria-live="polite"></p>`;
     this.topicInput = root.querySelector('input.publish-topic');
     this.typeInput = root.querySelector('input.publish-type');
     this.formArea = root.querySelector('.publish-form');
     this.rateInput = root.querySelector('input.publish-rate');
     this.status = root.querySelector('.publish-status');
-    this.session = null;
     this.form = null;
     this.publisher = null;  // {topic, type, publish, close} on the current session
     this.timer = null;
@@ -22,17 +36,11 @@ export class PublishPanel {
     this.topicInput.addEventListener('change', () => this.guessType());
   }
 
-  attach(session) {
-    this.session = session;
-  }
-
   detach() {
+    super.detach();
     this.stopRepeat();
-    this.session = null;
     this.publisher = null;  // (gone with the socket)
   }
-
-  show() {}
 
   // A topic someone already publishes has a type: fill it in.
   async guessType() {

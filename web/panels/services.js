@@ -1,15 +1,25 @@
 // Services (rosservice list / info / call, rossrv show): every service with its type; choosing one shows a
 // form generated from its request definition; calling it shows the response, or the error.
 import { definitionText, messageForm, messageTree } from './messages.js';
-import { Panel, fillSelect } from './panel.js';
+import { ListPanel, fillSelect } from './panel.js';
 import { confirmFirst } from './confirm.js';
 
 // Services whose call cannot be undone (turtlesim's /kill, /clear, /reset, rosapi's delete_param...): asked first.
 const IRREVERSIBLE = /\/(kill|clear|reset|delete\w*|shutdown)$/;
 
-export class ServicesPanel extends Panel {
-  constructor(root) {
-    super(root, 'Could not list services');
+export class ServicesPanel extends ListPanel {
+  constructor(root, page) {
+    super(root, page, 'Could not list services');
+    root.innerHTML = `
+      <p class="hint">rosservice list · call, and rossrv show. <span class="service-count muted"></span></p>
+      <p class="panel-status error" role="status"></p>
+      <form class="service-call" novalidate>
+        <div class="row"><label for="service-name" class="sr-only">Service</label>
+          <select id="service-name" class="service-name"></select>
+          <button type="submit" class="primary">Call</button></div>
+        <div class="service-form"></div>
+      </form>
+      <div class="service-result" role="status" aria-live="polite"></div>`;
     this.select = root.querySelector('select.service-name');
     this.count = root.querySelector('.service-count');
     this.formArea = root.querySelector('.service-form');

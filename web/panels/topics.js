@@ -1,9 +1,10 @@
 // Topics (rostopic list / info / echo / hz / bw, rosmsg show): the list with types, publisher and subscriber
 // counts; an opened topic shows its info, its definition and its latest message as a live tree (pausable),
-// with its rate and bandwidth. Several can be open; closing one unsubscribes.
+// with its rate and bandwidth, and offers the viewers of its type (registry.js) beside the tree. Several can be
+// open; closing one unsubscribes.
 import { readAddress, keepInAddress } from '../address.js';
 import { definitionText, messageTree } from './messages.js';
-import { Panel, showName } from './panel.js';
+import { ListPanel, showName } from './panel.js';
 import { Plot } from './plot.js';
 
 const REFRESH_MS = 3000;
@@ -14,10 +15,22 @@ const FAST_SAMPLES = 50;  // arrivals needed before a topic is judged fast (mess
 const RENDER_MS = 150;
 const INFO_EVERY_S = 3;  // the tree is redrawn at most this often, whatever the topic's rate
 const TOPIC_PARAM = 'topic';  // ?topic=/turtle1/pose&topic=/odom: the open topics, kept in the page's address
+const VIEW_PARAM = 'view';  // ?view=/turtle1/pose:turtle: the viewers shown in them
 
-export class TopicsPanel extends Panel {
-  constructor(root) {
-    super(root, 'Could not list topics');
+export class TopicsPanel extends ListPanel {
+  constructor(root, page) {
+    super(root, page, 'Could not list topics');
+    root.innerHTML = `
+      <p class="hint">rostopic list · info · echo · hz · bw, and rosmsg show: open a topic to watch it.
+        <span class="topic-count muted"></span></p>
+      <p class="panel-status error" role="status"></p>
+      <section class="plot" hidden aria-label="Plot of the chosen fields"></section>
+      <div class="open-topics"></div>
+      <div class="scroll"><table class="topic-list">
+        <thead><tr><th>Topic</th><th>Type</th><th class="num">Pubs</th><th class="num">Subs</th><th class="num">Rate</th>
+        </tr></thead>
+        <tbody></tbody>
+      </table></div>`;
     this.list = root.querySelector('.topic-list tbody');
     this.count = root.querySelector('.topic-count');
     this.openArea = root.querySelector('.open-topics');
@@ -25,6 +38,7 @@ export class TopicsPanel extends Panel {
     this.visible = false;
     this.open = new Map();  // topic name -> OpenTopic (kept across reconnections)
     this.wanted = readAddress(TOPIC_PARAM);  // topics of the address not listed yet: opened once they are
+    this.views = new Map(readAddress(VIEW_PARAM).map(kept => kept.split(':')));  // topic -> its viewer shown
     this.timer = null;
   }
 
@@ -79,10 +93,20 @@ export class TopicsPanel extends Panel {
       this.open.get(name).element.scrollIntoView({ block: 'nearest' });
       return;
     }
-    const topic = new OpenTopic(name, type, this.plot, () => {
-      this.open.delete(name);
-      topic.element.remove();
-      this.keepInAddress();
+    const viewers = this.page.viewersFor(type);
+    const topic = new OpenTopic(name, type, this.plot, viewers, {
+      shown: viewers.find(viewer => viewer.name === this.views.get(name)),
+      onView: viewer => {
+        if (viewer) this.views.set(name, viewer.name);
+        else this.views.delete(name);
+        this.keepInAddress();
+      },
+      onClose: () => {
+        this.open.delete(name);
+        this.views.delete(name);
+        topic.element.remove();
+        this.keepInAddress();
+      },
     });
     this.open.set(name, topic);
     this.wanted = this.wanted.filter(n => n !== name);
@@ -93,11 +117,14 @@ export class TopicsPanel extends Panel {
 
   keepInAddress() {
     keepInAddress(TOPIC_PARAM, [...this.open.keys(), ...this.wanted]);
+    keepInAddress(VIEW_PARAM, [...this.views].map(([topic, viewer]) => `${topic}:${viewer}`));
   }
 }
 
+// One opened topic. viewers: the registry's rows for its type, offered as buttons; shown: the one to show at
+// once, if any; onView(row or null) when the person shows or hides one; onClose() when closed.
 class OpenTopic {
-  constructor(name, type, plot, onClose) {
+  constructor(name, type, plot, viewers, { shown, onView, onClose }) {
     this.name = name;
     this.plot = plot;
     this.type = type;
@@ -107,6 +134,8 @@ class OpenTopic {
     this.openBranches = new Set();
     this.subscription = null;
     this.throttled = false;
+    this.session = null;
+    this.viewer = null;  // {row, viewer}: the viewer shown
     this.element = document.createElement('article');
     this.element.className = 'open-topic';
     this.element.dataset.topic = name;
@@ -117,10 +146,27 @@ class OpenTopic {
       <p class="stats" aria-live="off">waiting for a message…</p>
       <p class="info muted"></p>
       <details class="definition"><summary>Definition <small>(rosmsg show)</small></summary><pre></pre></details>
+      <div class="viewer" hidden></div>
       <div class="message"></div>`;
     this.$ = selector => this.element.querySelector(selector);
     this.$('.name').textContent = name;
     this.$('.type').textContent = type;
+    this.$('.pause').before(...viewers.map(row => {
+      const button = document.createElement('button');
+      button.type = 'button';
+      button.className = 'view';
+      button.dataset.viewer = row.name;
+      button.textContent = row.title;
+      button.title = `Show the ${row.title.toLowerCase()} view`;
+      button.setAttribute('aria-pressed', 'false');
+      button.addEventListener('click', () => {
+        const showing = this.viewer?.row === row;
+        this.showViewer(showing ? null : row);
+        onView(showing ? null : row);
+      });
+      return button;
+    }));
+    if (shown) this.showViewer(shown);
     this.$('.pause').addEventListener('click', () => this.togglePause());
     // on the container, at pointerdown: the tree is redrawn several times a second, so a leaf may be replaced
     // between a press and its release
@@ -130,6 +176,7 @@ class OpenTopic {
     });
     this.$('.close').addEventListener('click', () => {
       this.detach();
+      this.viewer?.viewer.close();
       onClose();
     });
     this.ticks = 0;
@@ -159,9 +206,25 @@ class OpenTopic {
     }
   }
 
+  // Shows a viewer (one at a time) beside the tree, or none (null). What it asks of the subscription (e.g. binary
+  // images) applies while it is shown.
+  showViewer(row) {
+    this.viewer?.viewer.close();
+    this.viewer = null;
+    const area = this.$('.viewer');
+    area.replaceChildren();
+    area.hidden = !row;
+    if (row) this.viewer = { row, viewer: new row.Viewer(area, { topic: this.name, type: this.type }) };
+    for (const button of this.element.querySelectorAll('button.view')) {
+      button.setAttribute('aria-pressed', String(button.dataset.viewer === row?.name));
+    }
+    if (this.session) this.subscribe();
+  }
+
   subscribe() {
     this.subscription?.close();
-    const options = this.throttled ? { throttle_rate: THROTTLE_MS, queue_length: 1 } : {};
+    const options = { ...(this.throttled ? { throttle_rate: THROTTLE_MS, queue_length: 1 } : {}),
+      ...this.viewer?.row.Viewer.subscription };
     this.subscription = this.session.subscribe(this.name, this.type, message => this.receive(message), options);
   }
 
@@ -175,11 +238,12 @@ class OpenTopic {
 
   receive(message) {
     const now = performance.now() / 1000;
-    this.arrivals.push([now, JSON.stringify(message).length]);
+    this.arrivals.push([now, sizeOf(message)]);
     while (this.arrivals.length && this.arrivals[0][0] < now - WINDOW_S) this.arrivals.shift();
     if (this.latest === null) this.showInfo();  // subscribed by now: this page is among the subscribers
     this.latest = message;
     this.plot.push(this.name, message);
+    if (!this.paused) this.viewer?.viewer.draw(message);
     if (!this.throttled && this.arrivals.length >= FAST_SAMPLES && this.hz() > FAST_HZ) {  // too fast to show
       this.throttled = true;
       this.subscribe();
@@ -236,6 +300,17 @@ class OpenTopic {
       },
     }));
   }
+}
+
+// About the bytes a message took: its JSON text, binary arrays (CBOR, for a viewer) at their size.
+function sizeOf(message) {
+  let binary = 0;
+  const text = JSON.stringify(message, (key, value) => {
+    if (!ArrayBuffer.isView(value)) return value;
+    binary += value.byteLength;
+    return 0;
+  });
+  return text.length + binary;
 }
 
 function formatBytes(perSecond) {

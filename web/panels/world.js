@@ -1,11 +1,12 @@
-// The turtle world drawn to scale like turtlesim's window: 500 px = 11.088889 m, origin bottom-left,
-// y up. Trails are drawn from successive poses in the default pen colour (the pen colour is not
-// published), on an offscreen "trail image" kept at the canvas's device-pixel resolution.
-export const WORLD_M = 11.088889;
-const WORLD_PX = 500;
-const BACKGROUND = 'rgb(69, 86, 255)';
-const PEN = 'rgb(179, 184, 255)';
-const PEN_PX = 3;
+// The turtle world drawn to scale like turtlesim's window (its size, background and pen from
+// world-constants.js), origin bottom-left, y up. Trails are drawn from successive poses in the default pen colour
+// (the pen colour is not published), on an offscreen "trail image" kept at the canvas's device-pixel resolution.
+import WORLD from '../world-constants.js';
+
+const WORLD_M = WORLD.size_m;
+const WORLD_PX = WORLD.size_px;
+const BACKGROUND = `rgb(${WORLD.background.join(', ')})`;
+const PEN = `rgb(${WORLD.pen.join(', ')})`;
 const MAX_SEGMENTS = 200000;  // oldest trail segments are forgotten beyond this
 // Shell colours; turtle1 gets the first. Chosen to stand out on the blue background and the pale pen.
 const PALETTE = [[46, 204, 113], [255, 176, 32], [255, 99, 146], [38, 222, 235], [190, 140, 255], [240, 226, 70]];
@@ -19,7 +20,13 @@ export class WorldView {
     this.turtles = new Map();  // name -> {pose, colour, joined: the next pose continues its trail}
     this.segments = [];  // [x0, y0, x1, y1] in metres, flat
     this.dirty = false;
-    new ResizeObserver(entries => this.resize(entries[0])).observe(canvas);
+    canvas.style.background = BACKGROUND;  // (until the first picture is drawn)
+    this.sizer = new ResizeObserver(entries => this.resize(entries[0]));
+    this.sizer.observe(canvas);
+  }
+
+  close() {
+    this.sizer.disconnect();
   }
 
   // Device pixels per world pixel.
@@ -95,7 +102,7 @@ export class WorldView {
   strokeSegments(from) {
     const c = this.trailCtx;
     c.strokeStyle = PEN;
-    c.lineWidth = PEN_PX * this.k;
+    c.lineWidth = WORLD.pen_width_px * this.k;
     c.lineCap = 'round';
     c.beginPath();
     for (let i = from; i < this.segments.length; i += 4) {

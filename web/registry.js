@@ -1,0 +1,49 @@
+// Every panel and every viewer of the page, in one table: app.js makes the page from it and from nothing else.
+//
+// A panel (panels/panel.js says its shape): `name` keys its element ids and the ?tab= of the address, `title`
+// names it (its tab in the console, its card's heading, or its region), `place` is where it lives: 'world' (the
+// world's card, in order), 'side' (a card beside the world) or 'console' (a tab).
+//
+// A viewer draws the messages of one topic, offered for the message `types` it declares wherever that topic is
+// opened (the Topics panel). Its shape, the whole of it:
+//   new Viewer(element, { topic, type })  fills element (empty, its own) for that topic;
+//   viewer.draw(message)                  each message, as the subscription delivers it;
+//   viewer.close()                        it is taken away: stop its timers;
+//   static subscription (optional)        what it asks of the topic's subscription while shown (e.g. binary CBOR).
+import { TurtlesPanel } from './panels/turtles.js';
+import { DrivePanel } from './panels/drive.js';
+import { TwistPanel } from './panels/twist.js';
+import { WorldToolsPanel } from './panels/world-tools.js';
+import { TopicsPanel } from './panels/topics.js';
+import { PublishPanel } from './panels/publish.js';
+import { ServicesPanel } from './panels/services.js';
+import { ParamsPanel } from './panels/params.js';
+import { NodesPanel } from './panels/nodes.js';
+import { CameraPanel } from './panels/camera.js';
+import { LogsPanel } from './panels/logs.js';
+import { ImageViewer } from './viewers/image.js';
+import { TurtlePoseViewer } from './viewers/pose.js';
+
+// In the order shown; the console's tabs in the order of the tutorial's terminal windows.
+export const PANELS = [
+  { name: 'world', title: 'Turtle world', place: 'world', Panel: TurtlesPanel },
+  { name: 'drive', title: 'Drive', place: 'world', Panel: DrivePanel },
+  { name: 'twist', title: 'Publish a Twist', place: 'side', Panel: TwistPanel },
+  { name: 'world-tools', title: 'World', place: 'side', Panel: WorldToolsPanel },
+  { name: 'topics', title: 'Topics', place: 'console', Panel: TopicsPanel },
+  { name: 'publish', title: 'Publish', place: 'console', Panel: PublishPanel },
+  { name: 'services', title: 'Services', place: 'console', Panel: ServicesPanel },
+  { name: 'params', title: 'Parameters', place: 'console', Panel: ParamsPanel },
+  { name: 'nodes', title: 'Nodes', place: 'console', Panel: NodesPanel },
+  { name: 'camera', title: 'Camera', place: 'console', Panel: CameraPanel },
+  { name: 'logs', title: 'Logs', place: 'console', Panel: LogsPanel },
+];
+
+export const VIEWERS = [
+  { name: 'turtle', title: 'World', types: ['turtlesim/Pose'], Viewer: TurtlePoseViewer },
+  { name: 'image', title: 'Picture', types: ['sensor_msgs/Image', 'sensor_msgs/CompressedImage'], Viewer: ImageViewer },
+];
+
+export function viewersFor(type) {
+  return VIEWERS.filter(viewer => viewer.types.includes(type));
+}
