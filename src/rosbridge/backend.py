@@ -7,6 +7,9 @@ objects) is done off the loop: a refusal found out there comes later, through `C
 import abc
 import typing
 
+DRIVE_TYPES = frozenset(("geometry_msgs/Twist", "geometry_msgs/TwistStamped"))  # velocity commands: a robot
+# goes on with the last one it got, so a driver that goes away is stopped (Backend.stop_driving)
+
 
 class Client(typing.Protocol):
     """What the ROS side may call on a client (protocol.Session), on the loop only: other threads hand their
@@ -74,6 +77,14 @@ class Backend(abc.ABC):
         """Whether ROS work that the client's requests so far started (off the loop) is still under way: if so,
         then() runs on the loop once it is done, and True is returned; else False (then is not called). The
         protocol holds the client's next requests meanwhile, so that they take effect in the order sent."""
+
+    @abc.abstractmethod
+    def drives(self, session):
+        """Whether the client has published on a topic that moves a robot (DRIVE_TYPES) since it last stopped."""
+
+    @abc.abstractmethod
+    def stop_driving(self, session):
+        """Publishes one zero message on each DRIVE_TYPES topic the client has driven (the dead-man stop)."""
 
     @abc.abstractmethod
     def release(self, session):

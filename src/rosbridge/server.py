@@ -24,7 +24,7 @@ from rosbridge.ros_side import RosBackend
 from rosbridge.ros_side.recovery import MasterWatch
 from rosbridge.rosapi import Rosapi
 from rosbridge.settings import Settings
-from rosbridge.websocket import BridgeSocket
+from rosbridge.websocket import BridgeSocket, DriverLeases
 
 MAX_LOGGED_KINDS = 1000  # kinds of refusal remembered for rate limiting (refused origins are kinds)
 IDLE_TIMEOUT = 10.0  # seconds
@@ -102,9 +102,12 @@ def main():
     config = protocol.Config(current, globs, auth_secret=secret)
     loop = tornado.ioloop.IOLoop.current()
     rosapi = Rosapi(rosgraph.get_master_uri(), rospy.get_name(), globs, rospy.Time.now)
-    backend = RosBackend(loop, rosapi=rosapi, unregister_timeout=current.unregister_timeout)
+    backend = RosBackend(loop, rosapi=rosapi, unregister_timeout=current.unregister_timeout,
+                         stop_drivers_leaving=current.deadman_timeout > 0)
     bridge = Bridge(backend, config, current, allowed_origins=origins)
     backend.set_client_count(0)
+    if current.deadman_timeout > 0:
+        DriverLeases(bridge, current.deadman_timeout).start()
 
     web_root = current.web_root or str(Path(rospkg.RosPack().get_path("turtlesim")) / "web")
     if web_root.lower() == "none":

@@ -39,6 +39,10 @@ SETTINGS = (
             "topics one client may subscribe to, and topics it may advertise (each)", ours=True),
     Setting("unregister_timeout", float, 10.0,
             "seconds a topic's publisher outlives its last client (a page reload reuses it)"),
+    Setting("deadman_timeout", float, 1.0,
+            "seconds a client that drives (publishes `geometry_msgs/Twist` or `TwistStamped`) may stay silent "
+            "before the bridge publishes a zero on each such topic, as it does at once when the client leaves; "
+            "0 = off. See Dead-man stop", ours=True),
     Setting("use_compression", bool, False, "websocket permessage-deflate"),
     Setting("websocket_ping_interval", float, 0.0, "seconds between keep-alive pings; 0 = none"),
     Setting("websocket_ping_timeout", float, 30.0, "seconds without a pong before the connection is closed"),

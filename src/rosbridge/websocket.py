@@ -112,6 +112,7 @@ class ClientConnection:
         self._awaiting_drain = False  # written data the socket has not taken yet
         self._control_unsent = 0  # bytes of pongs written since the socket last drained
         self._pinger, self._ping_sent = None, None
+        self._last_heard = time.monotonic()  # when a read last brought something
 
     def start(self, handshake_answer):
         stream = self._stream
@@ -121,7 +122,7 @@ class ClientConnection:
         self.bridge.client_opened(self)
         interval = self.bridge.settings.websocket_ping_interval
         if interval:
-            self._pinger = tornado.ioloop.PeriodicCallback(self._ping, interval * 1000)
+            self._pinger = tornado.ioloop.PeriodicCallback(self._keep_alive, interval * 1000)
             self._pinger.start()
         self._take_frames()
 
@@ -137,8 +138,14 @@ class ClientConnection:
         if self._reader is None or read.cancelled() or read.exception() is not None:  # closed: see _on_stream_closed
             self._waiting = "end"
             return
+        self._last_heard = time.monotonic()
         self._reader.receive(read.result())
         self._take_frames()
+
+    def silent_for(self, now):
+        """Seconds the client has sent nothing while the bridge was waiting to read it (0 while the bridge holds
+        its frames back itself: a client over its budget is not silent)."""
+        return now - self._last_heard if self._waiting == "read" else 0.0
 
     def _resume(self):
         """The Session handles the client's requests again."""
@@ -279,16 +286,19 @@ class ClientConnection:
             written.add_done_callback(self._drained)
 
     # ---- keeping alive, closing ------------------------------------------------------------------
-    def _ping(self):
+    def _keep_alive(self):
         """Every websocket_ping_interval: a ping; a client that has not answered the last one within
         websocket_ping_timeout is gone (a dropped link sends no FIN)."""
-        now = time.monotonic()
-        if self._ping_sent is not None:
-            if now - self._ping_sent > self.bridge.settings.websocket_ping_timeout:
-                self._stream.close()
-            return
-        if not self._closing and not self._stream.closed():
-            self._ping_sent = now
+        if self._ping_sent is not None and \
+                time.monotonic() - self._ping_sent > self.bridge.settings.websocket_ping_timeout:
+            self._stream.close()
+        else:
+            self.ping()
+
+    def ping(self):
+        """A ping, unless one is still unanswered: a live client answers it (browsers do by themselves)."""
+        if self._ping_sent is None and not self._closing and not self._stream.closed():
+            self._ping_sent = time.monotonic()
             self._stream.write(ws.control_frame(ws.PING))
 
     def close(self, code=ws.NORMAL, reason="", then_drop=False):
@@ -327,3 +337,29 @@ def _is_text(frame):
     if isinstance(frame, SplicedFrame):
         return frame.text
     return isinstance(frame, (str, Utf8Text))
+
+
+class DriverLeases:
+    """The dead-man stop for a driving client that goes silent (a phone that lost its Wi-Fi sends no FIN: its
+    connection only looks open). A client that drives (Backend.drives) holds a lease that anything it sends
+    renews; silent for half of `timeout`, it is pinged (a live client answers at once); silent for `timeout`,
+    its velocity topics get one zero message each (Backend.stop_driving) until it drives again. A client that
+    leaves is stopped by the backend at once (RosBackend's stop_drivers_leaving). Checked every timeout / 4."""
+
+    def __init__(self, bridge, timeout):
+        self.bridge, self.timeout = bridge, timeout
+        self._checker = tornado.ioloop.PeriodicCallback(self._check, timeout / 4 * 1000)
+
+    def start(self):
+        self._checker.start()
+
+    def _check(self):
+        now, backend = time.monotonic(), self.bridge.backend
+        for client in self.bridge.clients:
+            if not backend.drives(client.session):
+                continue
+            silent = client.silent_for(now)
+            if silent >= self.timeout:
+                backend.stop_driving(client.session)
+            elif silent >= self.timeout / 2:
+                client.ping()

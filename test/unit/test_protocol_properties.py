@@ -59,6 +59,12 @@ class MemoryBackend(Backend):
     def after_pending(self, session, then):
         return False  # (the ROS side is done at once here; test_protocol.py holds requests)
 
+    def drives(self, session):
+        return False
+
+    def stop_driving(self, session):
+        self._record("stop_driving")
+
     def release(self, session):
         self._record("release")
 

@@ -16,7 +16,9 @@ MAX_CALLS_PENDING_PER_CLIENT = 1000  # running or waiting
 
 
 class RosBackend(Backend):
-    def __init__(self, loop, rosapi=None, unregister_timeout=10.0, service_timeout=60.0):
+    def __init__(self, loop, rosapi=None, unregister_timeout=10.0, service_timeout=60.0,
+                 stop_drivers_leaving=False):
+        self._stop_drivers_leaving = stop_drivers_leaving
         worker = self._worker = RosWorker(loop)
         links = TopicLinks(loop, lambda text: rospy.logwarn_throttle(60, "bridge topics: " + text))
         self._publishers = Publishers(loop, worker, links, unregister_timeout)
@@ -65,7 +67,15 @@ class RosBackend(Backend):
         # (the worker runs every client's jobs in one order: waiting for all submitted so far is exact)
         return self._worker.after_submitted(then)
 
+    def drives(self, session):
+        return self._publishers.drives(session)
+
+    def stop_driving(self, session):
+        self._publishers.stop_driving(session)
+
     def release(self, session):
+        if self._stop_drivers_leaving:
+            self._publishers.stop_driving(session)
         self._publishers.release(session)
         self._subscribers.release(session)
         self._calls.release(session)

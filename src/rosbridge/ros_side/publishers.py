@@ -7,6 +7,7 @@ import warnings
 import rospy
 
 from rosbridge import tcpros
+from rosbridge.backend import DRIVE_TYPES
 from rosbridge.errors import RequestError, refusal_text
 from rosbridge.packing import packer
 from rosbridge.ros_side.holders import Holders
@@ -146,6 +147,7 @@ class Publishers:
         self._entries = {}
         self._holders = Holders()
         self._inferring = {}  # topic -> [(session, msg, latch, queue_size)] waiting for the graph's type
+        self._driven = {}  # session -> the DRIVE_TYPES topics it published on since it last stopped
 
     def advertise(self, session, topic, type_name, latch, queue_size):
         entry = self._entries.get(topic)
@@ -188,6 +190,8 @@ class Publishers:
             if not self._holders.holds(topic, session):
                 self.advertise(session, topic, entry.type, latch, queue_size)
             entry.publisher.put(packer(entry.cls)(msg, now=rospy.Time.now))
+            if entry.type in DRIVE_TYPES:
+                self._driven.setdefault(session, set()).add(topic)
             return
         waiting = self._inferring.get(topic)
         if waiting is None:  # ask the master for the topic's type, off the loop
@@ -213,7 +217,18 @@ class Publishers:
             except Exception as refused:
                 session.ros_refused("publish", topic, refusal_text(refused, f"publishing {topic}"))
 
+    def drives(self, session):
+        return session in self._driven
+
+    def stop_driving(self, session):
+        """One zero message (its header stamped now) on each velocity topic the client drove."""
+        for topic in self._driven.pop(session, ()):
+            entry = self._entries.get(topic)
+            if entry is not None:
+                entry.publisher.put(packer(entry.cls)({}, now=rospy.Time.now))
+
     def release(self, session):
+        self._driven.pop(session, None)
         for topic in self._holders.names_of(session):
             self._leave(session, topic)
 
