@@ -1,5 +1,5 @@
 """Micro-benchmark of the ROS <-> JSON conversion, in microseconds per call: the bridge's direct roads
-(rosbridge.wire: ROS bytes -> JSON text; rosbridge.packing: parsed JSON -> ROS bytes) beside the genpy roads
+(rosbridge.codec.ros_to_json: ROS bytes -> JSON text; codec.json_to_ros: parsed JSON -> ROS bytes) beside the genpy roads
 (deserialize + convert.to_json + dumps; convert.from_json + serialize), and the other wire encodings (best of several repeats, so a busy machine disturbs it less). No roscore needed:
 
     export PATH=/usr/bin:$PATH; source .build/setup.bash; python3 bench/convert_bench.py
@@ -11,10 +11,12 @@ import timeit
 import geometry_msgs.msg
 import sensor_msgs.msg
 
-from rosbridge.convert import dumps, from_json, to_json
-from rosbridge.encoding import cbor_frame, png_frame, to_cbor_value
-from rosbridge.packing import packer
-from rosbridge.wire import json_text
+from rosbridge.codec.json_values import dumps, from_json, to_json
+from rosbridge.codec.cbor import to_cbor_value
+from rosbridge.codec.wrapping import png_frame
+from rosbridge.frames import cbor_frame
+from rosbridge.codec.json_to_ros import packer
+from rosbridge.codec.ros_to_json import json_text
 
 
 def best_microseconds(function, repeats=5):

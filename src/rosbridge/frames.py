@@ -1,9 +1,9 @@
 """What the bridge sends: frames ready for the socket, each encoded once for every client it goes to."""
 import itertools
 
-from rosbridge import encoding
-from rosbridge.convert import dumps
-from rosbridge.wire import SPLICE_MARK, joined, json_parts
+from rosbridge.codec import cbor, wrapping
+from rosbridge.codec.json_values import dumps
+from rosbridge.codec.ros_to_json import SPLICE_MARK, joined, json_parts
 
 COMPRESSIONS = ("none", "png", "cbor", "cbor-raw")
 
@@ -30,8 +30,8 @@ class SplicedFrame:
 
 
 def cbor_frame(obj):
-    """The binary frame holding `obj` in CBOR (see encoding.cbor_parts)."""
-    parts = encoding.cbor_parts(obj)
+    """The binary frame holding `obj` in CBOR (see codec.cbor.cbor_parts)."""
+    parts = cbor.cbor_parts(obj)
     return parts[0] if len(parts) == 1 else SplicedFrame(parts, text=False)
 
 
@@ -48,13 +48,13 @@ _fragment_ids = itertools.count(1)
 def fragment_text(text, fragment_size):
     if fragment_size is None or len(text) <= fragment_size:
         return (text,)
-    return tuple(dumps(f) for f in encoding.fragments(text, fragment_size, f"fragment:{next(_fragment_ids)}"))
+    return tuple(dumps(f) for f in wrapping.fragments(text, fragment_size, f"fragment:{next(_fragment_ids)}"))
 
 
 def text_frames(text, compression, fragment_size):
     """The JSON text of one op as the frames that carry it: inside a png op if asked, then in fragments."""
     if compression == "png":
-        text = dumps({"op": "png", "data": encoding.png_frame(text)})
+        text = dumps({"op": "png", "data": wrapping.png_frame(text)})
     return tuple(Utf8Text(part.encode()) for part in fragment_text(text, fragment_size))
 
 
@@ -88,7 +88,7 @@ class TopicMessage:
         if compression == "cbor":
             msg = self.msg_class()
             msg.deserialize(self.data)
-            return (cbor_frame({"op": "publish", "topic": self.topic, "msg": encoding.to_cbor_value(msg)}),)
+            return (cbor_frame({"op": "publish", "topic": self.topic, "msg": cbor.to_cbor_value(msg)}),)
         if compression == "cbor-raw":
             secs = int(self.stamp)
             raw = {"bytes": bytes(self.data), "secs": secs, "nsecs": int((self.stamp - secs) * 1e9)}

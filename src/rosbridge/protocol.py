@@ -11,7 +11,7 @@ import math
 from rosbridge import globs as globs_module
 from rosbridge import settings
 from rosbridge.auth import mac_is_valid
-from rosbridge.convert import dumps
+from rosbridge.codec.json_values import dumps
 from rosbridge.errors import ClientError, RequestError, log_bug
 from rosbridge.frames import COMPRESSIONS, service_response_frames, status_frame
 from rosbridge.outgoing import FrameQueue

@@ -4,7 +4,7 @@ import io
 
 from PIL import Image
 
-from rosbridge import encoding
+from rosbridge.codec.wrapping import png_unframe
 from rosbridge.errors import RequestError
 
 PART_OVERHEAD = 128  # bytes a stored part is counted beyond its text: what it costs (its number and its slot in the
@@ -72,6 +72,6 @@ def unpack_png(data, max_bytes):
             size = image.width * image.height * 3
         if max_bytes and size > max_bytes:  # a small PNG can unpack to gigabytes
             raise RequestError(f"png: image holds {size} bytes, over max_message_size ({max_bytes} bytes)")
-        return encoding.png_unframe(data)
+        return png_unframe(data)
     except (ValueError, OSError) as error:  # bad base64, not a PNG, not UTF-8
         raise RequestError(f"png: cannot read the image: {error}") from None

@@ -11,7 +11,7 @@ import tornado.web
 from rosbridge import borrowed, protocol
 from rosbridge import websocket_frames as ws
 from rosbridge.budget import ClientBudget
-from rosbridge.encoding import BIG_BYTES
+from rosbridge.codec import BIG_BYTES
 from rosbridge.errors import log_bug
 from rosbridge.frames import SplicedFrame, Utf8Text
 from rosbridge.origins import origin_allowed

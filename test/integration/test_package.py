@@ -66,8 +66,9 @@ def run_sim_and_bridge(ros, space, name):
         port = free_port()
         bridge = ros.spawn(installed(ros, space, "roslaunch turtlesim rosbridge_websocket.launch "
                                      f"port:={port} address:=127.0.0.1 node_name:={name}_bridge"), f"{name}_bridge")
-        assert "<canvas" in wait_for(lambda: fetch(f"http://127.0.0.1:{port}/"), 30,
-                                     what=f"the page from the {name} bridge ({bridge.log_path})")
+        assert "app.js" in wait_for(lambda: fetch(f"http://127.0.0.1:{port}/"), 30,
+                                    what=f"the page from the {name} bridge ({bridge.log_path})")
+        assert "export function start" in fetch(f"http://127.0.0.1:{port}/app.js")
         assert "ROSLIB" in fetch(f"http://127.0.0.1:{port}/vendor/roslib.min.js")
     finally:
         if bridge is not None:

@@ -328,8 +328,8 @@ def test_nested_fragments_are_refused(h):
 
 
 def test_png_op_carries_a_request(h):
-    from rosbridge import encoding
-    h.send({"op": "png", "data": encoding.png_frame(json.dumps({"op": "unadvertise", "topic": "/p"}))})
+    from rosbridge.codec.wrapping import png_frame
+    h.send({"op": "png", "data": png_frame(json.dumps({"op": "unadvertise", "topic": "/p"}))})
     assert h.backend.calls == [("unadvertise", "/p")]
 
 
@@ -387,7 +387,7 @@ def test_string_messages_keep_unicode():
 
 def test_a_camera_image_goes_out_with_its_base64_as_a_part_of_its_own():
     from sensor_msgs.msg import Image
-    from rosbridge.convert import dumps, to_json
+    from rosbridge.codec.json_values import dumps, to_json
     image = Image(height=480, width=640, encoding="rgb8", step=1920, data=bytes(range(256)) * 3600)
     msg = received("/camera", image, 0.0)
     (frame,) = msg.frames("none", None)

@@ -9,7 +9,7 @@ import rospy
 from rosbridge import tcpros
 from rosbridge.backend import DRIVE_TYPES
 from rosbridge.errors import RequestError, refusal_text
-from rosbridge.packing import packer
+from rosbridge.codec.json_to_ros import packer
 from rosbridge.ros_side.holders import Holders
 from rosbridge.types import message_class
 
@@ -53,7 +53,7 @@ class EarlyReplay:
 
 
 class ClientPublisher:
-    """One topic that clients publish. The loop writes each message (its bytes from rosbridge.packing) straight
+    """One topic that clients publish. The loop writes each message (its bytes from rosbridge.codec.json_to_ros) straight
     to the topic's subscribers (ros_side/links.py: one OutboundLink each). rospy's publisher, made on the worker,
     only registers the topic with the master and lists the connections for getBusInfo.
 

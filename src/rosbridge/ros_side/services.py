@@ -9,7 +9,7 @@ import rosgraph
 import rospy
 import rosservice
 
-from rosbridge.convert import ConversionError, from_json, request_from_args, to_json
+from rosbridge.codec.json_values import ConversionError, from_json, request_from_args, to_json
 from rosbridge.errors import RequestError, refusal_text
 from rosbridge.types import service_class
 

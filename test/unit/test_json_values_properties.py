@@ -1,4 +1,4 @@
-"""Property tests of rosbridge.convert: random messages of every field type survive msg -> JSON text -> msg,
+"""Property tests of rosbridge.codec.json_values: random messages of every field type survive msg -> JSON text -> msg,
 and random JSON junk is either turned into a message ROS can send or refused with a ConversionError."""
 import json
 
@@ -10,8 +10,9 @@ import sensor_msgs.msg
 import turtlesim.msg
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from test_convert import AllTypes, serialized
-from rosbridge.convert import INT_RANGES, ConversionError, dumps, from_json, parse_slot_type, to_json
+from test_json_values import AllTypes, serialized
+from rosbridge.codec.fields import INT_RANGES, parse_slot_type
+from rosbridge.codec.json_values import ConversionError, dumps, from_json, to_json
 from rosbridge.types import message_class
 
 SETTINGS = settings(deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])

@@ -1,4 +1,4 @@
-"""Wire encodings (rosbridge.encoding): CBOR with RFC 8746 typed arrays, JSON packed into PNG, fragments."""
+"""Wire encodings (rosbridge.codec.cbor and .wrapping): CBOR with RFC 8746 typed arrays, JSON packed into PNG, fragments."""
 import base64
 import io
 import json
@@ -14,10 +14,12 @@ import geometry_msgs.msg
 import sensor_msgs.msg
 from PIL import Image
 
-from test_convert import AllTypes, deserialized, serialized
-from rosbridge.convert import dumps, from_json, parse_slot_type
-from rosbridge import encoding
-from rosbridge.encoding import cbor_parts, fragments, png_frame, png_unframe, to_cbor_value
+from test_json_values import AllTypes, deserialized, serialized
+from rosbridge.codec.fields import parse_slot_type
+from rosbridge.codec.json_values import dumps, from_json
+from rosbridge.codec import BIG_BYTES
+from rosbridge.codec.cbor import cbor_parts, to_cbor_value
+from rosbridge.codec.wrapping import fragments, png_frame, png_unframe
 from rosbridge.frames import SplicedFrame, cbor_frame
 
 # element type -> (size in bytes, signed, float, struct code)
@@ -190,7 +192,7 @@ def test_png_unframe_of_junk_raises_only_value_error(junk):
         pass
 
 
-@pytest.mark.parametrize("sizes", [[encoding.BIG_BYTES], [encoding.BIG_BYTES - 1, 70_000], [70_000, 100, 1 << 17]])
+@pytest.mark.parametrize("sizes", [[BIG_BYTES], [BIG_BYTES - 1, 70_000], [70_000, 100, 1 << 17]])
 def test_big_byte_strings_are_put_in_place_exactly_as_cbor2_would_write_them(sizes):
     blobs = [os.urandom(size) for size in sizes]
     messages = [sensor_msgs.msg.Image(height=1, width=len(blob), encoding="mono8", step=len(blob), data=blob)

@@ -1,4 +1,4 @@
-"""ROS <-> JSON conversion (rosbridge.convert), field type by field type, on real message classes and on a
+"""ROS <-> JSON conversion (rosbridge.codec.json_values), field type by field type, on real message classes and on a
 message generated at run time that holds every field type ROS 1 has."""
 import io
 import json
@@ -15,7 +15,7 @@ import std_srvs.srv
 import turtlesim.msg
 import turtlesim.srv
 
-from rosbridge.convert import ConversionError, dumps, from_json, request_from_args, to_json
+from rosbridge.codec.json_values import ConversionError, dumps, from_json, request_from_args, to_json
 
 ALL_TYPES_FIELDS = """\
 bool b

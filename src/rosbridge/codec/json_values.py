@@ -24,45 +24,17 @@ import binascii
 import json
 import keyword
 import math
-import re
 import reprlib
 import struct
 
 import genpy
 
+from rosbridge.codec.fields import BUILTIN_TYPES, DEFAULTS, FLOAT_TYPES, INT_RANGES, TIME_TYPES, parse_slot_type
 from rosbridge.errors import ClientError
 from rosbridge.types import message_class
 
-INT_RANGES = {
-    "int8": (-2**7, 2**7 - 1), "uint8": (0, 2**8 - 1),
-    "int16": (-2**15, 2**15 - 1), "uint16": (0, 2**16 - 1),
-    "int32": (-2**31, 2**31 - 1), "uint32": (0, 2**32 - 1),
-    "int64": (-2**63, 2**63 - 1), "uint64": (0, 2**64 - 1),
-}
-FLOAT_TYPES = ("float32", "float64")
-# How ROS serializes the fixed-size fields (little-endian struct codes; a bool packs as '?', one byte 0 or 1, and
-# any non-zero byte reads as true, as genpy's bool()), and each of the two parts of a time or duration.
-STRUCT_CODES = {"bool": "?", "int8": "b", "uint8": "B", "int16": "h", "uint16": "H", "int32": "i", "uint32": "I",
-                "int64": "q", "uint64": "Q", "float32": "f", "float64": "d"}
-TIME_PART_CODES = {"time": "I", "duration": "i"}
-TIME_TYPES = {"time": genpy.Time, "duration": genpy.Duration}
-# ROS 1 aliases: byte is signed, char is unsigned.
-_ALIASES = {"byte": "int8", "char": "uint8"}
-BUILTIN_TYPES = {"bool", "string", *INT_RANGES, *FLOAT_TYPES, *TIME_TYPES}
-
-_SLOT_TYPE = re.compile(r"([^\[\]]+)(?:\[(\d*)\])?")
 _FLOAT32 = struct.Struct("<f")
 _FLOAT32_MAX = 3.4028234663852886e38
-
-
-def parse_slot_type(slot_type):
-    """'float64[9]' -> ('float64', True, 9); 'uint8[]' -> ('uint8', True, None); 'char' -> ('uint8', False, None)."""
-    match = _SLOT_TYPE.fullmatch(slot_type)
-    if not match:
-        raise ValueError(f"unsupported field type {slot_type!r}")
-    base, size = match.groups()
-    is_array = size is not None
-    return _ALIASES.get(base, base), is_array, int(size) if size else None
 
 
 class ConversionError(ClientError):
@@ -138,7 +110,7 @@ def _record_encoder(fields):
 
 
 def encoder_factory(leaf_encoder):
-    """encoder_for(cls) -> cached function msg -> dict, for one flavour of output (JSON here, CBOR in encoding.py).
+    """encoder_for(cls) -> cached function msg -> dict, for one flavour of output (JSON here, CBOR in cbor.py).
 
     leaf_encoder(base, is_array) gives the converter of a non-message field (base is a key of BUILTIN_TYPES,
     aliases resolved), or None where the value is used as it is. Messages and arrays of them are handled here."""
@@ -340,7 +312,6 @@ def _constant(value):
 
 
 # The value of a field missing from the JSON (times and messages: an empty object).
-DEFAULTS = {"bool": False, "string": "", "float32": 0.0, "float64": 0.0, **{base: 0 for base in INT_RANGES}}
 
 
 def _field_default(base, is_array, size, decode):

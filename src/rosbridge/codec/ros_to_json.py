@@ -16,8 +16,8 @@ import struct
 
 from genpy.rostime import _canon
 
-from rosbridge.convert import BUILTIN_TYPES, STRUCT_CODES as _CODES, TIME_PART_CODES as _TIME_CODES, parse_slot_type
-from rosbridge.encoding import BIG_BYTES
+from rosbridge.codec.fields import BUILTIN_TYPES, STRUCT_CODES as _CODES, TIME_PART_CODES as _TIME_CODES, parse_slot_type
+from rosbridge.codec import BIG_BYTES
 from rosbridge.types import message_class
 
 _FLOATS = ("float32", "float64")

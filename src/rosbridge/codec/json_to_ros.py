@@ -10,7 +10,8 @@ import base64
 import io
 import struct
 
-from rosbridge.convert import (DEFAULTS, STRUCT_CODES as _CODES, TIME_PART_CODES as _TIME_CODES, from_json,
+from rosbridge.codec.fields import DEFAULTS, STRUCT_CODES as _CODES, TIME_PART_CODES as _TIME_CODES
+from rosbridge.codec.json_values import (from_json,
                                parse_slot_type)
 from rosbridge.types import message_class
 

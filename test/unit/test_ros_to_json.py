@@ -1,4 +1,4 @@
-"""rosbridge.wire against genpy: for every message type on this machine, random messages serialized by genpy give
+"""rosbridge.codec.ros_to_json against genpy: for every message type on this machine, random messages serialized by genpy give
 exactly the JSON text the bridge wrote before (genpy deserialization, convert.to_json, convert.dumps)."""
 import base64
 import math
@@ -12,12 +12,12 @@ from hypothesis import given, strategies as st
 from sensor_msgs.msg import CompressedImage
 from std_msgs.msg import Header
 
-from test_convert import AllTypes, serialized
-from test_convert_properties import SETTINGS, messages
-from rosbridge.convert import dumps, to_json
-from rosbridge.encoding import BIG_BYTES
+from test_json_values import AllTypes, serialized
+from test_json_values_properties import SETTINGS, messages
+from rosbridge.codec.json_values import dumps, to_json
+from rosbridge.codec import BIG_BYTES
 from rosbridge.types import UnknownType, message_class
-from rosbridge.wire import SPLICE_MARK, joined, json_parts, json_text
+from rosbridge.codec.ros_to_json import SPLICE_MARK, joined, json_parts, json_text
 
 
 def installed_message_classes():

@@ -1,4 +1,4 @@
-"""rosbridge.packing against convert.from_json + genpy: for every message type on this machine, random messages as
+"""rosbridge.codec.json_to_ros against json_values.from_json + genpy: for every message type on this machine, random messages as
 a client would send them, and spoiled ones, give the same bytes or the same ConversionError."""
 import json
 
@@ -6,11 +6,11 @@ import genpy
 import pytest
 from hypothesis import given, strategies as st
 
-from test_convert import AllTypes, serialized
-from test_convert_properties import SETTINGS, json_junk, messages
-from test_wire import CLASSES
-from rosbridge.convert import ConversionError, from_json, to_json
-from rosbridge.packing import packer
+from test_json_values import AllTypes, serialized
+from test_json_values_properties import SETTINGS, json_junk, messages
+from test_ros_to_json import CLASSES
+from rosbridge.codec.json_values import ConversionError, from_json, to_json
+from rosbridge.codec.json_to_ros import packer
 
 
 def now():
@@ -74,8 +74,8 @@ def test_special_cases_of_all_types():
 
 
 def test_the_common_road_builds_no_genpy_message(monkeypatch):
-    import rosbridge.packing
-    monkeypatch.setattr(rosbridge.packing, "from_json", lambda *args: pytest.fail("took the long way"))
+    import rosbridge.codec.json_to_ros
+    monkeypatch.setattr(rosbridge.codec.json_to_ros, "from_json", lambda *args: pytest.fail("took the long way"))
     by_name = {c._type: c for c in CLASSES}
     twist = {"linear": {"x": 2, "y": 0.5, "z": 0}, "angular": {"x": 0, "y": 0, "z": 1.8}}
     assert packer(by_name["geometry_msgs/Twist"])(twist) == long_way(by_name["geometry_msgs/Twist"], twist)
