@@ -18,6 +18,7 @@ class WsClient:
         self.loop = asyncio.new_event_loop()
         request = HTTPRequest(url, headers=headers or {}, connect_timeout=timeout, request_timeout=timeout,
                               **request_kwargs)
+        self.ended = False  # the end of the connection was read
         self.conn = self._run(lambda: websocket_connect(request, max_message_size=256 * 1024 * 1024,
                                                         compression_options=compression_options), timeout)
 
@@ -35,7 +36,9 @@ class WsClient:
 
     def recv_raw(self, timeout=10.0):
         """The next frame (str or bytes); None when the server closed the connection."""
-        return self._run(self.conn.read_message, timeout)
+        frame = self._run(self.conn.read_message, timeout)
+        self.ended = self.ended or frame is None
+        return frame
 
     def recv(self, timeout=10.0):
         """The next frame decoded: JSON text -> object, binary -> CBOR-decoded object."""
@@ -80,7 +83,8 @@ class WsClient:
     def close(self):
         self.conn.close()
         try:
-            self._run(self.conn.read_message, 5)
+            if not self.ended:  # (the end, once read, is not read again: it would wait for the timeout)
+                self._run(self.conn.read_message, 5)
         except Exception:
             pass
         self.loop.close()

@@ -13,6 +13,8 @@ from tornado.websocket import websocket_connect
 from bridge_client import WsClient
 from harness import ProcStat, node_pid, start_bridge, wait_for
 
+pytestmark = pytest.mark.slow  # (deselect with -m 'not slow' for a quick run)
+
 FRAMES_PER_CLIENT = 5_000
 BATCH = 250  # frames sent before waiting for their answers (keeps the bridge's per-client queue from dropping)
 MAX_MESSAGE_SIZE = 100_000

@@ -12,6 +12,8 @@ import roslibpy
 from bridge_client import RawWebSocket, WsClient, ping
 from harness import ProcStat, RosMaster, free_port, node_pid, start_bridge, wait_for
 
+pytestmark = pytest.mark.slow  # (deselect with -m 'not slow' for a quick run)
+
 
 @pytest.fixture(autouse=True, scope="module")
 def quick_reconnects():

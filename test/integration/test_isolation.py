@@ -12,6 +12,8 @@ from bridge_client import WsClient
 from harness import ProcStat, node_pid, start_bridge, wait_for
 from test_security import SECRET, auth_frame
 
+pytestmark = pytest.mark.slow  # (deselect with -m 'not slow' for a quick run)
+
 ATTACK_SECONDS = 6.0
 MAX_GAP = 0.5
 MAX_CALL_TIME = 1.0

@@ -5,9 +5,12 @@ import asyncio
 import json
 import threading
 
+import pytest
 from tornado.websocket import websocket_connect
 
 from harness import ProcStat, node_pid, start_bridge, wait_for
+
+pytestmark = pytest.mark.slow  # (deselect with -m 'not slow' for a quick run)
 
 CLIENTS_PER_ROUND = 250
 

@@ -15,6 +15,8 @@ import pytest
 
 from harness import Proc, make_workdir, wait_for
 
+pytestmark = pytest.mark.slow  # (deselect with -m 'not slow' for a quick run)
+
 SUBNET = "10.77.0"
 HOSTS = {"master": 1, "robot": 2, "bridge": 3, "client": 4}
 MASTER_URI = f"http://{SUBNET}.1:11311"  # the default port: each machine has its own network stack
