@@ -100,23 +100,31 @@ def test_a_refusal_is_final_and_the_bridge_goes_on(bridge, ros):
         publisher.close()
 
 
-def test_a_subscriber_that_stops_reading_holds_up_nobody_and_gets_whole_messages(bridge, ros, node):
-    topic, count, filler = "/links_test/slow", 200, "x" * 100_000  # 20 MB: far more than socket buffers hold
+def publishing_to_a_slow_and_a_stuck_subscriber(ros, node, bridge, topic, queue_size):
+    """A client advertising `topic`, a rospy subscriber that reads (its arrivals: the numbers before ':'), and
+    a raw TCPROS subscriber with a tiny receive buffer that has sent its header and reads nothing more.
+    Returns (client, numbers read, the reading subscriber, the stuck socket, its frame reader)."""
     ws = WsClient(f"ws://127.0.0.1:{bridge}/")
-    ws.send({"op": "advertise", "topic": topic, "type": "std_msgs/String", "queue_size": 10})
+    ws.send({"op": "advertise", "topic": topic, "type": "std_msgs/String", "queue_size": queue_size})
     got = []
-    reader = node.Subscriber(topic, String, lambda m: got.append(int(m.data.split(":")[0])))
+    reader = node.Subscriber(topic, String, lambda m: got.append(int(m.data.split(":")[0])), queue_size=10)
     wait_for(lambda: reader.get_num_connections() >= 1, 20, what="the reading subscriber connected")
     bridge_node = xmlrpc.client.ServerProxy(ros.master().lookupNode("/links_bridge"))
     _, _, (_, host, port) = bridge_node.requestTopic("/stuck_subscriber", topic, [["TCPROS"]])
     stuck = socket.socket()
     stuck.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
     stuck.connect((host, port))
+    stuck.sendall(tcpros.encode_header(tcpros.subscriber_header(topic, String, "/stuck_subscriber")))
+    frames = tcpros.FrameReader(max_size=tcpros.MAX_HEADER)
+    while not frames.feed(stuck.recv(1), most=1):  # the bridge's answer, byte by byte: no message read yet
+        pass
+    return ws, got, reader, stuck, frames
+
+
+def test_a_subscriber_that_stops_reading_holds_up_nobody_and_gets_whole_messages(bridge, ros, node):
+    topic, count, filler = "/links_test/slow", 200, "x" * 100_000  # 20 MB: far more than socket buffers hold
+    ws, got, reader, stuck, frames = publishing_to_a_slow_and_a_stuck_subscriber(ros, node, bridge, topic, 10)
     try:
-        stuck.sendall(tcpros.encode_header(tcpros.subscriber_header(topic, String, "/stuck_subscriber")))
-        frames = tcpros.FrameReader(max_size=tcpros.MAX_HEADER)
-        while not frames.feed(stuck.recv(1), most=1):  # the bridge's answer, byte by byte: no message read yet
-            pass
         for i in range(count):
             ws.send({"op": "publish", "topic": topic, "msg": {"data": f"{i}:{filler}"}})
         wait_for(lambda: got and got[-1] == count - 1, 30, what="the reading subscriber to get the last message")
@@ -142,19 +150,9 @@ def test_what_waits_for_a_stuck_subscriber_is_bounded_in_bytes_whatever_its_queu
     """A client may ask for any queue_size: the messages waiting for a subscriber that does not read stay within
     a byte bound (the newest kept), so big messages cannot pile up in the bridge."""
     topic, count, filler = "/links_test/stuck_big", 60, "x" * 3_000_000  # 180 MB in all
-    ws = WsClient(f"ws://127.0.0.1:{bridge}/")
-    ws.send({"op": "advertise", "topic": topic, "type": "std_msgs/String", "queue_size": 2**62})
-    got = []
-    reader = node.Subscriber(topic, String, lambda m: got.append(int(m.data.split(":")[0])), queue_size=2)
-    wait_for(lambda: reader.get_num_connections() >= 1, 20, what="the reading subscriber connected")
-    bridge_node = xmlrpc.client.ServerProxy(ros.master().lookupNode("/links_bridge"))
-    _, _, (_, host, port) = bridge_node.requestTopic("/stuck_subscriber", topic, [["TCPROS"]])
-    stuck = socket.socket()
-    stuck.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
-    stuck.connect((host, port))
+    ws, got, reader, stuck, _ = publishing_to_a_slow_and_a_stuck_subscriber(ros, node, bridge, topic, 2**62)
     bridge_memory = ProcStat(node_pid(ros, "/links_bridge"))
     try:
-        stuck.sendall(tcpros.encode_header(tcpros.subscriber_header(topic, String, "/stuck_subscriber")))
         time.sleep(1)
         before = bridge_memory.rss_mb()
         for i in range(count):
