@@ -29,8 +29,8 @@ def ip(*args, check=True):
 
 def netns_unavailable():
     """Why network namespaces cannot be used here (None when they can). Tries what the test does: make a
-    namespace, run a command in it with `ip netns exec` (which remounts /sys: that fails in a chroot or a
-    container without the right to mount), and delete it."""
+    namespace, run a command in it with `ip netns exec` (which makes / a slave mount and remounts /sys: in a
+    chroot or a container without the right to mount that fails), and delete it."""
     if os.geteuid() != 0:
         return "needs root to create network namespaces"
     probe = f"tsim-probe-{os.getpid()}"
