@@ -147,15 +147,19 @@ def open_browser():
 def sim(ros):
     """turtlesim_node on the private master, with turtle1 up."""
     proc = ros.spawn(["rosrun", "turtlesim", "turtlesim_node"], "turtlesim_node")
-    proc.wait_output("Spawning turtle [turtle1]", timeout=60)
-    return proc
+    try:
+        proc.wait_output("Spawning turtle [turtle1]", timeout=60)
+        yield proc
+    finally:  # (the next module's turtle1 must be its own)
+        proc.stop()
 
 
 @pytest.fixture(scope="module")
 def bridge_url(ros, sim):
     """The page's URL on a bridge shared by the module's tests."""
-    _, port = start_bridge(ros)
-    return f"http://127.0.0.1:{port}/"
+    proc, port = start_bridge(ros)
+    yield f"http://127.0.0.1:{port}/"
+    proc.stop()
 
 
 @pytest.fixture

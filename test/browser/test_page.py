@@ -325,19 +325,22 @@ def test_topic_list_shows_topics_with_their_types(open_page):
 
 def test_reconnects_by_itself_after_the_bridge_restarts(ros, open_page, world, node):
     bridge, port = start_bridge(ros, node_name="restarted_bridge")  # beside the module's bridge
-    page = open_page(url=f"http://127.0.0.1:{port}/")
-    wait_for(lambda: page.pose(), 15, what="turtle1 in the world view")
-    bridge.stop()
-    page.wait_state("closed")
-    assert "closed" in page.feedback()
-    assert "offline" in page.js("return document.body.className")
-    start_bridge(ros, node_name="restarted_bridge", port=port)
-    page.wait_state("connected")
-    # re-subscribed: the view follows a move made while it was disconnected and after
-    ros_call(node, "/turtle1/teleport_absolute", TeleportAbsolute, 7.0, 7.0, 0.0)
-    wait_for(lambda: (p := page.pose()) and abs(p["x"] - 7.0) < 1e-3, 15, what="the page to follow turtle1")
-    page.el("publish").click()  # and publishing works on the new connection
-    assert settled(world).x > 7.0
+    try:
+        page = open_page(url=f"http://127.0.0.1:{port}/")
+        wait_for(lambda: page.pose(), 15, what="turtle1 in the world view")
+        bridge.stop()
+        page.wait_state("closed")
+        assert "closed" in page.feedback()
+        assert "offline" in page.js("return document.body.className")
+        bridge, _ = start_bridge(ros, node_name="restarted_bridge", port=port)
+        page.wait_state("connected")
+        # re-subscribed: the view follows a move made while it was disconnected and after
+        ros_call(node, "/turtle1/teleport_absolute", TeleportAbsolute, 7.0, 7.0, 0.0)
+        wait_for(lambda: (p := page.pose()) and abs(p["x"] - 7.0) < 1e-3, 15, what="the page to follow turtle1")
+        page.el("publish").click()  # and publishing works on the new connection
+        assert settled(world).x > 7.0
+    finally:
+        bridge.stop()
 
 
 def test_screenshots_desktop_and_phone(open_page, world, node, ros):

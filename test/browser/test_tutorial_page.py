@@ -64,11 +64,12 @@ TUTORIAL_PAGE = """<!DOCTYPE html>
 @pytest.fixture(scope="module")
 def tutorial_dir(ros, sim, tmp_path_factory):
     """The page and roslib.min.js in a folder of their own, the page pointing at a bridge with default settings."""
-    _, port = start_bridge(ros, node_name="tutorial_bridge")
+    proc, port = start_bridge(ros, node_name="tutorial_bridge")
     folder = tmp_path_factory.mktemp("tutorial")
     (folder / "index.html").write_text(TUTORIAL_PAGE.replace("PORT", str(port)))
     shutil.copy(ROSLIB, folder / "roslib.min.js")
-    return folder
+    yield folder
+    proc.stop()
 
 
 @pytest.fixture
