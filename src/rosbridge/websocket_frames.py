@@ -21,6 +21,7 @@ _SENDABLE_CODES = {1000, 1001, 1002, 1003, 1007, 1008, 1009, 1010, 1011, 1012, 1
 _GUID = b"258EAFA5-E914-47DA-95CA-C5AB0DC85B11"
 _LENGTH_16, _LENGTH_64, _CODE = struct.Struct("!H"), struct.Struct("!Q"), struct.Struct("!H")
 _DEFLATE_TAIL = b"\x00\x00\xff\xff"  # what a sync flush ends with, left off on the wire (RFC 7692 7.2.1)
+PART_COST = 64  # what a frame of a fragmented message counts beyond its bytes: empty parts are not free
 SERVER_WINDOW_BITS = 12  # our compressor's window: 4 KB of history, about 30 KB of memory per client
 
 
@@ -135,13 +136,14 @@ class FrameReader:
 
     What it holds: at most one incomplete frame (max_size bytes) and the bytes given to it beyond that, which
     the shell keeps small by reading only when next_event() has said None; and one message being put together
-    (max_size bytes)."""
+    (max_size bytes, each of its frames counted PART_COST more)."""
 
     def __init__(self, max_size, deflate=False, unmask=xor_mask):
         self.max_size, self._unmask = max_size, unmask
         self._buffer = bytearray()
         self._start = 0  # where the next frame starts in _buffer
-        self._parts = None  # the fragments of the message being put together
+        self._parts = None  # the message being put together from its frames (bytearray), or None
+        self._parts_weight = 0  # what those frames count against max_size: their bytes, and PART_COST each
         self._opcode = None  # the opcode of that message
         self._compressed = False  # whether it is compressed
         self._inflater = zlib.decompressobj(-15) if deflate else None
@@ -190,31 +192,34 @@ class FrameReader:
             if available < 10:
                 return None
             (length,), head = _LENGTH_64.unpack_from(buf, start + 2), 10
-        if length + (self._held() if opcode == CONTINUATION else 0) > self.max_size:
+        if length + (self._parts_weight + PART_COST if opcode == CONTINUATION else 0) > self.max_size:
             raise ProtocolError(TOO_BIG, "message too big")
         payload_at = start + head + 4
         end = payload_at + length
         if len(buf) < end:
             return None
-        self._start = end
         if length:
             with memoryview(buf) as view:
                 payload = self._unmask(view[payload_at - 4:payload_at].tobytes(), view[payload_at:end])
         else:
             payload = b""
+        if end == len(buf):  # all taken: what the last frames held goes now, not with the next read
+            buf.clear()
+            end = 0
+        self._start = end
         if opcode & 0x8:
             return self._control(opcode, payload)
         if opcode != CONTINUATION:
             self._opcode, self._compressed = opcode, bool(first & _RSV1)
             if not first & _FIN:
-                self._parts = [payload]
+                self._parts, self._parts_weight = bytearray(payload), length + PART_COST
                 return PART, None, length
-        elif not first & _FIN:
-            self._parts.append(payload)
-            return PART, None, length
         else:
-            self._parts.append(payload)
-            payload, self._parts = b"".join(self._parts), None
+            self._parts += payload
+            self._parts_weight += length + PART_COST
+            if not first & _FIN:
+                return PART, None, length
+            payload, self._parts = bytes(self._parts), None
         size = length
         if self._compressed:  # weighed as what it unpacks to, less what its earlier frames weighed
             earlier = len(payload) - length
@@ -227,14 +232,16 @@ class FrameReader:
                 raise ProtocolError(INVALID_DATA, "text message is not valid UTF-8") from None
         return BINARY, payload, size
 
-    def _held(self):
-        return sum(map(len, self._parts)) if self._parts else 0
-
     def _inflate(self, payload):
         inflater = self._inflater
-        data = inflater.decompress(payload + _DEFLATE_TAIL, self.max_size + 1)
+        try:
+            data = inflater.decompress(payload + _DEFLATE_TAIL, self.max_size + 1)
+        except zlib.error as error:
+            raise ProtocolError(INVALID_DATA, f"compressed message cannot be unpacked ({error})") from None
         if len(data) > self.max_size or inflater.unconsumed_tail:
             raise ProtocolError(TOO_BIG, "message too big (unpacked)")
+        if inflater.eof:  # the client ended its stream (a final block, RFC 7692 7.2.3.4): its next one is new
+            self._inflater = zlib.decompressobj(-15)
         return data
 
     def _control(self, opcode, payload):

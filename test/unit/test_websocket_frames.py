@@ -230,3 +230,39 @@ def test_a_flood_is_taken_in_turns_and_nothing_more_is_read_meanwhile():
     assert pongs == 100_000 and turns == 100_000 // FRAMES_PER_TURN
     assert most_held < read_size + 6  # (one read, and the start of a 6-byte frame)
 
+
+
+def test_a_message_in_many_empty_parts_costs_constant_time_per_part_and_is_bounded():
+    reader = ws.FrameReader(100_000)
+    reader.receive(client_frame(b"", fin=False))
+    empty_part = client_frame(b"", ws.CONTINUATION, fin=False)
+    with pytest.raises(ws.ProtocolError) as refused:
+        for _ in range(100_000 // ws.PART_COST + 1):
+            reader.receive(empty_part)
+            assert reader.next_event()[0] == ws.PART
+    assert refused.value.code == ws.TOO_BIG
+
+
+def test_the_last_frame_taken_leaves_nothing_behind():
+    reader = ws.FrameReader(1 << 20)
+    reader.receive(client_frame(b"x" * 500_000, ws.BINARY))
+    assert reader.next_event()[0] == ws.BINARY
+    assert reader.buffered == 0 and len(reader._buffer) == 0
+
+
+def test_after_a_client_ends_its_deflate_stream_its_next_messages_still_unpack():
+    reader = ws.FrameReader(1 << 20, deflate=True)
+    final = zlib.compressobj(9, zlib.DEFLATED, -15)
+    ended = final.compress(b'{"op":"a"}') + final.flush(zlib.Z_FINISH)  # a final block (RFC 7692 7.2.3.4)
+    compressor = zlib.compressobj(9, zlib.DEFLATED, -15)
+    reader.receive(client_frame(ended, rsv1=True) + client_frame(client_deflated(compressor, b'{"op":"b"}'),
+                                                                   rsv1=True))
+    assert [payload for _, payload, _ in events(reader)] == ['{"op":"a"}', '{"op":"b"}']
+
+
+def test_deflated_data_that_cannot_be_unpacked_is_the_clients_error():
+    reader = ws.FrameReader(1 << 20, deflate=True)
+    reader.receive(client_frame(b"\xff\xff\xff", rsv1=True))
+    with pytest.raises(ws.ProtocolError) as refused:
+        reader.next_event()
+    assert refused.value.code == ws.INVALID_DATA
