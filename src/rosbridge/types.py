@@ -3,10 +3,14 @@
 Only names of the form `package/Name` are looked up, and only through ROS's own message packages, so a
 client can never make the bridge import anything else."""
 import functools
+import importlib.util
+import os
 import re
+import sys
 
 import genpy
 import roslib.message
+import rospkg
 
 from rosbridge.errors import ClientError
 
@@ -20,6 +24,35 @@ class UnknownType(ClientError):
 def _check_name(type_name, kind):
     if not isinstance(type_name, str) or not TYPE_NAME.fullmatch(type_name):
         raise UnknownType(f"invalid {kind} type {type_name!r}: expected 'package/Name'")
+    if not _is_message_package(type_name.partition("/")[0]):
+        raise UnknownType(f"unknown {kind} type {type_name!r}")
+
+
+@functools.lru_cache(maxsize=1024)
+def _is_message_package(package):
+    """Whether `package` is a ROS package (rospack knows it) or a Python package with generated msg or srv
+    modules, found without importing it: roslib imports the package to look a type up, and a client must not
+    make the bridge import any other module (`this/Foo` would print the Zen of Python, `antigravity/Foo` open
+    a web browser)."""
+    module = sys.modules.get(package)
+    if module is not None:
+        locations = getattr(module, "__path__", ())  # (as extended by the package itself: catkin's halves)
+    else:
+        try:
+            spec = importlib.util.find_spec(package)
+        except (ImportError, ValueError):
+            return False
+        locations = (spec and spec.submodule_search_locations) or ()
+    if any(os.path.isdir(os.path.join(folder, kind)) for folder in locations for kind in ("msg", "srv")):
+        return True
+    try:
+        _ros_packages.get_path(package)
+        return True
+    except rospkg.ResourceNotFound:
+        return False
+
+
+_ros_packages = rospkg.RosPack()
 
 
 @functools.lru_cache(maxsize=None)

@@ -1,3 +1,5 @@
+import sys
+
 import pytest
 
 from rosbridge.types import UnknownType, message_class, service_class
@@ -20,3 +22,14 @@ def test_bad_or_unknown_names_are_refused(name):
 def test_a_message_is_not_a_service():
     with pytest.raises(UnknownType):
         service_class("geometry_msgs/Twist")
+
+
+@pytest.mark.parametrize("name", ["this/Foo", "antigravity/Foo", "email/Message", "json/Thing"])
+def test_a_type_name_never_imports_a_module_that_is_not_a_message_package(name):
+    package = name.partition("/")[0]
+    was_loaded = package in sys.modules
+    with pytest.raises(UnknownType):
+        message_class(name)
+    with pytest.raises(UnknownType):
+        service_class(name)
+    assert (package in sys.modules) == was_loaded
