@@ -117,8 +117,11 @@ class ClientConnection:
     def start(self, handshake_answer):
         stream = self._stream
         stream.set_close_callback(self._on_stream_closed)
-        stream.set_nodelay(True)
-        stream.write(handshake_answer)
+        try:
+            stream.set_nodelay(True)
+            stream.write(handshake_answer)
+        except tornado.iostream.StreamClosedError:  # the client left at once
+            return
         self.bridge.client_opened(self)
         interval = self.bridge.settings.websocket_ping_interval
         if interval:
@@ -143,9 +146,10 @@ class ClientConnection:
         self._take_frames()
 
     def silent_for(self, now):
-        """Seconds the client has sent nothing while the bridge was waiting to read it (0 while the bridge holds
-        its frames back itself: a client over its budget is not silent)."""
-        return now - self._last_heard if self._waiting == "read" else 0.0
+        """Seconds the client has not been heard while the bridge was ready to read it, or held its requests
+        (behind ROS work that may never end: its link may be dead meanwhile); 0 while the bridge holds its
+        frames back for its budget (a client over its budget is not silent)."""
+        return now - self._last_heard if self._waiting in ("read", "session") else 0.0
 
     def _resume(self):
         """The Session handles the client's requests again."""
@@ -228,7 +232,10 @@ class ClientConnection:
                 if one_at_a_time:
                     break
             if frames:
-                written = self._write(frames)
+                try:
+                    written = self._write(frames)
+                except tornado.iostream.StreamClosedError:  # (the close callback cleans up)
+                    return
                 if stream.writing():
                     self._awaiting_drain = True
                     written.add_done_callback(self._drained)

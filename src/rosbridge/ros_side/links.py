@@ -244,13 +244,15 @@ class OutboundLink(Link):
         if sent < len(framed):  # the rest through the stream, which waits for the socket to be writable
             self._write(memoryview(framed)[sent:])
 
-    def _write(self, data):
+    def _write(self, *messages):
+        """The stream keeps big messages by reference: the waiting ones are not copied into one."""
         try:
-            written = self.stream.write(data)
+            for data in messages:
+                written = self.stream.write(data)
         except StreamClosedError:
             self.close()
             return
-        self.stat_bytes += len(data)
+        self.stat_bytes += sum(map(len, messages))
         self._writing = True
         written.add_done_callback(self._written)
 
@@ -259,7 +261,7 @@ class OutboundLink(Link):
         if written.exception() is not None:
             self.close()
         elif len(self._waiting):
-            self._write(b"".join(self._waiting.take_all()))
+            self._write(*self._waiting.take_all())
 
     async def watch(self):
         """Until the subscriber leaves (it sends nothing after its header: anything it does send is dropped)."""

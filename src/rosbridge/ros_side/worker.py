@@ -10,6 +10,8 @@ import time
 import rosgraph
 import rospy
 
+from rosbridge.errors import log_bug
+
 IDLE_S = 2.0  # after this long without a job, the worker collects the garbage dropped objects left
 GRAPH_MAX_AGE = 0.5  # seconds a snapshot of the master's topics answers for the topics it holds
 GRAPH_MIN_AGE = 0.05  # a topic it lacks is asked again, but not more often than this (bursts share a look)
@@ -47,7 +49,10 @@ class RosWorker:
         finally:
             waiters = self._waiters
             while waiters and waiters[0][0] <= self._finished:
-                waiters.popleft()[1]()
+                try:
+                    waiters.popleft()[1]()
+                except Exception:  # a bug: logged; the waiters after it still go on
+                    log_bug("a request held behind ROS work")
 
     def dropped(self):
         """On the worker, after dropping rospy objects: their sockets and epoll descriptors are freed only when
