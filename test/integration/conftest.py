@@ -1,7 +1,17 @@
-"""Fixtures for the turtlesim integration tests: a fresh `rosrun turtlesim turtlesim_node` per test."""
+"""Fixtures for the integration tests: a fresh `rosrun turtlesim turtlesim_node` per test; a websocket client
+per test (ws) of the module's `bridge` (made by fixtures.bridge_fixture, or the module's own)."""
 import pytest
 
+from bridge_client import WsClient
 from harness import wait_for
+
+
+@pytest.fixture
+def ws(bridge):
+    """A websocket client of the module's bridge, closed after the test."""
+    client = WsClient(f"ws://127.0.0.1:{bridge}/")
+    yield client
+    client.close()
 
 
 def stop_turtlesim(ros, proc):

@@ -11,23 +11,12 @@ import pytest
 from PIL import Image
 
 from bridge_client import WsClient, ping
-from harness import start_bridge, wait_for
+from fixtures import bridge_fixture
+from harness import wait_for
 
 MAX_MESSAGE_SIZE = 100_000
 
-
-@pytest.fixture(scope="module")
-def bridge(ros):
-    proc, port = start_bridge(ros, node_name="protocol_bridge", max_message_size=MAX_MESSAGE_SIZE)
-    yield port
-    proc.stop()
-
-
-@pytest.fixture
-def ws(bridge):
-    client = WsClient(f"ws://127.0.0.1:{bridge}/")
-    yield client
-    client.close()
+bridge = bridge_fixture("protocol_bridge", max_message_size=MAX_MESSAGE_SIZE)
 
 
 class Publisher:

@@ -5,22 +5,10 @@ import json
 
 import pytest
 
-from bridge_client import RawWebSocket, WsClient
-from harness import start_bridge
+from bridge_client import RawWebSocket
+from fixtures import bridge_fixture
 
-
-@pytest.fixture(scope="module")
-def bridge(ros):
-    proc, port = start_bridge(ros, node_name="order_bridge")
-    yield port
-    proc.stop()
-
-
-@pytest.fixture
-def ws(bridge):
-    client = WsClient(f"ws://127.0.0.1:{bridge}/")
-    yield client
-    client.close()
+bridge = bridge_fixture("order_bridge")
 
 
 def send_at_once(port, *requests):
