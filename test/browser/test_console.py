@@ -191,11 +191,11 @@ def test_log_lines_arrive_and_filter(open_page, node):
     wait_for(lambda: (node.loginfo("console says hello"), "console says hello" in text_of(page, ".log-lines"))[1],
              20, interval=0.5, what="the log line")
     Select(page.driver.find_element(By.CSS_SELECTOR, "select.log-level")).select_by_value("4")
-    wait_for(lambda: "console says hello" not in text_of(page, ".log-lines"), 5, what="info lines hidden")
+    wait_for(lambda: "console says hello" not in text_of(page, ".log-lines"), 15, what="info lines hidden")
     Select(page.driver.find_element(By.CSS_SELECTOR, "select.log-level")).select_by_value("2")
     search = page.driver.find_element(By.CSS_SELECTOR, "input.log-search")
     search.send_keys("no such text")
-    wait_for(lambda: text_of(page, ".log-lines") == "", 5, what="text search")
+    wait_for(lambda: text_of(page, ".log-lines") == "", 15, what="text search")
 
 
 @pytest.mark.parametrize("screen", ["desktop", "phone"])

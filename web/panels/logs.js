@@ -27,7 +27,10 @@ export class LogsPanel extends Panel {
     this.lines = [];
     this.nodes = new Set();
     this.subscription = null;
-    for (const control of [this.level, this.node, this.search]) control.addEventListener('input', () => this.render());
+    // (a select chosen by script or assistive tools may fire only 'change')
+    for (const control of [this.level, this.node, this.search]) {
+      for (const event of ['input', 'change']) control.addEventListener(event, () => this.render());
+    }
     root.querySelector('button.log-clear').addEventListener('click', () => {
       this.lines = [];
       this.render();
