@@ -191,7 +191,10 @@ class Publishers:
                 self.advertise(session, topic, entry.type, latch, queue_size)
             entry.publisher.put(packer(entry.cls)(msg, now=rospy.Time.now))
             if entry.type in DRIVE_TYPES:
-                self._driven.setdefault(session, set()).add(topic)
+                driven = self._driven.get(session)
+                if driven is None:  # (not setdefault: no new set for every message of a topic driven at 1 kHz)
+                    driven = self._driven[session] = set()
+                driven.add(topic)
             return
         waiting = self._inferring.get(topic)
         if waiting is None:  # ask the master for the topic's type, off the loop
