@@ -1,5 +1,6 @@
-"""A bounded queue of outgoing frames that drops the oldest when its reader is too slow: a websocket client's
-(protocol.Session), and a ROS subscriber's of a topic the bridge publishes (ros_side/links.py)."""
+"""What waits for a socket. Outbox: a websocket client's (protocol.Session), whole messages, small before big, each
+topic kept fresh while the client's socket is backed up. FrameQueue: a ROS subscriber's of a topic the bridge
+publishes (ros_side/links.py), bounded, the oldest dropped."""
 import collections
 
 
@@ -45,3 +46,145 @@ class FrameQueue:
     def clear(self):
         self._frames.clear()
         self.bytes = 0
+
+
+SMALL_MESSAGE = 1 << 16  # bytes: a message smaller than this goes before the big ones that have not started yet
+TOPIC_BACKLOG_BYTES = 16 * 1024  # what one topic may have waiting while the socket is backed up (but its newest)...
+FRESH_HORIZON = 0.5  # ...and for how long (s): older messages of a topic that has a newer one waiting are skipped
+
+
+class _Unit:
+    """One message's frames (its fragments, or its one frame) waiting for the socket."""
+    __slots__ = ("key", "frames", "size", "queued_at", "big")
+
+    def __init__(self, key, frames, size, queued_at, big):
+        self.key, self.frames, self.size, self.queued_at, self.big = key, frames, size, queued_at, big
+
+
+class Outbox:
+    """What waits for one websocket client's socket, as whole messages: a message's fragments are sent together
+    or not at all. Pure: the server says when the socket is backed up (`backed_up`), and takes frames.
+
+    - A client that keeps up gets everything, in order per topic.
+    - Small messages go before big ones that have not started (a pose is not made to wait behind a picture):
+      two lanes, small first; a topic's small message that follows a big one of the same topic waits in the big
+      lane behind it, so that a topic's messages never change order.
+    - While the socket is backed up, each topic keeps what is fresh: of its waiting messages, the older ones are
+      skipped once they are more than TOPIC_BACKLOG_BYTES or older than FRESH_HORIZON, the newest always kept
+      (a camera keeps one picture; a small topic the last half second). Messages without a topic (key None:
+      service responses, status) are never skipped.
+    - Bounds for everything: max_frames and max_bytes. Beyond them the oldest whole messages are dropped; a
+      message larger than the whole bound is refused. Skipped, dropped and refused are counted by topic for the
+      client's status messages (take_report)."""
+
+    def __init__(self, max_frames, max_bytes, clock):
+        self.max_frames, self.max_bytes, self._clock = max_frames, max_bytes, clock
+        self._small, self._big = collections.deque(), collections.deque()  # units, oldest first
+        self._dead = 0  # units skipped or dropped that are still in a lane (removed lazily)
+        self._by_key = {}  # topic (or None) -> its waiting units, oldest first
+        self._key_bytes = collections.Counter()
+        self._current = collections.deque()  # the rest of the message being sent: it goes on before anything
+        self.frames = 0  # frames waiting, the current message's included
+        self.bytes = 0
+        self.backed_up = False
+        self.skipped, self.dropped, self.refused = collections.Counter(), collections.Counter(), collections.Counter()
+
+    def __len__(self):
+        return self.frames
+
+    def push(self, key, frames):
+        """Queues the frames of one message (key: its topic, or None)."""
+        size = sum(map(len, frames))
+        if len(frames) > self.max_frames or size > self.max_bytes:
+            self.refused[key] += 1
+            return
+        waiting = self._by_key.get(key)
+        if waiting is None:
+            waiting = self._by_key[key] = collections.deque()
+        big = size >= SMALL_MESSAGE or bool(waiting and waiting[-1].big)
+        unit = _Unit(key, frames, size, self._clock(), big)
+        (self._big if big else self._small).append(unit)
+        waiting.append(unit)
+        self._key_bytes[key] += size
+        self.frames += len(frames)
+        self.bytes += size
+        if self.backed_up and key is not None:
+            self._freshen(key, waiting, unit.queued_at)
+        if self.frames > self.max_frames or self.bytes > self.max_bytes:
+            self._bound(unit)
+
+    def _freshen(self, key, waiting, now):
+        while len(waiting) > 1 and (self._key_bytes[key] > TOPIC_BACKLOG_BYTES
+                                    or now - waiting[0].queued_at > FRESH_HORIZON):
+            self._remove(waiting.popleft())
+            self.skipped[key] += 1
+
+    def _bound(self, newest):
+        for lane in (self._big, self._small):  # the big ones first: they are what fills memory
+            for unit in lane:
+                if self.frames <= self.max_frames and self.bytes <= self.max_bytes:
+                    return
+                if unit.frames is not None and unit is not newest:
+                    self._by_key[unit.key].remove(unit)
+                    self._remove(unit)
+                    self.dropped[unit.key] += 1
+
+    def _remove(self, unit):
+        """Takes a waiting unit out of the counts; it leaves its lane when the lane is next taken from, or compacted
+        once the dead outnumber the living (a client that never reads must not grow the lanes)."""
+        self._forget(unit)
+        unit.frames = None
+        self._dead += 1
+        if self._dead > 64 and self._dead > len(self._small) + len(self._big) - self._dead:
+            self._small = collections.deque(u for u in self._small if u.frames is not None)
+            self._big = collections.deque(u for u in self._big if u.frames is not None)
+            self._dead = 0
+
+    def _forget(self, unit):
+        key = unit.key
+        self._key_bytes[key] -= unit.size
+        if not self._key_bytes[key]:
+            del self._key_bytes[key]
+        if not self._by_key[key]:
+            del self._by_key[key]
+        self.frames -= len(unit.frames)
+        self.bytes -= unit.size
+
+    def take(self):
+        """The next frame to send, or None."""
+        current = self._current
+        if not current:
+            unit = self._next_unit()
+            if unit is None:
+                return None
+            self._by_key[unit.key].popleft()
+            self._forget(unit)
+            self.frames += len(unit.frames)  # (now counted as the current message)
+            self.bytes += unit.size
+            current.extend(unit.frames)
+        frame = current.popleft()
+        self.frames -= 1
+        self.bytes -= len(frame)
+        return frame
+
+    def _next_unit(self):
+        for lane in (self._small, self._big):
+            while lane:
+                unit = lane.popleft()
+                if unit.frames is not None:
+                    return unit
+                self._dead -= 1
+        return None
+
+    def take_report(self):
+        """(skipped, dropped, refused) since the last report: Counters of messages by topic."""
+        report = (self.skipped, self.dropped, self.refused)
+        self.skipped, self.dropped, self.refused = collections.Counter(), collections.Counter(), collections.Counter()
+        return report
+
+    def clear(self):
+        for lane in (self._small, self._big, self._current):
+            lane.clear()
+        self._by_key.clear()
+        self._key_bytes.clear()
+        self._dead = self.frames = self.bytes = 0

@@ -3,8 +3,9 @@ state (subscriptions, authentication, status level) and call the ROS side throug
 contract. Pure: no rospy, no tornado; the server gives it a clock, a timer and a wake-up.
 
 The jobs around it have rooms of their own: reassembly.py (fragment and png ops), subscription.py (merging and
-throttling), outgoing.py (the bounded outgoing queue), frames.py (encoding what goes out), auth.py (rosauth)."""
+throttling), outgoing.py (the outbox: whole messages, small first, fresh on a slow link), frames.py (encoding what goes out), auth.py (rosauth)."""
 import collections
+import functools
 import json
 import math
 
@@ -14,10 +15,11 @@ from rosbridge.auth import mac_is_valid
 from rosbridge.codec.json_values import dumps
 from rosbridge.errors import ClientError, RequestError, log_bug
 from rosbridge.frames import COMPRESSIONS, service_response_frames, status_frame
-from rosbridge.outgoing import FrameQueue
+from rosbridge.outgoing import Outbox
 from rosbridge.reassembly import Fragments, unpack_png
 from rosbridge.subscription import MAX_THROTTLE_RATE, Subscription
 
+REPORT_INTERVAL = 1.0  # s: how often at most a client is told what its slow link skipped or dropped
 STATUS_LEVELS = ("info", "warning", "error", "none")
 # ops the ROS side may refuse later, off the loop (see Session.ros_refused), and the field naming what they ask
 LATER_REFUSALS = {"subscribe": "topic", "advertise": "topic", "publish": "topic", "advertise_service": "service"}
@@ -41,8 +43,9 @@ class Config:
             raise TypeError(f"Config: unknown settings {sorted(unknown)}")
         for name in self.FROM_SETTINGS:
             setattr(self, name, overrides.get(name, getattr(current, name)))
-        # what may wait for one slow client before the oldest frames are dropped: frames (max_queue), and bytes
-        self.max_queue_bytes = max(32_000_000, 2 * self.max_message_size)
+        # what may wait for one slow client before the oldest whole messages are dropped: frames (max_queue), and
+        # bytes: enough for a 16 MB occupancy grid as JSON (about 47 MB)
+        self.max_queue_bytes = max(64_000_000, 2 * self.max_message_size)
         self.globs = globs or globs_module.Globs()
         self.auth_secret = auth_secret
 
@@ -134,7 +137,9 @@ class Session:
         self.level = STATUS_LEVELS.index("error")
         self.authenticated = not config.authenticate
         self.is_closed = False
-        self._outgoing = FrameQueue(config.max_queue, config.max_queue_bytes)
+        self._outgoing = Outbox(config.max_queue, config.max_queue_bytes, clock)
+        self._last_report = float("-inf")  # when the client was last told what its slow link skipped
+        self._reports = collections.deque()  # those status frames: they go first
         self._woken = False
         self._fragments = Fragments(config.max_message_size, config.fragment_timeout)
 
@@ -194,7 +199,7 @@ class Session:
             self.status("error", str(error), request_id)
             if op == "call_service" and isinstance(request.get("service"), str) and self.authenticated:
                 # client libraries wait for the service_response of their call: fail it at once too
-                self._send_frames(service_response_frames(request["service"], request_id, False, str(error)))
+                self._queue(None, service_response_frames(request["service"], request_id, False, str(error)))
             if op == "auth" and not self.authenticated:
                 self.close("authentication failed")
         except Exception:  # a bug: logged (once a minute per kind), the client told, the connection kept
@@ -273,7 +278,7 @@ class Session:
         subscription = self.subscriptions.get(topic)
         if subscription is None:
             subscription = self.subscriptions[topic] = Subscription(
-                self._send_frames, self._clock, self._call_later, self.config.max_queue_bytes,
+                functools.partial(self._queue, topic), self._clock, self._call_later, self.config.max_queue_bytes,
                 backlogged=lambda: len(self._outgoing) > 0)
         subscription.add(req.get("id"), {"throttle_rate": throttle_rate, "queue_length": queue_length,
                                          "fragment_size": fragment_size, "compression": compression})
@@ -303,7 +308,7 @@ class Session:
 
         def reply(ok, values):
             if not self.is_closed:
-                self._send_frames(service_response_frames(service, call_id, ok, values, compression, fragment_size))
+                self._queue(None, service_response_frames(service, call_id, ok, values, compression, fragment_size))
 
         args = req.get("args")
         self.backend.call_service(self, service, {} if args is None else args, req.get("type"), timeout, reply)
@@ -372,26 +377,37 @@ class Session:
         if STATUS_LEVELS.index(level) >= self.level:
             self.send(status_frame(level, msg, request_id))
 
-    def _send_frames(self, frames):
-        for frame in frames:
-            self.send(frame)
-
     def send(self, frame):
-        """Queues a frame (str: text, bytes: binary); the oldest are dropped when the client is too slow."""
+        """Queues a frame that belongs to no topic (str: text, bytes: binary)."""
+        self._queue(None, (frame,))
+
+    def _queue(self, topic, frames):
+        """Queues the frames of one message (topic None: not a topic's; such are never skipped)."""
         if self.is_closed:
             return
-        self._outgoing.push(frame)
+        self._outgoing.push(topic, frames)
         if not self._woken:
             self._woken = True
             self._wake()
 
+    def backed_up(self, flag):
+        """The server says whether the client's socket has stopped taking frames (then each topic keeps only
+        what is fresh: outgoing.Outbox)."""
+        self._outgoing.backed_up = flag
+
     def take_frame(self):
-        """The next frame to write, or None when the queue is empty (the next send wakes the server again)."""
-        dropped = self._outgoing.take_dropped()
-        if dropped and STATUS_LEVELS.index("warning") >= self.level:
-            return status_frame("warning", f"client too slow: dropped {dropped} oldest outgoing frame(s) "
-                                           f"(queue bound: {self.config.max_queue} frames)")
-        frame = self._outgoing.pop()
+        """The next frame to write, or None when the queue is empty (the next send wakes the server again).
+        What a slow link made the bridge skip, drop or refuse is told first, at most once a REPORT_INTERVAL."""
+        outbox = self._outgoing
+        if (outbox.skipped or outbox.dropped or outbox.refused) and \
+                self._clock() - self._last_report >= REPORT_INTERVAL:
+            self._last_report = self._clock()
+            self._reports.extend(status_frame(level, text)
+                                 for level, text in _outbox_report(*outbox.take_report(), self.config)
+                                 if STATUS_LEVELS.index(level) >= self.level)
+        if self._reports:
+            return self._reports.popleft()
+        frame = outbox.take()
         if frame is None:
             self._woken = False
         return frame
@@ -411,6 +427,21 @@ class Session:
         self._outgoing.clear()
         self._fragments.clear()
         self.backend.release(self)
+
+
+def _outbox_report(skipped, dropped, refused, config):
+    """(level, text) of each status telling a client what its slow link cost it."""
+    def by_topic(counts):
+        return ", ".join(f"{topic or 'other messages'} {n}" for topic, n in counts.most_common())
+    if skipped:
+        yield "warning", (f"skipped {sum(skipped.values())} older message(s), the newest of each topic kept "
+                          f"(the link is slower than the messages): {by_topic(skipped)}")
+    if dropped:
+        yield "error", (f"dropped {sum(dropped.values())} whole message(s): client too slow (outgoing bound "
+                        f"{config.max_queue} frames, {config.max_queue_bytes} bytes): {by_topic(dropped)}")
+    if refused:
+        yield "error", (f"refused {sum(refused.values())} message(s) larger than the client's whole outgoing bound "
+                        f"({config.max_queue} frames, {config.max_queue_bytes} bytes): {by_topic(refused)}")
 
 
 def _positive(req, name, default):

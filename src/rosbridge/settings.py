@@ -28,7 +28,7 @@ SETTINGS = (
     Setting("max_message_size", int, 8_000_000,
             "bytes; larger frames get a `status` error; 0 = no limit (the reference has none)", ours=True),
     Setting("max_queue", int, 1000,
-            "frames waiting for one slow client before the oldest are dropped (the client is told)", ours=True),
+            "frames waiting for one slow client before the oldest whole messages are dropped (the client is told)", ours=True),
     Setting("max_clients", int, 1000, "clients connected at once; more get HTTP 503", ours=True),
     Setting("max_frames_per_second", int, 20000,
             "frames one client may send per second (a burst of one second); beyond it its next frames wait "

@@ -16,6 +16,7 @@ from rosbridge.errors import log_bug
 from rosbridge.frames import SplicedFrame, Utf8Text
 from rosbridge.origins import origin_allowed
 from rosbridge.pages import SECURITY_HEADERS
+from rosbridge.unsent import limit_unsent
 
 READ_CHUNK = 64 * 1024  # bytes asked of a client's stream per read: every frame complete in them is taken at once
 # Frames waiting for a client go to its socket together, up to this many bytes per write: one system call for a
@@ -91,8 +92,9 @@ class ClientConnection:
     turns with the other clients: after a turn's worth (budget.py), or while the Session holds the client's
     next requests, the rest waits, and the client's socket with it (backpressure).
 
-    Writing: the Session's queued frames go to the stream while it takes them; once the stream is backed up, the
-    rest stays in the Session's bounded queue until it has drained."""
+    Writing: the Session's queued frames go to the stream while it takes them; once the stream is backed up (the
+    kernel holds at most unsent.UNSENT_LIMIT unsent), the rest stays in the Session's Outbox, which keeps each
+    topic fresh meanwhile, until the stream has drained."""
 
     def __init__(self, bridge, stream, peer, deflate):
         self.bridge, self._stream, self._deflate = bridge, stream, deflate
@@ -119,6 +121,7 @@ class ClientConnection:
         stream.set_close_callback(self._on_stream_closed)
         try:
             stream.set_nodelay(True)
+            limit_unsent(stream.socket)
             stream.write(handshake_answer)
         except tornado.iostream.StreamClosedError:  # the client left at once
             return
@@ -238,6 +241,7 @@ class ClientConnection:
                     return
                 if stream.writing():
                     self._awaiting_drain = True
+                    session.backed_up(True)
                     written.add_done_callback(self._drained)
                     return
                 self._control_unsent = 0
@@ -251,6 +255,7 @@ class ClientConnection:
 
     def _drained(self, written):
         self._awaiting_drain = False
+        self.session.backed_up(False)
         self._control_unsent = 0
         if not written.cancelled() and written.exception() is None:
             self._flush()
@@ -290,6 +295,7 @@ class ClientConnection:
             self._control_unsent = 0
         elif not self._awaiting_drain:
             self._awaiting_drain = True
+            self.session.backed_up(True)
             written.add_done_callback(self._drained)
 
     # ---- keeping alive, closing ------------------------------------------------------------------

@@ -250,15 +250,31 @@ def test_a_throttled_subscription_waits_for_a_slow_client_and_sends_the_newest()
     assert [r["msg"]["data"] for r in h.replies()] == [99]
 
 
-def test_slow_client_drops_oldest_and_is_told():
+def test_slow_client_drops_oldest_whole_messages_and_is_told_at_the_default_level():
     h = Harness(max_queue=3)
-    h.send({"op": "set_level", "level": "warning"})
     h.send({"op": "subscribe", "topic": "/t"})
     for n in range(10):
         h.session.deliver(message(data=n))
     replies = h.replies()
-    assert replies[0]["op"] == "status" and replies[0]["level"] == "warning" and "dropped 7" in replies[0]["msg"]
+    assert replies[0]["op"] == "status" and replies[0]["level"] == "error"
+    assert "dropped 7 whole message(s)" in replies[0]["msg"] and "/t 7" in replies[0]["msg"]
     assert [r["msg"]["data"] for r in replies[1:]] == [7, 8, 9]
+
+
+def test_backed_up_client_gets_the_newest_of_each_topic_and_is_told_once_a_second():
+    h = Harness()
+    h.send({"op": "set_level", "level": "warning"})
+    h.send({"op": "subscribe", "topic": "/t"})
+    h.session.backed_up(True)
+    for n in range(2000):  # more than a topic's backlog bound: the older are skipped
+        h.session.deliver(message(data=n))
+    replies = h.replies()
+    assert replies[0]["level"] == "warning" and replies[0]["msg"].startswith("skipped ")
+    data = [r["msg"]["data"] for r in replies[1:]]
+    assert data == list(range(2000 - len(data), 2000)) and len(data) < 2000
+    h.session.deliver(message(data=2000))
+    h.session.deliver(message(data=2001))
+    assert [r["op"] for r in h.replies()] == ["publish", "publish"]  # (no second report within the second)
 
 
 def test_status_level_filters(h):
