@@ -66,9 +66,10 @@ class Outbox:
     or not at all. Pure: the server says when the socket is backed up (`backed_up`), and takes frames.
 
     - A client that keeps up gets everything, in order per topic.
-    - Small messages go before big ones that have not started (a pose is not made to wait behind a picture):
-      two lanes, small first; a topic's small message that follows a big one of the same topic waits in the big
-      lane behind it, so that a topic's messages never change order.
+    - Small messages go before big ones that have not started (a pose is not made to wait behind a picture),
+      and between the fragments of a big one (rosbridge fragments are ops of their own): two lanes, small
+      first; a topic's small message that follows a big one of the same topic waits in the big lane behind it,
+      so that a topic's messages never change order.
     - While the socket is backed up, each topic keeps what is fresh: of its waiting messages, the older ones are
       skipped once they are more than TOPIC_BACKLOG_BYTES or older than FRESH_HORIZON, the newest always kept
       (a camera keeps one picture; a small topic the last half second). Messages without a topic (key None:
@@ -83,7 +84,8 @@ class Outbox:
         self._dead = 0  # units skipped or dropped that are still in a lane (removed lazily)
         self._by_key = {}  # topic (or None) -> its waiting units, oldest first
         self._key_bytes = collections.Counter()
-        self._current = collections.deque()  # the rest of the message being sent: it goes on before anything
+        self._current = collections.deque()  # the rest of the fragments of the message being sent...
+        self._current_key = None  # ...and its topic: only small messages of other topics go between them
         self.frames = 0  # frames waiting, the current message's included
         self.bytes = 0
         self.backed_up = False
@@ -101,7 +103,7 @@ class Outbox:
         waiting = self._by_key.get(key)
         if waiting is None:
             waiting = self._by_key[key] = collections.deque()
-        big = size >= SMALL_MESSAGE or bool(waiting and waiting[-1].big)
+        big = size >= SMALL_MESSAGE or bool(waiting and waiting[-1].big) or (key == self._current_key and self._current)
         unit = _Unit(key, frames, size, self._clock(), big)
         (self._big if big else self._small).append(unit)
         waiting.append(unit)
@@ -153,27 +155,32 @@ class Outbox:
     def take(self):
         """The next frame to send, or None."""
         current = self._current
-        if not current:
-            unit = self._next_unit()
-            if unit is None:
-                return None
+        unit = self._next_unit(self._small)
+        if unit is None and not current:
+            unit = self._next_unit(self._big)
+        if unit is not None:
             self._by_key[unit.key].popleft()
             self._forget(unit)
-            self.frames += len(unit.frames)  # (now counted as the current message)
-            self.bytes += unit.size
-            current.extend(unit.frames)
+            if len(unit.frames) == 1:
+                return unit.frames[0]
+            self.frames += len(unit.frames) - 1  # (the rest now counted as the current message)
+            self.bytes += unit.size - len(unit.frames[0])
+            current.extend(unit.frames[1:])
+            self._current_key = unit.key
+            return unit.frames[0]
+        if not current:
+            return None
         frame = current.popleft()
         self.frames -= 1
         self.bytes -= len(frame)
         return frame
 
-    def _next_unit(self):
-        for lane in (self._small, self._big):
-            while lane:
-                unit = lane.popleft()
-                if unit.frames is not None:
-                    return unit
-                self._dead -= 1
+    def _next_unit(self, lane):
+        while lane:
+            unit = lane.popleft()
+            if unit.frames is not None:
+                return unit
+            self._dead -= 1
         return None
 
     def take_report(self):
@@ -185,6 +192,7 @@ class Outbox:
     def clear(self):
         for lane in (self._small, self._big, self._current):
             lane.clear()
+        self._current_key = None
         self._by_key.clear()
         self._key_bytes.clear()
         self._dead = self.frames = self.bytes = 0

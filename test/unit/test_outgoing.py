@@ -50,12 +50,14 @@ def test_small_messages_go_before_a_big_one_that_has_not_started():
     assert drain(box) == ["pose1", "status", "picture.0"]
 
 
-def test_a_started_big_message_is_finished_first_and_its_fragments_stay_together():
+def test_a_started_fragmented_message_lets_small_ones_of_other_topics_between_its_fragments():
     box, _ = outbox()
     box.push("/map", big("map", parts=3))
+    box.push("/camera", big("picture"))
     assert drain_one(box) == "map.0"
     box.push("/pose", small("pose1"))
-    assert drain(box) == ["map.1", "map.2", "pose1"]
+    box.push("/map", small("map2"))  # the same topic: after the rest of the map
+    assert drain(box) == ["pose1", "map.1", "map.2", "picture.0", "map2"]
 
 
 def drain_one(box):
