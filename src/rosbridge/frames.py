@@ -58,16 +58,52 @@ def text_frames(text, compression, fragment_size):
     return tuple(Utf8Text(part.encode()) for part in fragment_text(text, fragment_size))
 
 
+OFF_LOOP_BYTES = 1 << 20  # a message this big is encoded off the event loop (a map takes seconds as JSON)
+
+
 class TopicMessage:
     """One ROS message from a topic, as rospy received it (msg_class: its genpy class; data: its serialized bytes),
     encoded lazily and at most once per encoding for all its subscribers. stamp: its receipt time in seconds (sent
-    with cbor-raw)."""
-    __slots__ = ("topic", "msg_class", "data", "stamp", "_json", "_frames")
+    with cbor-raw). A big one (`big`) is encoded off the loop: frames_later."""
+    __slots__ = ("topic", "msg_class", "data", "stamp", "_json", "_frames", "_waiting")
 
     def __init__(self, topic, msg_class, data, stamp):
         self.topic, self.msg_class, self.data, self.stamp = topic, msg_class, data, stamp
         self._json = None  # the frames of the usual case: plain JSON, not fragmented
         self._frames = None  # (compression, fragment_size) -> frames, for the others
+        self._waiting = None  # (compression, fragment_size) -> callbacks waiting for an encoding off the loop
+
+    @property
+    def big(self):
+        return len(self.data) >= OFF_LOOP_BYTES
+
+    def frames_later(self, compression, fragment_size, off_loop, then):
+        """Calls then(frames) on the loop once the frames are encoded: by off_loop(encode, done), which runs
+        encode() on another thread and done(result) on the loop (result None: it failed, and was logged); once
+        for every subscriber that asks meanwhile."""
+        key = (compression, fragment_size)
+        done = self._json if key == ("none", None) else (self._frames or {}).get(key)
+        if done is not None:
+            then(done)
+            return
+        if self._waiting is None:
+            self._waiting = {}
+        if key in self._waiting:
+            self._waiting[key].append(then)
+            return
+        self._waiting[key] = [then]
+        off_loop(lambda: self._encode(compression, fragment_size), lambda frames: self._encoded(key, frames))
+
+    def _encoded(self, key, frames):
+        if frames is not None:
+            if key == ("none", None):
+                self._json = frames
+            else:
+                if self._frames is None:
+                    self._frames = {}
+                self._frames[key] = frames
+        for then in self._waiting.pop(key):
+            then(frames)
 
     def frames(self, compression, fragment_size):
         """The frames (Utf8Text for text, bytes for binary, SplicedFrame for either) that carry this message with

@@ -126,9 +126,11 @@ class Session:
     still under way, the next ones are held (`holding` is true: the server stops reading the client meanwhile,
     so what is held stays small) and handled once it is done; then resume_reading() is called."""
 
-    def __init__(self, backend, config, clock, call_later, wake, close, name="client", resume_reading=None):
+    def __init__(self, backend, config, clock, call_later, wake, close, name="client", resume_reading=None,
+                 off_loop=None):
         self.backend, self.config, self.name = backend, config, name
         self._clock, self._call_later, self._wake, self._close = clock, call_later, wake, close
+        self._off_loop = off_loop  # off_loop(fn, then): fn() on another thread, then(result) on the loop
         self._resume_reading = resume_reading
         self._held = None  # frames received while an earlier request's ROS side is under way, in order
         self.subscriptions = {}
@@ -279,7 +281,7 @@ class Session:
         if subscription is None:
             subscription = self.subscriptions[topic] = Subscription(
                 functools.partial(self._queue, topic), self._clock, self._call_later, self.config.max_queue_bytes,
-                backlogged=lambda: len(self._outgoing) > 0)
+                backlogged=lambda: len(self._outgoing) > 0, off_loop=self._off_loop)
         subscription.add(req.get("id"), {"throttle_rate": throttle_rate, "queue_length": queue_length,
                                          "fragment_size": fragment_size, "compression": compression})
 

@@ -3,6 +3,7 @@ import collections
 
 MAX_THROTTLE_RATE = 86_400_000  # ms: a day; beyond that a client means "never", which unsubscribe says better
 BACKLOG_RETRY = 0.02  # s: how soon a throttled message waiting for a slow client looks again
+MAX_BEHIND_ENCODING = 1000  # messages of a topic waiting behind a big one being encoded: beyond, the oldest go
 
 
 class Subscription:
@@ -13,14 +14,20 @@ class Subscription:
     dropped) and leave one per throttle period, and only while the client has read what it was sent before
     (backlogged() is false): so a slow client gets the newest message, not a growing backlog (a camera picture
     never lags behind). The latest is kept (not dropped as the reference does), so a throttled stream ends on
-    the last value. send(frames) sends; clock() and call_later(delay, fn) come from the server."""
+    the last value. send(frames) sends; clock() and call_later(delay, fn) come from the server.
+
+    A big message (TopicMessage.big: a map) is encoded off the loop by off_loop (TopicMessage.frames_later), so that
+    the other topics and clients go on meanwhile; the topic's next messages wait behind it, in order (at most
+    MAX_BEHIND_ENCODING, the oldest dropped). off_loop None: everything is encoded at once (unit tests)."""
     __slots__ = ("requests", "throttle_rate", "queue_length", "fragment_size", "compression", "_last_sent",
                  "_pending", "_pending_bytes", "_max_bytes", "_timer", "_send", "_clock", "_call_later", "_active",
-                 "_backlogged")
+                 "_backlogged", "_off_loop", "_behind", "_encoding")
 
-    def __init__(self, send, clock, call_later, max_bytes, backlogged=lambda: False):
+    def __init__(self, send, clock, call_later, max_bytes, backlogged=lambda: False, off_loop=None):
         self._send, self._clock, self._call_later, self._max_bytes = send, clock, call_later, max_bytes
-        self._backlogged = backlogged
+        self._backlogged, self._off_loop = backlogged, off_loop
+        self._behind = collections.deque()  # messages waiting for a big one being encoded
+        self._encoding = False
         self.requests = {}  # subscribe id (None when the client gave none) -> its options
         self._last_sent = float("-inf")
         self._pending = collections.deque()  # frames of one message each, oldest first
@@ -54,10 +61,35 @@ class Subscription:
         self._trim()
 
     def deliver(self, message):
-        if not self.throttle_rate:
-            self._send(message.frames(self.compression, self.fragment_size))
+        if self._encoding or (message.big and self._off_loop is not None):
+            self._behind.append(message)
+            if len(self._behind) > MAX_BEHIND_ENCODING:
+                self._behind.popleft()
+            if not self._encoding:
+                self._encode_behind()
             return
-        frames = message.frames(self.compression, self.fragment_size)
+        self._deliver(message.frames(self.compression, self.fragment_size))
+
+    def _encode_behind(self):
+        """Delivers the messages that waited, in order, until the next big one, which is encoded off the loop."""
+        while self._behind and self._active:
+            message = self._behind.popleft()
+            if message.big:
+                self._encoding = True
+                message.frames_later(self.compression, self.fragment_size, self._off_loop, self._encoded)
+                return
+            self._deliver(message.frames(self.compression, self.fragment_size))
+
+    def _encoded(self, frames):
+        self._encoding = False
+        if frames is not None and self._active:
+            self._deliver(frames)
+        self._encode_behind()
+
+    def _deliver(self, frames):
+        if not self.throttle_rate:
+            self._send(frames)
+            return
         self._pending.append(frames)
         self._pending_bytes += sum(map(len, frames))
         self._trim()
@@ -67,6 +99,7 @@ class Subscription:
     def close(self):
         """The client left or unsubscribed: drop what waits (a pending timer then finds nothing)."""
         self._active = False
+        self._behind.clear()
         self._pending.clear()
         self._pending_bytes = 0
 

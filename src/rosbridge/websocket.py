@@ -105,7 +105,7 @@ class ClientConnection:
         self.budget = ClientBudget(settings.max_frames_per_second, settings.max_bytes_per_second, time.monotonic)
         self.session = protocol.Session(bridge.backend, bridge.config, time.time, self._loop.call_later,
                                         self._wake, self._close_after_sending, name=peer,
-                                        resume_reading=self._resume)
+                                        resume_reading=self._resume, off_loop=bridge.encoder.run)
         self._waiting = None  # what reading waits for: "read", "turn" (a timer), "session", or "end"
         self._turn_timer = None
         self._closing = False  # our close frame is sent: nothing else goes out

@@ -70,14 +70,14 @@ def test_the_session_implements_what_the_ros_side_may_call_on_a_client():
 
 
 class Harness:
-    def __init__(self, **config):
+    def __init__(self, off_loop=None, **config):
         self.now = 1000.0
         self.timers = []
         self.closed_with = None
         self.backend = RecordingBackend()
         self.session = protocol.Session(self.backend, protocol.Config(**config), lambda: self.now,
                                         lambda delay, fn: self.timers.append((self.now + delay, fn)),
-                                        lambda: None, self._close)
+                                        lambda: None, self._close, off_loop=off_loop)
 
     def _close(self, reason):
         self.closed_with = reason
@@ -259,6 +259,48 @@ def test_slow_client_drops_oldest_whole_messages_and_is_told_at_the_default_leve
     assert replies[0]["op"] == "status" and replies[0]["level"] == "error"
     assert "dropped 7 whole message(s)" in replies[0]["msg"] and "/t 7" in replies[0]["msg"]
     assert [r["msg"]["data"] for r in replies[1:]] == [7, 8, 9]
+
+
+class OffLoop:
+    """Jobs for the encoding thread, run when the test says (run_all); counts them."""
+    def __init__(self):
+        self.jobs, self.count = [], 0
+
+    def __call__(self, fn, then):
+        self.jobs.append((fn, then))
+        self.count += 1
+
+    def run_all(self):
+        jobs, self.jobs = self.jobs, []
+        for fn, then in jobs:
+            then(fn())
+
+
+def test_a_big_message_is_encoded_off_the_loop_once_and_the_topic_keeps_its_order():
+    off_loop = OffLoop()
+    first, second = Harness(off_loop=off_loop), Harness(off_loop=off_loop)
+    for h in (first, second):
+        h.send({"op": "subscribe", "topic": "/map"})
+        h.send({"op": "subscribe", "topic": "/other"})
+    big = received("/map", String("m" * (1 << 20)), 0.0)
+    for h in (first, second):
+        h.session.deliver(big)
+        h.session.deliver(received("/map", String("after"), 0.0))
+        h.session.deliver(received("/other", String("other"), 0.0))
+    for h in (first, second):  # the other topic goes on; the map's next waits behind it
+        assert [(r["topic"], r["msg"]["data"]) for r in h.replies()] == [("/other", "other")]
+    assert off_loop.count == 1  # one encoding for both clients
+    off_loop.run_all()
+    for h in (first, second):
+        assert [r["msg"]["data"][:5] for r in h.replies()] == ["mmmmm", "after"]
+
+
+def test_a_failed_encoding_off_the_loop_skips_that_message_only():
+    h = Harness(off_loop=lambda fn, then: then(None))
+    h.send({"op": "subscribe", "topic": "/map"})
+    h.session.deliver(received("/map", String("m" * (1 << 20)), 0.0))
+    h.session.deliver(received("/map", String("after"), 0.0))
+    assert [r["msg"]["data"] for r in h.replies()] == ["after"]
 
 
 def test_backed_up_client_gets_the_newest_of_each_topic_and_is_told_once_a_second():
