@@ -19,6 +19,7 @@ from rosbridge import protocol
 from rosbridge.accepting import accept_connections
 from rosbridge.borrowed import handle_connection
 from rosbridge.globs import Globs, parse_globs
+from rosbridge.off_loop import EncodingThread
 from rosbridge.pages import PageFiles, missing_files
 from rosbridge.ros_side import RosBackend
 from rosbridge.ros_side.recovery import MasterWatch
@@ -35,6 +36,7 @@ class Bridge:
 
     def __init__(self, backend, config, settings, allowed_origins=None):
         self.backend, self.config, self.settings = backend, config, settings
+        self.encoder = EncodingThread(tornado.ioloop.IOLoop.current())  # big messages are encoded off the loop
         self.allowed_origins = allowed_origins  # None: same host only (and clients that send no Origin)
         self.clients = set()
         self._logged = {}
