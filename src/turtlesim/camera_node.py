@@ -7,28 +7,16 @@ import rospy
 from sensor_msgs.msg import CompressedImage, Image
 
 from turtlesim.camera import render
-from turtlesim.msg import Pose
+from turtlesim.pose_watch import PoseWatch
 
 RATE_HZ = 10
-DISCOVERY_S = 2.0
 
 
 def main():
     rospy.init_node("turtle_camera")
     raw = rospy.Publisher("~image_raw", Image, queue_size=1)
     compressed = rospy.Publisher("~image_raw/compressed", CompressedImage, queue_size=1)
-    poses, subscribers = {}, {}
-
-    def watch(_event=None):
-        for topic, type_name in rospy.get_published_topics():
-            parts = topic.split("/")
-            if type_name == "turtlesim/Pose" and len(parts) == 3 and parts[2] == "pose" and topic not in subscribers:
-                name = parts[1]
-                subscribers[topic] = rospy.Subscriber(
-                    topic, Pose, lambda p, name=name: poses.__setitem__(name, (p.x, p.y, p.theta)), queue_size=1)
-
-    watch()
-    rospy.Timer(rospy.Duration(DISCOVERY_S), watch)
+    poses = PoseWatch().poses
     rate = rospy.Rate(RATE_HZ)
     while not rospy.is_shutdown():
         picture = render(dict(poses))

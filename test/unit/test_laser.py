@@ -1,0 +1,39 @@
+"""The demo laser's ranges: walls and other turtles, in LaserScan's ray order."""
+import math
+
+import pytest
+
+from turtlesim.laser import TURTLE_RADIUS, scan
+from turtlesim.sim import HEIGHT, WIDTH
+
+
+def ray(ranges, angle):
+    """The range of the ray at `angle` relative to the heading (angle_min -pi, 2*pi over the rays)."""
+    return ranges[round((angle + math.pi) / (2 * math.pi / len(ranges))) % len(ranges)]
+
+
+def test_walls_seen_from_the_centre_facing_east():
+    x, y = WIDTH / 2, HEIGHT / 2
+    ranges = scan((x, y, 0.0), [], 360, 20.0)
+    assert ray(ranges, 0.0) == pytest.approx(WIDTH - x)
+    assert ray(ranges, math.pi / 2) == pytest.approx(HEIGHT - y)
+    assert ray(ranges, -math.pi) == pytest.approx(x)
+    assert ray(ranges, math.pi / 4) == pytest.approx(math.hypot(WIDTH - x, HEIGHT - y))
+
+
+def test_the_heading_turns_the_scan():
+    ranges = scan((1.0, 5.0, math.pi / 2), [], 360, 20.0)  # facing north, near the west wall
+    assert ray(ranges, 0.0) == pytest.approx(HEIGHT - 5.0)
+    assert ray(ranges, math.pi / 2) == pytest.approx(1.0)  # to its left: west
+
+
+def test_another_turtle_in_front_is_seen_at_its_edge_and_hides_the_wall():
+    ranges = scan((2.0, 5.0, 0.0), [(6.0, 5.0)], 720, 20.0)
+    assert ray(ranges, 0.0) == pytest.approx(4.0 - TURTLE_RADIUS)
+    assert ray(ranges, math.pi / 2) == pytest.approx(HEIGHT - 5.0)  # beside it: the wall
+
+
+def test_beyond_range_max_is_inf_and_a_turtle_it_stands_on_is_not_seen():
+    ranges = scan((1.0, 1.0, 0.0), [(1.1, 1.0)], 4, 5.0)
+    assert ray(ranges, 0.0) == math.inf  # the east wall is 10 m away
+    assert ray(ranges, -math.pi) == pytest.approx(1.0)
