@@ -17,6 +17,8 @@ import tornado.web
 
 from rosbridge import protocol
 from rosbridge.accepting import accept_connections
+from rosbridge.bag_pages import bag_routes
+from rosbridge.bags import Recorder
 from rosbridge.borrowed import handle_connection
 from rosbridge.globs import Globs, parse_globs
 from rosbridge.off_loop import EncodingThread
@@ -69,10 +71,12 @@ class Bridge:
                          f'allowed_origins:="[{listed}]"')
 
 
-def routes(bridge, web_root):
-    """The route table: "/" is the websocket (and the page), other paths are files of web_root."""
+def routes(bridge, web_root, recorder=None):
+    """The route table: "/" is the websocket (and the page), /bags the bag recorder (bag_pages.py), other paths
+    are files of web_root."""
     index = Path(web_root) / "index.html" if web_root else None
-    table = [(r"/", BridgeSocket, {"bridge": bridge, "index_page": index if index and index.is_file() else None})]
+    table = [(r"/", BridgeSocket, {"bridge": bridge, "index_page": index if index and index.is_file() else None}),
+             *bag_routes(bridge, recorder)]
     if web_root:
         table.append((r"/(.+)", PageFiles, {"path": str(web_root)}))
     return table
@@ -117,7 +121,11 @@ def main():
     if web_root and (missing := missing_files(web_root)):
         rospy.logwarn("The page in %s lacks %s (its vendor/ folder): run bash tools/setup in the turtlesim source "
                       "folder, which installs them from npm", web_root, ", ".join(missing))
-    app = tornado.web.Application(routes(bridge, web_root))
+    recorder = None
+    if current.bag_folder:
+        recorder = Recorder(backend, loop, Path(current.bag_folder).expanduser(), current.bag_max_bytes,
+                            current.blackbox_seconds, current.blackbox_max_bytes, topic_globs=globs.topics)
+    app = tornado.web.Application(routes(bridge, web_root, recorder))
     ssl_options = {"certfile": current.certfile, "keyfile": current.keyfile} if current.ssl else None
     sockets = tornado.netutil.bind_sockets(current.port, current.address or None)
     # a connection that sends no request within IDLE_TIMEOUT is closed: idle sockets must not hold descriptors

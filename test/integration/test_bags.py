@@ -1,0 +1,143 @@
+"""The bag recorder through a real bridge, as the console uses it over HTTP: record topics, stop, list,
+download a bag that `rosbag info` reads, keep a black box and save it, delete; and what it refuses."""
+import json
+import threading
+import time
+import urllib.error
+import urllib.request
+
+import pytest
+
+from harness import start_bridge, wait_for
+
+
+@pytest.fixture(scope="module")
+def bridge(ros, tmp_path_factory):
+    folder = tmp_path_factory.mktemp("bags")
+    proc, port = start_bridge(ros, node_name="bags_bridge", bag_folder=str(folder), bag_max_bytes=3_000_000,
+                              blackbox_seconds=2, topics_glob="[/bags_test/*]")
+    yield port, folder
+    proc.stop()
+
+
+def call(port, method, path, body=None, headers=None, content_type="application/json"):
+    """(status, JSON answer or raw bytes) of an HTTP request to the bridge."""
+    data = None if body is None else json.dumps(body).encode()
+    request = urllib.request.Request(f"http://127.0.0.1:{port}{path}", data=data, method=method,
+                                     headers={**({"Content-Type": content_type} if data else {}), **(headers or {})})
+    try:
+        with urllib.request.urlopen(request, timeout=20) as answer:
+            status, payload, kind = answer.status, answer.read(), answer.headers.get("Content-Type", "")
+    except urllib.error.HTTPError as error:
+        status, payload, kind = error.code, error.read(), error.headers.get("Content-Type", "")
+    return status, json.loads(payload) if "json" in kind else payload
+
+
+class Talker:
+    """Publishes std_msgs/Int32 0, 1, 2, ... at 50 Hz on /bags_test/count until stopped."""
+
+    def __init__(self, node):
+        from std_msgs.msg import Int32
+        self.pub = node.Publisher("/bags_test/count", Int32, queue_size=10)
+        self.sent, self._stop = 0, threading.Event()
+        self.thread = threading.Thread(target=self._run, args=(Int32,), daemon=True)
+        self.thread.start()
+
+    def _run(self, kind):
+        while not self._stop.wait(0.02):
+            self.pub.publish(kind(self.sent))
+            self.sent += 1
+
+    def stop(self):
+        self._stop.set()
+        self.thread.join()
+        self.pub.unregister()
+
+
+@pytest.fixture
+def talker(node):
+    talker = Talker(node)
+    yield talker
+    talker.stop()
+
+
+def test_record_stop_download_and_rosbag_reads_it(bridge, talker, ros, tmp_path):
+    port, _ = bridge
+    status, state = call(port, "POST", "/bags/record", {"topics": ["/bags_test/count"], "name": "run1.bag"})
+    assert status == 200 and state["recording"]["name"] == "run1.bag", state
+    wait_for(lambda: call(port, "GET", "/bags")[1]["recording"]["messages"] >= 50, 20, what="50 messages recorded")
+    status, state = call(port, "POST", "/bags/stop", {})
+    assert status == 200 and state["recording"] is None and state["last"]["error"] is None
+    wait_for(lambda: any(b["name"] == "run1.bag" for b in call(port, "GET", "/bags")[1]["bags"]), 10,
+             what="the bag listed")
+    time.sleep(0.5)  # (closed by the writer thread)
+    status, data = call(port, "GET", "/bags/run1.bag")
+    assert status == 200 and data[:13] == b"#ROSBAG V2.0\n"
+    (tmp_path / "run1.bag").write_bytes(data)
+    info = ros.run(["rosbag", "info", "--yaml", str(tmp_path / "run1.bag")]).stdout
+    assert "topic: /bags_test/count" in info and "type: std_msgs/Int32" in info
+    count = int(next(line for line in info.splitlines() if line.strip().startswith("messages:")).split()[-1])
+    assert count >= 50
+    status, state = call(port, "DELETE", "/bags/run1.bag")
+    assert status == 200 and not any(b["name"] == "run1.bag" for b in state["bags"])
+
+
+def test_the_black_box_keeps_the_last_seconds_and_saves_them(bridge, talker, ros, tmp_path):
+    port, _ = bridge
+    assert call(port, "POST", "/bags/blackbox", {"topics": ["/bags_test/count"]})[0] == 200
+    time.sleep(3.5)
+    state = call(port, "GET", "/bags")[1]["blackbox"]
+    assert 60 <= state["messages"] <= 130, state  # about blackbox_seconds (2 s) at 50 Hz, not 3.5 s
+    status, state = call(port, "POST", "/bags/blackbox/save", {"name": "box.bag"})
+    assert status == 200 and any(b["name"] == "box.bag" for b in state["bags"])
+    (tmp_path / "box.bag").write_bytes(call(port, "GET", "/bags/box.bag")[1])
+    info = ros.run(["rosbag", "info", "--yaml", str(tmp_path / "box.bag")]).stdout
+    assert "duration:" in info and float(next(line.split()[-1] for line in info.splitlines()
+                                                if line.startswith("duration:"))) <= 2.1
+    assert call(port, "POST", "/bags/blackbox", {"topics": []})[1]["blackbox"] is None
+    call(port, "DELETE", "/bags/box.bag")
+
+
+@pytest.mark.parametrize("request_, status, text", [
+    (("POST", "/bags/record", {"topics": ["/secret"]}), 400, "topics_glob"),
+    (("POST", "/bags/record", {"topics": "nope"}), 400, "list of topic names"),
+    (("POST", "/bags/record", {"topics": ["/bags_test/count"], "name": "../escape.bag"}), 400, "not a bag name"),
+    (("POST", "/bags/stop", {}), 400, "not recording"),
+    (("POST", "/bags/blackbox/save", {}), 400, "black box is off"),
+    (("GET", "/bags/nothing.bag", None), 404, "no bag"),
+    (("DELETE", "/bags/..%2Fbags_bridge.bag", None), 400, "not a bag name"),
+])
+def test_bad_requests_get_a_clear_error(bridge, request_, status, text):
+    port, _ = bridge
+    got, answer = call(bridge[0], *request_)
+    assert got == status, answer
+    assert text in (answer["error"] if isinstance(answer, dict) else answer.decode())
+
+
+def test_a_page_of_another_site_and_a_form_post_are_refused(bridge):
+    port, _ = bridge
+    status, answer = call(port, "POST", "/bags/record", {"topics": ["/bags_test/count"]},
+                          headers={"Origin": "http://evil.example"})
+    assert status == 403 and "Cross origin" in answer["error"]
+    status, answer = call(port, "POST", "/bags/record", {"topics": ["/bags_test/count"]},
+                          content_type="application/x-www-form-urlencoded")
+    assert status == 400 and "application/json" in answer["error"]
+    assert call(port, "GET", "/bags")[1]["recording"] is None
+
+
+def test_a_recording_stops_at_the_folder_bound_and_says_why(bridge, node):
+    from std_msgs.msg import String
+    port, _ = bridge
+    pub = node.Publisher("/bags_test/big", String, queue_size=100)
+    try:
+        assert call(port, "POST", "/bags/record", {"topics": ["/bags_test/big"], "name": "big.bag"})[0] == 200
+        wait_for(lambda: pub.get_num_connections(), 20, what="the recorder to subscribe")
+        for _ in range(40):  # 4 MB: over bag_max_bytes (3 MB)
+            pub.publish(String("x" * 100_000))
+            time.sleep(0.01)
+        wait_for(lambda: call(port, "GET", "/bags")[1]["recording"] is None, 20, what="the recording to stop")
+        state = call(port, "GET", "/bags")[1]
+        assert "bound" in state["last"]["error"] and state["used_bytes"] <= 3_000_000 + 200_000
+    finally:
+        pub.unregister()
+        call(port, "DELETE", "/bags/big.bag")
