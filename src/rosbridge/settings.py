@@ -43,6 +43,12 @@ SETTINGS = (
             "seconds a client that drives (publishes `geometry_msgs/Twist` or `TwistStamped`) may stay silent "
             "before the bridge publishes a zero on each such topic, as it does at once when the client leaves; "
             "0 = off. See Dead-man stop", ours=True),
+    Setting("bag_folder", str, "",
+            "folder of the bag recorder (record topics, a black box, download); empty = off. See Bags", ours=True),
+    Setting("bag_max_bytes", int, 1_000_000_000,
+            "bytes the bag folder may hold: a recording stops there", ours=True),
+    Setting("blackbox_seconds", float, 60.0, "seconds the black box keeps, in memory", ours=True),
+    Setting("blackbox_max_bytes", int, 64_000_000, "bytes the black box keeps at most", ours=True),
     Setting("use_compression", bool, False, "websocket permessage-deflate"),
     Setting("websocket_ping_interval", float, 0.0, "seconds between keep-alive pings; 0 = none"),
     Setting("websocket_ping_timeout", float, 30.0, "seconds without a pong before the connection is closed"),
