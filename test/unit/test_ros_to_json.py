@@ -1,7 +1,11 @@
 """rosbridge.codec.ros_to_json against genpy: for every message type on this machine, random messages serialized by genpy give
 exactly the JSON text the bridge wrote before (genpy deserialization, convert.to_json, convert.dumps)."""
 import base64
+import gc
 import math
+import random
+import struct
+import tracemalloc
 
 import genpy
 import genpy.dynamic
@@ -9,13 +13,14 @@ import pytest
 import rosmsg
 import rospkg
 from hypothesis import given, strategies as st
-from sensor_msgs.msg import CompressedImage
+from sensor_msgs.msg import ChannelFloat32, CompressedImage
 from std_msgs.msg import Header
 
 from test_json_values import AllTypes, serialized
 from test_json_values_properties import SETTINGS, messages
 from rosbridge.codec.json_values import dumps, to_json
 from rosbridge.codec import BIG_BYTES
+from rosbridge.codec.fields import parse_slot_type
 from rosbridge.types import UnknownType, message_class
 from rosbridge.codec.ros_to_json import SPLICE_MARK, joined, json_parts, json_text
 
@@ -110,3 +115,183 @@ def test_a_byte_array_just_under_the_limit_stays_in_the_text():
 def test_readers_are_made_once_per_type():
     assert json_parts(message_class("geometry_msgs/Twist")) is json_parts(message_class("geometry_msgs/Twist"))
     assert genpy.Message  # (genpy's 'rosmsg' decoding error handler is registered by importing it)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Big numeric arrays: written from the bytes without a Python object per element (the same text as genpy's road)
+
+BIG_ARRAYS_FIELDS = """\
+int8[] i8s
+bool[] bools
+int16[] i16s
+uint16[] u16s
+int32[] i32s
+uint32[] u32s
+int64[] i64s
+uint64[] u64s
+float32[] f32s
+float64[] f64s
+uint8[] u8s
+int8[100] fixed_i8s
+bool[70] fixed_bools
+uint16[200] fixed_u16s
+float64[65] fixed_f64s
+float32[3] small_f32s
+sensor_msgs/ChannelFloat32[] channels
+std_msgs/Int8MultiArray grid
+"""
+_CODES = {"int8": "b", "bool": "?", "int16": "h", "uint16": "H", "int32": "i", "uint32": "I", "int64": "q",
+          "uint64": "Q", "float32": "f", "float64": "d", "uint8": "B"}
+# floats whose text is special: NaN and +-Inf (null), -0.0, the extremes, a subnormal
+SPECIAL_FLOATS = [math.nan, math.inf, -math.inf, -0.0, 0.0, 5e-324, -1.7976931348623157e308, 1e16, 1e-5, 0.1,
+                  123456789.0, -2.5]
+SPECIAL_FLOAT32S = [math.nan, math.inf, -math.inf, -0.0, 1e-45, 3.4028234663852886e38, -1.1754943508222875e-38,
+                    16777216.0, 0.1, 1e-5]
+
+
+def _big_arrays_type():
+    import std_msgs.msg
+    from sensor_msgs.msg import ChannelFloat32
+    separator = "=" * 80 + "\n"
+    definition = BIG_ARRAYS_FIELDS + "".join(
+        f"{separator}MSG: {cls._type}\n{cls._full_text}\n"
+        for cls in (ChannelFloat32, std_msgs.msg.Int8MultiArray, std_msgs.msg.MultiArrayLayout,
+                    std_msgs.msg.MultiArrayDimension))
+    return genpy.dynamic.generate_dynamic("test_wire/BigArrays", definition)["test_wire/BigArrays"]
+
+
+BigArrays = _big_arrays_type()
+
+
+def random_values(base, count, rng):
+    """`count` values of a numeric type, as any bytes on the wire hold them (floats: NaN and Inf too, and the
+    special ones above among them)."""
+    code = _CODES[base]
+    raw = rng.randbytes(count * struct.calcsize(code))
+    values = list(struct.unpack(f"<{count}{code}", raw))
+    if base in ("float32", "float64"):
+        specials = SPECIAL_FLOAT32S if base == "float32" else SPECIAL_FLOATS
+        for value in specials[:count]:
+            values[rng.randrange(count)] = value
+    if base == "int8" and count:  # a map's cells: long runs of -1, 0 and 100
+        start = rng.randrange(count)
+        values[start:start + 5000] = [rng.choice([-1, 0, 100])] * len(values[start:start + 5000])
+    return values
+
+
+def big_arrays_message(count, seed=0):
+    rng = random.Random(seed)
+    fields = {}
+    for name, slot_type in zip(BigArrays.__slots__, BigArrays._slot_types):
+        base, is_array, size = parse_slot_type(slot_type)
+        if base in _CODES:
+            values = random_values(base, size or count, rng)
+            fields[name] = bytes(values) if base == "uint8" else values
+    channels = [ChannelFloat32(name=f"c{i}", values=random_values("float32", n, rng))
+                for i, n in enumerate([count, 0, 3, count // 2])]
+    grid = message_class("std_msgs/Int8MultiArray")(data=random_values("int8", count * 3, rng))
+    grid.layout.dim = [message_class("std_msgs/MultiArrayDimension")(label="rows", size=count, stride=3)]
+    return BigArrays(channels=channels, grid=grid, **fields)
+
+
+BIG_COUNTS = [0, 1, 64, 65, 3000, (1 << 13) + 1, (1 << 16) + 1, 150_000]
+
+
+@pytest.mark.parametrize("count", BIG_COUNTS)
+def test_big_numeric_arrays_give_the_text_of_genpy_and_convert(count):
+    data = serialized(big_arrays_message(count, seed=count))
+    text, spliced = json_parts(BigArrays)(data)
+    assert joined(text, spliced) == genpy_json_text(BigArrays, data)
+    if count >= 1 << 16:  # the arrays' texts are left out of the text (each over BIG_BYTES)
+        assert len(text) < 20_000 and text.count(SPLICE_MARK) == len(spliced)
+        assert all(isinstance(part, bytes) and part.isascii() for part in spliced)
+    if count <= 65:
+        assert spliced == []
+
+
+def test_special_floats_in_big_arrays_are_null_or_written_as_python_does():
+    floats = [math.nan, -math.inf, math.inf, -0.0, 0.1, 1e16, 5e-324] * 3000
+    msg = BigArrays(f64s=floats, f32s=[x for x in floats if x != 5e-324])
+    data = serialized(msg)
+    text = json_text(BigArrays)(data)
+    assert text == genpy_json_text(BigArrays, data)
+    assert '"f64s":[null,null,null,-0.0,0.1,1e+16,5e-324,null,' in text
+    assert '"f32s":[null,null,null,-0.0,0.10000000149011612,1.0000000272564224e+16,null,' in text
+
+
+def test_any_byte_but_0_is_true_in_a_bool_array():
+    cls = genpy.dynamic.generate_dynamic("test_wire/Bools", "bool[] bools\nint8[] cells\n")["test_wire/Bools"]
+    raw = bytes(range(256)) * 300
+    data = struct.pack("<I", len(raw)) + raw + struct.pack("<I", len(raw)) + raw
+    text = json_text(cls)(data)
+    assert text == genpy_json_text(cls, data)
+    assert text.startswith('{"bools":[false,true,true,') and '"cells":[0,1,2,' in text and ",-128,-127," in text
+
+
+@pytest.mark.parametrize("slot_type", ["int8[]", "bool[]", "float64[]", "uint64[]", "int16[100]"])
+def test_a_truncated_big_array_is_an_error_as_before(slot_type):
+    cls = genpy.dynamic.generate_dynamic("test_wire/One", f"{slot_type} values\n")["test_wire/One"]
+    data = serialized(cls(values=[0] * 100))
+    with pytest.raises(struct.error):
+        json_text(cls)(data[:-1])
+
+
+def map_bytes(side, seed=0):
+    """A nav_msgs/OccupancyGrid-like int8[] of side x side cells: unknown (-1) around, free (0) inside, obstacles
+    (100) and some inflated costs scattered; as its serialized message (header, info, data)."""
+    rng = random.Random(seed)
+    cells = bytearray(b"\xff") * (side * side)
+    for y in range(side // 8, side - side // 8):
+        cells[y * side + side // 8:y * side + side - side // 8] = bytes(side - side // 4)
+    for _ in range(side * 5):
+        at = rng.randrange(side * side - 8)
+        cells[at:at + 8] = bytes([rng.choice([100, 100, 100, 50, 99, 1])]) * 8
+    return struct.pack("<I", len(cells)) + bytes(cells)
+
+
+GRID = genpy.dynamic.generate_dynamic(
+    "test_wire/Grid", "std_msgs/Header header\nint8[] data\n" + "=" * 80 + f"\nMSG: std_msgs/Header\n{Header._full_text}\n"
+)["test_wire/Grid"]
+
+
+def test_a_map_gives_the_text_of_genpy_and_convert():
+    data = serialized(GRID())[:-4] + map_bytes(1000)
+    assert json_text(GRID)(data) == genpy_json_text(GRID, data)
+
+
+def _converted_peak(convert, data):
+    """tracemalloc's peak while convert(data) runs, above what was traced before, and what stays traced after."""
+    gc.collect()
+    tracemalloc.reset_peak()
+    before = tracemalloc.get_traced_memory()[0]
+    result = convert(data)
+    size = sum(map(len, result[1])) + len(result[0])
+    peak = tracemalloc.get_traced_memory()[1] - before
+    del result
+    gc.collect()
+    return peak, tracemalloc.get_traced_memory()[0] - before, size
+
+
+def test_a_map_costs_about_its_text_in_memory_and_the_tenth_as_much_as_the_first():
+    """No tuple of the cells, no str per cell: the peak is the text itself and a chunk's work (the road through
+    genpy peaks at about 100 bytes a cell); all of it is given back, and the tenth map, after clouds and scans
+    in between, costs what the first did."""
+    data = serialized(GRID())[:-4] + map_bytes(2000)
+    cloud = serialized(message_class("sensor_msgs/PointCloud2")(data=bytes(range(256)) * 8000, width=64000))
+    scan = serialized(message_class("sensor_msgs/LaserScan")(ranges=[1.5, math.inf, math.nan] * 360))
+    convert = json_parts(GRID)
+    convert(data)  # (the reader is generated once: not counted)
+    tracemalloc.start()
+    try:
+        peaks, kept = [], []
+        for _ in range(10):
+            peak, left, size = _converted_peak(convert, data)
+            peaks.append(peak)
+            kept.append(left)
+            for other, cls in ((cloud, "sensor_msgs/PointCloud2"), (scan, "sensor_msgs/LaserScan")):
+                json_parts(message_class(cls))(other)
+    finally:
+        tracemalloc.stop()
+    assert size > 2000 * 2000 * 2
+    assert peaks[0] < size * 1.1 + 2_000_000, (peaks[0], size)
+    assert max(peaks) < peaks[0] * 1.1 and max(kept) < 100_000, (peaks, kept)
