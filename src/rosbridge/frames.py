@@ -3,6 +3,7 @@ import itertools
 
 from rosbridge.codec import cbor, wrapping
 from rosbridge.codec.json_values import dumps
+from rosbridge.codec.ros_to_cbor import cbor_value
 from rosbridge.codec.ros_to_json import SPLICE_MARK, joined, json_parts
 
 COMPRESSIONS = ("none", "png", "cbor", "cbor-raw")
@@ -122,9 +123,8 @@ class TopicMessage:
 
     def _encode(self, compression, fragment_size):
         if compression == "cbor":
-            msg = self.msg_class()
-            msg.deserialize(self.data)
-            return (cbor_frame({"op": "publish", "topic": self.topic, "msg": cbor.to_cbor_value(msg)}),)
+            msg = cbor_value(self.msg_class)(self.data)  # (straight from the bytes: no genpy message)
+            return (cbor_frame({"op": "publish", "topic": self.topic, "msg": msg}),)
         if compression == "cbor-raw":
             secs = int(self.stamp)
             raw = {"bytes": bytes(self.data), "secs": secs, "nsecs": int((self.stamp - secs) * 1e9)}

@@ -5,6 +5,7 @@ import json
 import math
 import os
 import struct
+import tracemalloc
 
 import cbor2
 import genpy
@@ -15,10 +16,13 @@ import sensor_msgs.msg
 from PIL import Image
 
 from test_json_values import AllTypes, deserialized, serialized
+from test_json_values_properties import SETTINGS, messages
+from test_ros_to_json import BIG_COUNTS, CLASSES, GRID, BigArrays, big_arrays_message, map_bytes
 from rosbridge.codec.fields import parse_slot_type
 from rosbridge.codec.json_values import dumps, from_json
 from rosbridge.codec import BIG_BYTES
 from rosbridge.codec.cbor import cbor_parts, to_cbor_value
+from rosbridge.codec.ros_to_cbor import cbor_value
 from rosbridge.codec.wrapping import fragments, png_frame, png_unframe
 from rosbridge.frames import SplicedFrame, cbor_frame
 
@@ -201,3 +205,90 @@ def test_big_byte_strings_are_put_in_place_exactly_as_cbor2_would_write_them(siz
     expected = cbor2.dumps({"op": "publish", "topic": "/camera",
                             "msg": [{**to_cbor_value(m), "data": m.data} for m in messages]})
     assert b"".join(cbor_parts(obj)) == expected
+
+
+# ---------------------------------------------------------------------------------------------------------
+# ROS bytes straight to CBOR (rosbridge.codec.ros_to_cbor): what to_cbor_value gives for genpy's message, with no
+# genpy message and every array of numbers taken from the bytes as they are
+
+def publish_cbor(value):
+    return b"".join(cbor_parts({"op": "publish", "topic": "/t", "msg": value}))
+
+
+def genpy_cbor(cls, data):
+    msg = cls()
+    msg.deserialize(data)
+    return publish_cbor(to_cbor_value(msg))
+
+
+@pytest.mark.parametrize("cls", CLASSES, ids=lambda cls: cls._type)
+@settings(SETTINGS, max_examples=25)
+@given(data=st.data())
+def test_random_messages_give_the_cbor_of_genpy_and_to_cbor_value(cls, data):
+    wire_bytes = serialized(data.draw(messages(cls, any_wire_value=True)))
+    assert publish_cbor(cbor_value(cls)(wire_bytes)) == genpy_cbor(cls, wire_bytes)
+
+
+def comparable(value):
+    """Decoded CBOR with typed arrays as lists of their items, floats as their bits but every NaN the same (the road
+    through genpy turns a signalling NaN in a float32[] into a quiet one)."""
+    if isinstance(value, cbor2.CBORTag):
+        code = tag_codes()[value.tag]
+        items = struct.unpack(f"<{len(value.value) // struct.calcsize(code)}{code}", value.value)
+        return value.tag, [comparable(item) for item in items]
+    if isinstance(value, float):
+        return "nan" if math.isnan(value) else struct.pack("<d", value)
+    if isinstance(value, dict):
+        return {key: comparable(item) for key, item in value.items()}
+    if isinstance(value, list):
+        return [comparable(item) for item in value]
+    return value
+
+
+@pytest.mark.parametrize("count", BIG_COUNTS)
+def test_big_numeric_arrays_give_the_cbor_of_genpy_and_to_cbor_value(count):
+    data = serialized(big_arrays_message(count, seed=count))
+    value = cbor_value(BigArrays)(data)
+    assert comparable(cbor2.loads(publish_cbor(value))) == comparable(cbor2.loads(genpy_cbor(BigArrays, data)))
+    assert isinstance(value["i8s"], cbor2.CBORTag) and value["i8s"].tag == 72
+    # the big ones are views of the message's bytes, written by reference
+    frame = cbor_frame({"op": "publish", "topic": "/t", "msg": value})
+    views = [part for part in getattr(frame, "parts", ()) if isinstance(part, memoryview)]
+    assert all(view.obj is data and len(view) >= BIG_BYTES for view in views)
+    # 8192 elements of 8 bytes: the three 64-bit arrays; from 65536: every numeric array but bool[] (a list), the
+    # byte string, the two big channels and the grid
+    assert len(views) == (0 if count < 8192 else 3 if count < 16384 else 13)
+
+
+def test_float32_arrays_keep_their_bits():
+    bits = [0x7F800001, 0x7FC00000, 0xFFC00001, 0x7F800000, 0x80000000, 0x00000001]  # NaN (signalling), -0.0 ...
+    cls = genpy.dynamic.generate_dynamic("test_wire/F32s", "float32[] values\n")["test_wire/F32s"]
+    raw = struct.pack(f"<{len(bits)}I", *bits)
+    value = cbor_value(cls)(struct.pack("<I", len(bits)) + raw)
+    assert value["values"].tag == 85 and value["values"].value == raw
+
+
+def test_a_map_and_a_cloud_as_cbor_are_not_copied():
+    grid = serialized(GRID())[:-4] + map_bytes(2000)
+    cloud = sensor_msgs.msg.PointCloud2(height=1, width=300_000, point_step=16, row_step=4_800_000,
+                                        data=os.urandom(4_800_000), is_dense=True)
+    cloud.fields = [sensor_msgs.msg.PointField(name=name, offset=4 * i, datatype=7, count=1)
+                    for i, name in enumerate("xyz")]
+    for cls, data, cells in ((GRID, grid, grid[-2000 * 2000:]), (sensor_msgs.msg.PointCloud2, serialized(cloud), cloud.data)):
+        convert = cbor_value(cls)
+        cbor_frame({"op": "publish", "topic": "/t", "msg": convert(data)})  # (what is made once: not counted)
+        tracemalloc.start()
+        try:
+            frame = cbor_frame({"op": "publish", "topic": "/t", "msg": convert(data)})
+            peak = tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+        assert peak < 100_000, (cls, peak)
+        (view,) = [part for part in frame.parts if isinstance(part, memoryview)]
+        assert view.obj is data and view == cells
+        decoded = cbor2.loads(bytes(frame))["msg"]
+        if cls is GRID:
+            assert decoded["data"].tag == 72 and decoded["data"].value == cells
+        else:
+            assert decoded["data"] == cloud.data and decoded["width"] == 300_000
+            assert [field["name"] for field in decoded["fields"]] == ["x", "y", "z"]

@@ -1,5 +1,12 @@
 """ROS messages -> CBOR (`compression: cbor`), with RFC 8746 typed arrays as rosbridge sends them, and a
-frame's CBOR as parts (the big byte strings left out, written by reference)."""
+frame's CBOR as parts (the big byte strings left out, written by reference). Topics' messages come from their bytes
+(ros_to_cbor.py) to the same values; to_cbor_value here is the road from message objects (service responses).
+
+As the reference (rosbridge_library's cbor_conversion) and roslibjs (cborTypedArrayTags) have it: uint8[] and char[]
+are byte strings (Uint8Array in roslibjs), the other numeric arrays typed arrays with the little-endian tags below
+(int8 72, uint16 69, int16 77, uint32 70, int32 78, uint64 71, int64 79, float32 85, float64 86: JavaScript typed
+arrays, the 64-bit ones read into plain arrays of numbers), bool[] and string[] plain arrays. The reference tags
+only variable-size arrays; here fixed-size ones are tagged too (roslibjs reads both the same)."""
 import os
 import struct
 
@@ -17,9 +24,7 @@ TYPED_ARRAY_TAGS = {
 
 
 def _typed_array(tag, code):
-    return lambda items: cbor2.CBORTag(tag, struct.pack(f"<{len(items)}{code}", *items))
-
-
+    return lambda items: cbor2.CBORTag(tag, byte_string(struct.pack(f"<{len(items)}{code}", *items)))
 
 
 class _Spliced:
@@ -30,7 +35,8 @@ class _Spliced:
         self.data = data
 
 
-def _byte_string(value):
+def byte_string(value):
+    """A uint8[] (bytes, or a memoryview of a message's bytes) for cbor_parts: a big one left out of cbor2's output."""
     if len(value) >= BIG_BYTES:
         return _Spliced(value)
     return value if isinstance(value, bytes) else bytes(value)
@@ -41,7 +47,7 @@ def _cbor_leaf_encoder(base, is_array):
         # CBOR carries NaN and +-Inf, so floats go as they are; time/duration as in JSON
         return None if base in ("float32", "float64") else json_leaf_encoder(base, is_array)
     if base == "uint8":
-        return _byte_string
+        return byte_string
     if base in TYPED_ARRAY_TAGS:
         return _typed_array(*TYPED_ARRAY_TAGS[base])
     return json_leaf_encoder(base, is_array)
