@@ -1,0 +1,729 @@
+"""The bad-link benchmark (issue 26): a rover's 50 Hz small topic and 15 Hz 640x480 rgb8 camera, watched from
+behind a shaped link, by a roslibjs-style client, a careful client and the console in headless Chromium.
+
+The link: a network namespace joined to this one by a veth pair. The server under test (the bridge, or the plain
+baseline) listens on the veth's address here; the clients run inside the namespace (`ip netns exec`). Each side's
+egress is shaped with `tc qdisc ... tbf rate <R>mbit burst 32kbit latency 50ms` (netem does not work on these
+machines). Every case starts its own server; each server is measured beside the plain baseline
+(bench/plain_server.py) with the same client on the same link in the same run. Needs root.
+
+Run it with `bash bench/run --only badlink [options]` (or `/usr/bin/python3 bench/badlink.py` after sourcing
+.build/setup.bash). It starts its own roscore on a free port, and stops everything it started (namespace and
+veth included) at the end, even on failure. With every case (no --links/--clients/--pictures/--servers given,
+no --no-readme) it rewrites its section of bench/README.template.md and bench/README.md."""
+import argparse
+import hashlib
+import json
+import os
+import re
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+BENCH = Path(__file__).resolve().parent
+REPO = BENCH.parent
+sys.path.insert(0, str(REPO / "test"))
+import harness  # noqa: E402  (private roscore, process groups, logs, /proc readings)
+
+PY = "/usr/bin/python3"
+VENV_PY = str(REPO / ".build" / "venv" / "bin" / "python")  # (Selenium)
+TBF = "burst 32kbit latency 50ms"
+LINKS = (20, 5)  # Mbit/s
+CLIENTS = ("roslibjs", "careful", "console")
+PICTURES = ("camera-like", "busy")
+SERVERS = ("bridge", "plain", "reference")
+REFERENCE_TAG = "0.11.17"
+REFERENCE_WS = Path.home() / ".cache" / "turtlesim" / f"rosbridge-{REFERENCE_TAG}-ws"
+REFERENCE_GIT = "https://github.com/RobotWebTools/rosbridge_suite"
+ROSAUTH_GIT = "https://github.com/GT-RAIL/rosauth"
+SMALL, CAMERA = "/rover/stamp", "/rover/camera"
+CAMERA_HZ, SMALL_HZ = 15, 50
+GRACE = 1.0  # s after the window: a small message stamped in the window counts as delivered if it came by then
+MARKERS = ("<!-- badlink:start -->", "<!-- badlink:end -->")
+
+
+def sh(*args, check=True):
+    res = subprocess.run(list(args), capture_output=True, text=True)
+    if check and res.returncode != 0:
+        raise RuntimeError(f"{' '.join(args)}: {res.stderr.strip()}")
+    return res
+
+
+class Link:
+    """A namespace `ns` joined by a veth pair: `here` (this namespace, address .1) and `there` (.2, inside)."""
+
+    def __init__(self):
+        pid = os.getpid()
+        self.ns = f"badlink{pid}"
+        self.here, self.there = f"bl{pid}a", f"bl{pid}b"
+        net = f"10.78.{pid % 250}"
+        self.server_addr, self.client_addr = f"{net}.1", f"{net}.2"
+        self.rate = None
+
+    def up(self):
+        sh("ip", "netns", "add", self.ns)
+        sh("ip", "link", "add", self.here, "type", "veth", "peer", "name", self.there, "netns", self.ns)
+        sh("ip", "addr", "add", f"{self.server_addr}/24", "dev", self.here)
+        sh("ip", "link", "set", self.here, "up")
+        sh("ip", "-n", self.ns, "addr", "add", f"{self.client_addr}/24", "dev", self.there)
+        sh("ip", "-n", self.ns, "link", "set", self.there, "up")
+        sh("ip", "-n", self.ns, "link", "set", "lo", "up")
+        return self
+
+    def shape(self, mbit):
+        """tbf on both ends' egress: the server -> client direction is the one that matters; the other carries
+        the client's requests and TCP's acknowledgements, shaped alike (a Wi-Fi link is one shared medium)."""
+        sh("tc", "qdisc", "replace", "dev", self.here, "root", "tbf", "rate", f"{mbit}mbit", *TBF.split())
+        sh("ip", "netns", "exec", self.ns, "tc", "qdisc", "replace", "dev", self.there, "root", "tbf",
+           "rate", f"{mbit}mbit", *TBF.split())
+        self.rate = mbit
+
+    def qdisc(self):
+        """(packets dropped so far, bytes queued now) of the server side's tbf."""
+        out = sh("tc", "-s", "qdisc", "show", "dev", self.here).stdout
+        dropped = re.search(r"dropped (\d+)", out)
+        backlog = re.search(r"backlog (\d+)b", out)
+        return int(dropped.group(1)) if dropped else 0, int(backlog.group(1)) if backlog else 0
+
+    def down(self):
+        sh("ip", "link", "del", self.here, check=False)  # (deleting the namespace would delete it too)
+        sh("ip", "netns", "del", self.ns, check=False)
+
+
+def netns_unavailable():
+    if os.geteuid() != 0:
+        return "needs root (network namespaces, tc)"
+    probe = f"blprobe{os.getpid()}"
+    if shutil.which("ip") is None or shutil.which("tc") is None:
+        return "needs iproute2 (ip, tc)"
+    res = sh("ip", "netns", "add", probe, check=False)
+    if res.returncode != 0:
+        return f"`ip netns add` fails here: {res.stderr.strip()}"
+    try:
+        res = subprocess.run(["ip", "netns", "exec", probe, "true"], capture_output=True, text=True, timeout=30)
+        return None if res.returncode == 0 else f"`ip netns exec` fails here: {res.stderr.strip()}"
+    finally:
+        sh("ip", "netns", "del", probe, check=False)
+
+
+class Bench:
+    def __init__(self, workdir, a):
+        self.workdir = Path(workdir)
+        self.shots = self.workdir / "shots"
+        self.shots.mkdir(parents=True, exist_ok=True)
+        self.a = a
+        self.ros = harness.RosMaster(self.workdir).start()
+        self.ros.env["PYTHONPATH"] = f"{BENCH}:{self.ros.env.get('PYTHONPATH', '')}"
+        self.link = Link().up()
+        self.rover = None
+        self.picture = None
+        self.spawned = 0
+        self.before_ws = None
+
+    def spawn(self, args, name, inside=False):
+        self.spawned += 1
+        if inside:
+            args = ["ip", "netns", "exec", self.link.ns, *args]
+        return self.ros.spawn([str(x) for x in args], f"{self.spawned:02d}-{name}", stdin=subprocess.PIPE)
+
+    def stop(self, *procs):
+        for p in procs:
+            if p is None:
+                continue
+            p.stop()
+            if p in self.ros.procs:
+                self.ros.procs.remove(p)
+
+    @staticmethod
+    def tell(proc, line):
+        proc.popen.stdin.write(f"{line}\n".encode())
+        proc.popen.stdin.flush()
+
+    @staticmethod
+    def wait_line(proc, pattern, timeout, after=0):
+        def found():
+            hits = re.findall(pattern, proc.output(), re.M)
+            if len(hits) > after:
+                return hits[after:]
+            if not proc.alive():
+                raise RuntimeError(f"{proc.args[:6]} ended:\n{proc.output()[-3000:]}")
+            return None
+        return harness.wait_for(found, timeout, what=f"{pattern} from {proc.args[:6]}")[0]
+
+    def result(self, proc, timeout=60):
+        before = len(re.findall(r"^RESULT (.*)$", proc.output(), re.M))
+        self.tell(proc, "result")
+        return json.loads(self.wait_line(proc, r"^RESULT (.*)$", timeout, after=before))
+
+    # ---- the rover -----------------------------------------------------------------------------------------
+
+    def show(self, picture):
+        """The rover, publishing `picture`."""
+        if self.picture == picture:
+            return
+        self.stop(self.rover)
+        self.rover = self.spawn([PY, BENCH / "rover.py", "--picture", picture], f"rover-{picture}")
+        self.wait_line(self.rover, r"^READY", 60)
+        self.picture = picture
+
+    def published(self, t0, t1):
+        before = len(re.findall(r"^RESULT (.*)$", self.rover.output(), re.M))
+        self.tell(self.rover, f"count {t0} {t1}")
+        return json.loads(self.wait_line(self.rover, r"^RESULT (.*)$", 20, after=before))
+
+    # ---- servers -------------------------------------------------------------------------------------------
+
+    def server(self, kind):
+        """(proc, ProcStat of the serving process, websocket URL, page URL)."""
+        addr = self.link.server_addr
+        if kind == "bridge":
+            proc, port = harness.launch_bridge(self.ros, node_name="badlink_bridge", address=addr)
+            stat = harness.ProcStat(harness.node_pid(self.ros, "/badlink_bridge"))
+            return proc, stat, f"ws://{addr}:{port}/", f"http://{addr}:{port}/"
+        if kind == "before":  # the same launch file, from the workspace of the --before commit
+            master, param = self.ros.master(), "/badlink_before/actual_port"
+            if master.hasParam(param):
+                master.deleteParam(param)
+            proc = self.spawn(["bash", "-c", f"source {self.before_ws}/devel/setup.bash && exec roslaunch turtlesim "
+                               f"rosbridge_websocket.launch port:=0 address:={addr} node_name:=badlink_before"],
+                              "before")
+
+            def port():
+                if not proc.alive():
+                    raise RuntimeError(f"the bridge of {self.a.before} ended:\n{proc.output()[-3000:]}")
+                return master.getParam(param) if master.hasParam(param) else None
+            port = harness.wait_for(port, 60, what=param)
+            stat = harness.ProcStat(harness.node_pid(self.ros, "/badlink_before"))
+            return proc, stat, f"ws://{addr}:{port}/", f"http://{addr}:{port}/"
+        port = harness.free_port()
+        if kind == "reference":  # its own launch file, from its own workspace; it serves no page
+            proc = self.spawn(["bash", "-c", f"source {REFERENCE_WS}/devel/setup.bash && exec roslaunch "
+                               f"rosbridge_server rosbridge_websocket.launch port:={port} address:={addr}"],
+                              "reference")
+            harness.wait_for(lambda: _listening(addr, port, proc), 60, what="rosbridge_server 0.11.17 listening")
+            stat = harness.ProcStat(harness.node_pid(self.ros, "/rosbridge_websocket"))
+            return proc, stat, f"ws://{addr}:{port}/", None
+        proc = self.spawn([PY, BENCH / "plain_server.py", "--address", addr, "--port", port], "plain")
+        self.wait_line(proc, r"^READY", 30)
+        return proc, harness.ProcStat(proc.pid), f"ws://{addr}:{port}/ws", f"http://{addr}:{port}/"
+
+    # ---- one case ------------------------------------------------------------------------------------------
+
+    def client(self, kind, ws_url, page_url, server):
+        if kind == "console":
+            proc = self.spawn([VENV_PY, BENCH / "badlink_clients.py", "console", "--url", page_url,
+                               "--mode", "plain" if server == "plain" else "bridge"], f"console-{server}",
+                              inside=True)
+        else:
+            proc = self.spawn([PY, BENCH / "badlink_clients.py", "ws", "--url", ws_url, "--style", kind],
+                              f"{kind}-{server}", inside=True)
+        self.wait_line(proc, r"^READY", 120)
+        return proc
+
+    def case(self, mbit, kind, picture, server):
+        name = f"{mbit}mbit-{kind}-{picture}-{server}"
+        print(f"badlink: {name}", file=sys.stderr, flush=True)
+        self.show(picture)
+        self.link.shape(mbit)
+        code = code_state() if server == "bridge" else None
+        srv, stat, ws_url, page_url = self.server(server)
+        client = None
+        try:
+            time.sleep(1.0)
+            rss0 = stat.rss_mb()
+            client = self.client(kind, ws_url, page_url, server)
+            time.sleep(self.a.warmup)
+            drops0 = self.link.qdisc()[0]
+            t0, cpu0, rss, backlog = time.time(), stat.cpu_seconds(), [], []
+            while time.time() < t0 + self.a.seconds:
+                rss.append(stat.rss_mb())
+                backlog.append(self.link.qdisc()[1])
+                time.sleep(0.5)
+            t1, cpu1 = time.time(), stat.cpu_seconds()
+            rss.append(stat.rss_mb())
+            drops = self.link.qdisc()[0] - drops0
+            time.sleep(GRACE)
+            got = self.result(client)
+            if kind == "console":
+                for n in range(2 if server == "bridge" else 1):
+                    path = self.shots / f"{name}-{n}.png"
+                    self.tell(client, f"shot {path}")
+                    self.wait_line(client, r"^SHOT ", 30, after=n)
+                    time.sleep(1.5)
+            published = self.published(t0, t1)
+        finally:
+            self.stop(client, srv)
+        figures = summarize(got, kind, t0, t1, published)
+        figures.update(rss_growth=max(rss) - rss0, rss_end_growth=rss[-1] - rss0, cpu_s=cpu1 - cpu0,
+                       cpu_ms_per_frame=(cpu1 - cpu0) * 1e3 / figures["camera_frames"]
+                       if figures["camera_frames"] else None,
+                       cpu_share=(cpu1 - cpu0) / (t1 - t0), tbf_drops=drops, tbf_backlog_max=max(backlog),
+                       tbf_backlog_p50=pct(backlog, 0.5), code=code)
+        (self.workdir / f"{name}.json").write_text(json.dumps({"figures": figures, "raw": got}))
+        print(f"badlink: {name}: " + json.dumps({k: round(v, 3) if isinstance(v, float) else v
+                                                 for k, v in figures.items()}), file=sys.stderr, flush=True)
+        return figures
+
+    def raw_capacity(self, mbit, seconds=4.0):
+        """TCP goodput through the shaped link: a bulk sender here, the sink inside."""
+        self.link.shape(mbit)
+        port = harness.free_port()
+        sink = self.spawn([PY, BENCH / "badlink_clients.py", "sink", "--listen",
+                           f"{self.link.client_addr}:{port}"], "sink", inside=True)
+        try:
+            self.wait_line(sink, r"^READY", 30)
+            conn = harness.wait_for(lambda: _connect(self.link.client_addr, port), 10, what="the sink")
+            block, end = b"\0" * 65536, time.monotonic() + seconds
+            while time.monotonic() < end:
+                conn.sendall(block)
+            conn.close()
+            return json.loads(self.wait_line(sink, r"^RESULT (.*)$", 30))["mbit"]
+        finally:
+            self.stop(sink)
+
+    def close(self):
+        try:
+            self.stop(self.rover)
+            self.ros.stop()
+        finally:
+            self.link.down()
+
+
+def _listening(host, port, proc):
+    if not proc.alive():
+        raise RuntimeError(f"the server ended:\n{proc.output()[-3000:]}")
+    conn = _connect(host, port)
+    if conn:
+        conn.close()
+    return conn is not None
+
+
+def build_reference(suite_src, rosauth_src, log):
+    """rosbridge_suite 0.11.17 (rosbridge_library, rosbridge_server, rosapi, rosbridge_msgs) and rosauth's
+    service definition, built with catkin_make in REFERENCE_WS (once; about 15 s). rosauth's C++ node is left
+    out (it needs roscpp and OpenSSL's headers; rosbridge_server only imports its service type). Returns None,
+    or why it could not be built. Its Python needs Debian's python3-bson, python3-autobahn, python3-twisted."""
+    if (REFERENCE_WS / "devel" / "setup.bash").exists():
+        return None
+    missing = [m for m in ("bson", "autobahn", "twisted") if subprocess.run(
+        [PY, "-c", f"import {m}"], capture_output=True).returncode]
+    if missing:
+        return (f"Python modules {', '.join(missing)} missing (`apt-get install python3-bson python3-autobahn "
+                "python3-twisted`)")
+    work = Path(tempfile.mkdtemp(prefix="badlink-reference-"))
+    try:
+        for url, src, name in ((REFERENCE_GIT, suite_src, "rosbridge_suite"), (ROSAUTH_GIT, rosauth_src, "rosauth")):
+            if not src:
+                src = work / name
+                res = subprocess.run(["git", "clone", "-q", url, str(src)], capture_output=True, text=True)
+                if res.returncode:
+                    return f"could not clone {url}: {res.stderr.strip()[:200]}"
+            if name == "rosbridge_suite":
+                suite_src = src
+            else:
+                rosauth_src = src
+        shutil.rmtree(REFERENCE_WS, ignore_errors=True)
+        (REFERENCE_WS / "src" / "rosauth").mkdir(parents=True)
+        archive = subprocess.run(["git", "-C", str(suite_src), "archive", REFERENCE_TAG, "rosbridge_library",
+                                  "rosbridge_server", "rosapi", "rosbridge_msgs"], capture_output=True)
+        if archive.returncode:
+            return f"no tag {REFERENCE_TAG} in {suite_src}: {archive.stderr.decode()[:200]}"
+        subprocess.run(["tar", "x", "-C", str(REFERENCE_WS / "src")], input=archive.stdout, check=True)
+        archive = subprocess.run(["git", "-C", str(rosauth_src), "archive", "HEAD"], capture_output=True, check=True)
+        subprocess.run(["tar", "x", "-C", str(REFERENCE_WS / "src" / "rosauth")], input=archive.stdout, check=True)
+        cmake = REFERENCE_WS / "src" / "rosauth" / "CMakeLists.txt"
+        text = cmake.read_text().replace("COMPONENTS roscpp message_generation", "COMPONENTS message_generation")
+        text = text.replace("find_package(OpenSSL REQUIRED)", "")
+        text = text.replace("CATKIN_DEPENDS roscpp message_runtime", "CATKIN_DEPENDS message_runtime")
+        cmake.write_text(text.split("include_directories(")[0])
+        env = {k: v for k, v in os.environ.items() if k not in ("CMAKE_PREFIX_PATH", "ROS_PACKAGE_PATH", "PYTHONPATH")}
+        with open(log, "w") as out:
+            res = subprocess.run(["catkin_make", "-C", str(REFERENCE_WS), f"-DPYTHON_EXECUTABLE={PY}", "-DCATKIN_ENABLE_TESTING=OFF"],
+                                 cwd=REFERENCE_WS, env=env, stdout=out, stderr=subprocess.STDOUT)
+        if res.returncode:
+            shutil.rmtree(REFERENCE_WS / "devel", ignore_errors=True)
+            return f"catkin_make failed (log: {log})"
+        return None
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def before_workspace(commit, log):
+    """A catkin workspace of this package as it was at `commit` (git archive; the page's libraries copied from
+    web/vendor/, which git does not hold), built once in ~/.cache/turtlesim/: the bridge of that commit, to
+    measure beside today's. Returns (workspace, full commit hash)."""
+    full = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--verify", f"{commit}^{{commit}}"],
+                          capture_output=True, text=True, check=True).stdout.strip()
+    ws = Path.home() / ".cache" / "turtlesim" / f"badlink-before-{full[:12]}"
+    if (ws / "devel" / "setup.bash").exists():
+        return ws, full
+    shutil.rmtree(ws, ignore_errors=True)
+    src = ws / "src" / "turtlesim"
+    src.mkdir(parents=True)
+    archive = subprocess.run(["git", "-C", str(REPO), "archive", full], capture_output=True, check=True)
+    subprocess.run(["tar", "x", "-C", str(src)], input=archive.stdout, check=True)
+    shutil.copytree(REPO / "web" / "vendor", src / "web" / "vendor", dirs_exist_ok=True)
+    env = {k: v for k, v in os.environ.items() if k not in ("CMAKE_PREFIX_PATH", "ROS_PACKAGE_PATH", "PYTHONPATH")}
+    with open(log, "w") as out:
+        res = subprocess.run(["catkin_make", "-C", str(ws), f"-DPYTHON_EXECUTABLE={PY}", "-DCMAKE_BUILD_TYPE=Release"], cwd=ws,
+                             env=env, stdout=out, stderr=subprocess.STDOUT)
+    if res.returncode:
+        shutil.rmtree(ws / "devel", ignore_errors=True)
+        raise SystemExit(f"badlink: the bridge of {commit} did not build (log: {log})")
+    return ws, full
+
+
+def _connect(host, port):
+    try:
+        return socket.create_connection((host, port), 1)
+    except OSError:
+        return None
+
+
+def pct(values, q):
+    if not values:
+        return None
+    values = sorted(values)
+    return values[min(len(values) - 1, int(round(q * (len(values) - 1))))]
+
+
+def summarize(got, kind, t0, t1, published):
+    """Figures of one case from the client's records (wall times) and the rover's counts for [t0, t1)."""
+    seconds = t1 - t0
+    if kind == "console":  # [[shown at, age]]
+        camera = [(t, age) for t, age in got["camera"] if t0 <= t < t1]
+        small = [(t, age) for t, age in got["small"] if t0 <= t < t1]
+        delivered = None
+        frames = [t for t in got["frames"] if t0 <= t < t1]
+        seen = [(camera, small) for t, camera, small in got.get("in_view", []) if t0 <= t < t1]
+        extra = {"page_fps": len(frames) / seconds, "element": got.get("element"),
+                 "readouts": got.get("readouts", [])[-3:],
+                 "both_on_screen": sum(c and s for c, s in seen) / len(seen) if seen else None}
+    else:  # [[arrived, stamp, bytes]]
+        camera = [(t, t - stamp) for t, stamp, _ in got["camera"] if t0 <= t < t1]
+        small = [(t, t - stamp) for t, stamp, _ in got["small"] if t0 <= t < t1]
+        on_time = {stamp for t, stamp, _ in got["small"] if t0 <= stamp < t1 and t <= t1 + GRACE}
+        delivered = len(on_time) / published["small"] if published["small"] else None
+        wire = sum(size for t, _, size in got["camera"] + got["small"] if t0 <= t < t1)
+        extra = {"kbyte_s": wire / seconds / 1e3, "status_count": got.get("status_count", 0),
+                 "statuses": got.get("statuses", [])[:2], "closed": bool(got.get("closed"))}
+
+    def ages(rows, lo=0.0, hi=1.0):
+        return [age for t, age in rows if t0 + lo * seconds <= t < t0 + hi * seconds]
+
+    return {"small_delivered": delivered, "small_rate": len(small) / seconds,
+            "small_p50": pct(ages(small), 0.5), "small_p95": pct(ages(small), 0.95),
+            "small_max": max(ages(small), default=None),
+            "small_p95_first": pct(ages(small, 0, 1 / 3), 0.95), "small_p95_last": pct(ages(small, 2 / 3, 1), 0.95),
+            "camera_frames": len(camera), "camera_fps": len(camera) / seconds,
+            "camera_p50": pct(ages(camera), 0.5), "camera_p95": pct(ages(camera), 0.95),
+            "camera_max": max(ages(camera), default=None),
+            "camera_p95_first": pct(ages(camera, 0, 1 / 3), 0.95),
+            "camera_p95_last": pct(ages(camera, 2 / 3, 1), 0.95),
+            "published_small": published["small"], "published_camera": published["camera"], **extra}
+
+
+# ---- the table ---------------------------------------------------------------------------------------------
+
+def fmt(value, unit):
+    if value is None:
+        return "n/a"
+    if unit == "%":
+        return f"{value * 100:.0f} %"
+    if unit == "s":
+        return f"{value:.2f} s" if value < 10 else f"{value:.1f} s"
+    if unit == "ms":
+        return f"{value * 1000:.0f} ms"  # (values in s)
+    if unit == "/s":
+        return f"{value:.1f}/s"
+    if unit == "MB":
+        return f"{value:.1f} MB"
+    if unit == "cpu ms":
+        return f"{value:.1f} ms"
+    return f"{value:.3g} {unit}".strip()
+
+
+EXTRA = {"reference": f"rosbridge_server {REFERENCE_TAG}"}  # more servers measured: their columns' titles
+
+
+class Table:
+    """The suite's table (Figure | Bridge | Baseline | Ratio | Target | met), and a last column for each other
+    server measured in the same run (`extra`: the bridge of an earlier commit, rosbridge_server 0.11.17)."""
+
+    def __init__(self, extra):
+        self.rows = []
+        self.extra = extra
+
+    def row(self, figure, value, unit, baseline_name, baseline, target="", ok=None, others=None):
+        ratio = value / baseline if value is not None and baseline else None
+        cells = [figure, fmt(value, unit), f"{baseline_name}: {fmt(baseline, unit)}" if baseline_name else "",
+                 f"{ratio:.2f}x" if ratio is not None else "", target,
+                 "" if ok is None else ("met" if ok else "**missed**")]
+        for server in self.extra:
+            value = (others or {}).get(server)
+            cells.append(fmt(value, unit) if value is not None else "")
+        self.rows.append(cells)
+
+    def text_row(self, figure, value, baseline, others):
+        """A row of texts (no ratio, no goal): e.g. a figure at the start and at the end of the window."""
+        self.rows.append([figure, value, baseline, "", "", ""] + [others.get(server, "") for server in self.extra])
+
+    def markdown(self):
+        head = ["Figure", "Bridge", "Baseline (same run)", "Ratio", "Target", ""]
+        head += [f"{EXTRA[server]} (same run)" for server in self.extra]
+        align = ["---", "---:", "---", "---:", "---", "---"] + ["---:"] * len(self.extra)
+        lines = ["| " + " | ".join(head) + " |", "|" + "|".join(align) + "|"]
+        return "\n".join(lines + ["| " + " | ".join(r) + " |" for r in self.rows])
+
+
+def goals(mbit, kind, picture):
+    """The issue's goals for a case, as {figure: (text, test)}; none for the cases it sets none for."""
+    le = lambda x: (lambda v: v is not None and v <= x)  # noqa: E731
+    ge = lambda x: (lambda v: v is not None and v >= x)  # noqa: E731
+    if mbit == 20 and kind in ("roslibjs", "careful"):
+        return {"small_delivered": (">= 95 %", ge(0.95)), "small_p95": ("<= 0.5 s", le(0.5)),
+                "small_max": ("<= 1 s", le(1.0)), "camera_fps": (">= 1/s", ge(1.0)),
+                "camera_p95": ("<= 1.5 s", le(1.5)), "rss_growth": ("<= 64 MB", le(64))}
+    if mbit == 5 and kind == "console" and picture == "camera-like":
+        return {"camera_fps": (">= 14/s", ge(14)), "camera_p95": ("<= 100 ms", le(0.1)),
+                "small_p95": ("<= 100 ms", le(0.1))}
+    if mbit == 5 and kind == "console" and picture == "busy":
+        return {"camera_fps": (">= 10/s", ge(10)), "camera_p95": ("<= 250 ms", le(0.25)),
+                "small_p95": ("<= 150 ms", le(0.15))}
+    return {}
+
+
+CLIENT_NAMES = {"roslibjs": "roslibjs-style (JSON, no throttle, no queue)",
+                "careful": "careful (camera CBOR, throttle_rate 66, queue_length 1)",
+                "console": "the console in Chromium"}
+
+
+def table(results, capacity):
+    primary = "bridge" if any(k[3] == "bridge" for k in results) else "before"
+    t = Table([server for server in ("before", "reference") if server in EXTRA and server != primary
+               and any(k[3] == server for k in results)])
+    for mbit in sorted({k[0] for k in results}, reverse=True):
+        if mbit in capacity:
+            t.row(f"{mbit} Mbit/s link: raw TCP goodput through it (one bulk sender)", capacity[mbit], "Mbit/s",
+                  "", None)
+        for kind in CLIENTS:
+            for picture in PICTURES:
+                bridge = results.get((mbit, kind, picture, primary))
+                if not bridge:
+                    continue
+                plain = results.get((mbit, kind, picture, "plain")) or {}
+                others = {server: results.get((mbit, kind, picture, server)) or {} for server in t.extra}
+                g = goals(mbit, kind, picture)
+                where = f"{mbit} Mbit/s, {CLIENT_NAMES[kind]}" + (f", {picture} picture" if kind == "console" else "")
+                base = "plain forwarder" if kind != "console" else "JPEG q50 page (rosboard's way)"
+                ms = "ms" if kind == "console" else "s"
+
+                def row(key, label, unit):
+                    target, test = g.get(key, ("", None))
+                    t.row(f"{where}: {label}", bridge.get(key), unit, base, plain.get(key), target,
+                          test(bridge.get(key)) if test else None, {k: v.get(key) for k, v in others.items()})
+
+                def trend(key, label):
+                    def text(f):
+                        return f"{fmt(f.get(key + '_first'), ms)} -> {fmt(f.get(key + '_last'), ms)}" if f else ""
+                    t.text_row(f"{where}: {label} age p95, first third of the window -> last third", text(bridge),
+                               f"{base}: {text(plain)}" if plain else "", {k: text(v) for k, v in others.items()})
+                if kind != "console":
+                    row("small_delivered", f"small topic delivered (within {GRACE:.0f} s)", "%")
+                else:
+                    row("small_rate", "small topic: new values shown", "/s")
+                row("small_p50", "small topic age p50", ms)
+                row("small_p95", "small topic age p95", ms)
+                row("small_max", "small topic age max", ms)
+                trend("small_p95", "small topic")
+                row("camera_fps", "camera frames/s" + (" on screen" if kind == "console" else ""), "/s")
+                row("camera_p50", "camera age p50" + (" (from the pixels)" if kind == "console" else ""), ms)
+                row("camera_p95", "camera age p95", ms)
+                trend("camera_p95", "camera")
+                row("rss_growth", "server RSS growth", "MB")
+                row("cpu_ms_per_frame", "server CPU per camera frame delivered", "cpu ms")
+    return t
+
+
+def notes(results):
+    lines = []
+    for (mbit, kind, picture, server), f in sorted(results.items()):
+        bits = [f"CPU {f['cpu_share'] * 100:.0f} %", f"tbf drops {f['tbf_drops']}",
+                f"tbf queue p50 {f['tbf_backlog_p50'] / 1e3:.0f} kB, max {f['tbf_backlog_max'] / 1e3:.0f} kB"]
+        if kind == "console":
+            bits += [f"page {f['page_fps']:.0f} frames/s", f"picture read from `{f.get('element')}`"]
+            if f.get("both_on_screen") is not None:
+                bits.append(f"camera and small topic both on screen {f['both_on_screen'] * 100:.0f} % of the time")
+            readouts = [text for _, text in f.get("readouts") or []]
+            if readouts:
+                bits.append(f"its own readout at the end: \"{readouts[-1].strip()}\"")
+        else:
+            bits += [f"{f['kbyte_s']:.0f} kB/s to the client", f"{f['status_count']} status ops"]
+            if f.get("statuses"):
+                bits.append(f"first: `{f['statuses'][0][1][:120]}`")
+            if f.get("closed"):
+                bits.append("**the connection was closed**")
+        if f.get("code"):
+            bits.append(f"code `{f['code']}`")
+        lines.append(f"- {mbit} Mbit/s, {kind}" + (f", {picture}" if kind == "console" else "") + f", {server}: "
+                     + ", ".join(bits))
+    return "\n".join(lines)
+
+
+def write_readme(text):
+    for name in ("README.template.md", "README.md"):
+        path = BENCH / name
+        old = path.read_text()
+        if MARKERS[0] in old:
+            head, rest = old.split(MARKERS[0], 1)
+            tail = rest.split(MARKERS[1], 1)[1]
+            new = f"{head}{MARKERS[0]}\n{text}\n{MARKERS[1]}{tail}"
+        else:
+            raise SystemExit(f"{path} has no {MARKERS[0]} ... {MARKERS[1]} section")
+        path.write_text(new)
+        print(f"wrote {path}", file=sys.stderr)
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--links", type=int, nargs="+", default=list(LINKS), help="Mbit/s")
+    p.add_argument("--clients", nargs="+", choices=CLIENTS, default=list(CLIENTS))
+    p.add_argument("--pictures", nargs="+", choices=PICTURES, default=list(PICTURES),
+                   help="for the console (the websocket clients get the raw rgb8 picture: camera-like only)")
+    p.add_argument("--servers", nargs="+", choices=SERVERS, default=list(SERVERS),
+                   help="reference: rosbridge_server 0.11.17, for the websocket clients (it serves no console)")
+    p.add_argument("--seconds", type=float, default=20.0, help="measured per case, after --warmup")
+    p.add_argument("--warmup", type=float, default=5.0)
+    p.add_argument("--before", metavar="COMMIT",
+                   help="also measure the bridge (and its page) of this commit, built from git in ~/.cache/turtlesim")
+    p.add_argument("--reference-src", default=os.environ.get("ROSBRIDGE_SUITE_SRC"),
+                   help="a clone of rosbridge_suite (default: $ROSBRIDGE_SUITE_SRC, else cloned from GitHub)")
+    p.add_argument("--rosauth-src", default=os.environ.get("ROSAUTH_SRC"),
+                   help="a clone of rosauth (default: $ROSAUTH_SRC, else cloned from GitHub)")
+    p.add_argument("--no-readme", action="store_true")
+    p.add_argument("--render", metavar="DIR", help="print (and with --readme, write) the text of an earlier run "
+                   "from its directory's run.json, measuring nothing")
+    p.add_argument("--readme", action="store_true", help="with --render: write the README sections")
+    a = p.parse_args()
+    if a.render:
+        run = json.loads((Path(a.render) / "run.json").read_text())
+        EXTRA.update(run["extra"])
+        results = {tuple(json.loads(k)): v for k, v in run["results"].items()}
+        text = render(results, {int(k): v for k, v in run["capacity"].items()}, run["sizes"], run["remarks"],
+                      run["footer"])
+        print(text)
+        if a.readme:
+            write_readme(text)
+        return
+    reason = netns_unavailable()
+    if reason:
+        raise SystemExit(f"badlink: {reason}")
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: sys.exit("badlink: stopped by signal"))
+    full = (a.links == list(LINKS) and a.clients == list(CLIENTS) and a.pictures == list(PICTURES)
+            and a.servers == list(SERVERS))
+    started, load_before = time.monotonic(), os.getloadavg()[0]
+    workdir = Path(tempfile.mkdtemp(prefix="badlink-"))
+    remarks = []
+    if "reference" in a.servers:
+        why = build_reference(a.reference_src, a.rosauth_src, workdir / "reference-build.log")
+        if why:
+            a.servers.remove("reference")
+            remarks.append(f"rosbridge_server {REFERENCE_TAG} not measured: {why}.")
+            print(f"badlink: {remarks[-1]}", file=sys.stderr)
+    before_ws = None
+    if a.before:
+        before_ws, commit = before_workspace(a.before, workdir / "before-build.log")
+        a.servers.insert(1, "before")
+        when = subprocess.run(["git", "-C", str(REPO), "log", "-1", "--format=%cd", "--date=format:%Y-%m-%d %H:%M",
+                               commit], capture_output=True, text=True).stdout.strip()
+        EXTRA["before"] = f"the bridge before: `{commit[:7]}`"
+        remarks.append(f"\"The bridge before\": the bridge and its page as of commit `{commit[:7]}` ({when}), "
+                       "built from git and measured in the same run.")
+    bench = Bench(workdir, a)
+    bench.before_ws = before_ws
+    results, capacity, sizes = {}, {}, {}
+    try:
+        for picture in PICTURES:
+            kinds = [k for k in a.clients if k == "console" or picture == "camera-like"]
+            if picture not in a.pictures and "console" in kinds:
+                kinds.remove("console")
+            if not kinds:
+                continue
+            bench.show(picture)
+            sizes[picture] = json.loads(re.search(r"^PICTURE (.*)$", bench.rover.output(), re.M).group(1))
+            for mbit in a.links:
+                if mbit not in capacity:
+                    capacity[mbit] = bench.raw_capacity(mbit)
+                for kind in kinds:
+                    for server in a.servers:
+                        if server == "reference" and kind == "console":
+                            continue
+                        try:
+                            results[(mbit, kind, picture, server)] = bench.case(mbit, kind, picture, server)
+                        except Exception as error:  # (one broken case, e.g. a bridge mid-edit, ends no run)
+                            remarks.append(f"{mbit} Mbit/s, {kind}, {picture}, {server}: the case failed: "
+                                           f"{str(error).strip().splitlines()[0][:200]} (logs: {workdir})")
+                            print(f"badlink: {remarks[-1]}", file=sys.stderr, flush=True)
+    finally:
+        bench.close()
+    elapsed = time.monotonic() - started
+    footer = (f"Measured {time.strftime('%Y-%m-%d %H:%M')} at {git_head()} on {os.cpu_count()} CPUs, "
+              f"{a.seconds:.0f} s per case after {a.warmup:.0f} s of warm-up; took {elapsed:.0f} s; load average "
+              f"{load_before:.1f} before, {os.getloadavg()[0]:.1f} after (the machine's other work shares its 2 "
+              f"cores with the rover, the servers, the clients and Chromium). Logs, screenshots and raw records: "
+              f"{workdir}")
+    (workdir / "run.json").write_text(json.dumps({
+        "results": {json.dumps(k): v for k, v in results.items()}, "capacity": capacity, "sizes": sizes,
+        "remarks": remarks, "footer": footer, "extra": EXTRA}))
+    text = render(results, capacity, sizes, remarks, footer)
+    print(text)
+    if full and not a.no_readme:
+        write_readme(text)
+
+
+def code_state():
+    """The bridge's and the page's code as a case found it: HEAD, and a digest of any uncommitted change to src/
+    or web/ (others may commit while a run goes on)."""
+    head = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+    diff = subprocess.run(["git", "-C", str(REPO), "diff", "HEAD", "--", "src", "web"], capture_output=True)
+    untracked = subprocess.run(["git", "-C", str(REPO), "ls-files", "--others", "--exclude-standard", "src", "web"],
+                               capture_output=True, text=True).stdout.split()
+    digest = hashlib.sha1(diff.stdout)
+    for name in sorted(untracked):
+        digest.update((REPO / name).read_bytes() if (REPO / name).is_file() else b"")
+    changed = diff.stdout or untracked
+    return head.stdout.strip() + (f"+{digest.hexdigest()[:6]}" if changed else "")
+
+
+def render(results, capacity, sizes, remarks, footer):
+    return "\n\n".join([
+        table(results, capacity).markdown(),
+        "Pictures (JPEG q50 with Pillow, mean of the 30 frames; raw rgb8 is 921,600 B): " + ", ".join(
+            f"{s['picture']} {s['jpeg_q50_bytes'] / 1e3:.1f} kB (deflated raw: {s['deflate_bytes'] / 1e3:.0f} kB)"
+            for s in sizes.values()) + ".",
+        *remarks,
+        "Per case (server CPU as a share of one core; the server side's tbf queue, sampled every 0.5 s; for the "
+        "bridge, the code it ran: HEAD and a digest of uncommitted changes in src/ and web/):\n\n" + notes(results),
+        footer])
+
+
+def git_head():
+    """The commit measured, and whether the bridge's or the page's files differed from it (others' work)."""
+    head = subprocess.run(["git", "-C", str(REPO), "log", "-1", "--format=%h %s"], capture_output=True, text=True)
+    if head.returncode:
+        return "an unknown commit"
+    dirty = subprocess.run(["git", "-C", str(REPO), "status", "--porcelain", "--", "src", "web"],
+                           capture_output=True, text=True).stdout.split("\n")
+    dirty = [line[3:] for line in dirty if line.strip()]
+    return f"commit `{head.stdout.strip()[:70]}`" + (
+        f" with uncommitted changes in {', '.join(dirty[:8])}{' ...' if len(dirty) > 8 else ''}" if dirty else "")
+
+
+if __name__ == "__main__":
+    main()

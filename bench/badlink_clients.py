@@ -1,0 +1,230 @@
+"""The bad-link benchmark's clients (bench/badlink.py runs them inside the network namespace, behind the shaped
+link). One role per process:
+
+  ws       a rosbridge websocket client (Tornado's) subscribed to the rover's small topic and camera:
+             --style roslibjs  both topics as roslibjs 1.x subscribes by default: JSON, compression "none",
+                               throttle_rate 0, queue_length 0
+             --style careful   the camera as CBOR with throttle_rate 66 and queue_length 1; the small topic as above
+           it records, for every message, when it arrived (wall time) and its stamp (the small topic's data, the
+           camera's header.stamp), and the frame's size
+  console  headless Chromium (Debian's, with Debian's chromedriver, through Selenium: run it with the test venv's
+           python) on a page: --mode bridge, the console (the Camera panel showing the camera, the small topic
+           opened in the Topics panel, both on screen); --mode plain, bench/plain_server.py's page. It injects
+           bench/badlink_page.js, which reads the picture's age from its pixels and the small topic's from its text
+  sink     reads a TCP stream and reports its goodput (the link's raw capacity)
+
+Protocol: READY when connected and subscribed; then each line on stdin is a command: `result` prints
+`RESULT <json>` (everything recorded, wall times in seconds), `shot <path>` saves a screenshot (console),
+`quit` ends."""
+import argparse
+import asyncio
+import base64
+import json
+import shutil
+import socket
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+BENCH = Path(__file__).resolve().parent
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("role", choices=["ws", "console", "sink"])
+    p.add_argument("--url")
+    p.add_argument("--style", choices=["roslibjs", "careful"], default="roslibjs")
+    p.add_argument("--mode", choices=["bridge", "plain"], default="bridge")
+    p.add_argument("--small", default="/rover/stamp")
+    p.add_argument("--camera", default="/rover/camera")
+    p.add_argument("--listen", help="sink: address:port")
+    p.add_argument("--window", default="1280,1100", help="console: the browser's viewport, width,height")
+    a = p.parse_args()
+    {"ws": lambda: asyncio.run(ws_client(a)), "console": lambda: console(a), "sink": lambda: sink(a)}[a.role]()
+
+
+def commands():
+    """The lines of stdin, read in a thread (so that the event loop or the browser never waits for them)."""
+    lines = []
+    event = threading.Event()
+
+    def read():
+        for line in sys.stdin:
+            lines.append(line.split())
+            event.set()
+        lines.append(["quit"])
+        event.set()
+    threading.Thread(target=read, daemon=True).start()
+    return lines, event
+
+
+def report(**values):
+    print("RESULT " + json.dumps(values), flush=True)
+
+
+# ---- ws ----------------------------------------------------------------------------------------------------
+
+def subscribe_ops(a):
+    roslibjs = {"compression": "none", "throttle_rate": 0, "queue_length": 0}
+    camera = roslibjs if a.style == "roslibjs" else {"compression": "cbor", "throttle_rate": 66, "queue_length": 1}
+    return [{"op": "subscribe", "id": f"subscribe:{a.small}:1", "type": "std_msgs/Float64", "topic": a.small,
+             **roslibjs},
+            {"op": "subscribe", "id": f"subscribe:{a.camera}:2", "type": "sensor_msgs/Image", "topic": a.camera,
+             **camera}]
+
+
+async def ws_client(a):
+    import cbor2
+    from tornado.websocket import websocket_connect
+
+    small, camera, statuses, closed = [], [], [], []
+
+    def on_frame(frame):
+        now = time.time()
+        if frame is None:
+            closed.append(now)
+            return
+        if isinstance(frame, bytes):
+            op = cbor2.loads(frame)
+        else:
+            op = json.loads(frame)
+        kind = op.get("op")
+        if kind == "publish":
+            msg = op.get("msg") or {}
+            if op.get("topic") == a.small:
+                small.append((now, msg["data"], len(frame)))
+            elif op.get("topic") == a.camera:
+                stamp = msg["header"]["stamp"]
+                camera.append((now, stamp["secs"] + stamp["nsecs"] / 1e9, len(frame)))
+        elif kind == "status":
+            statuses.append((now, str(op.get("msg"))[:300]))
+        else:
+            statuses.append((now, f"op {kind}"))
+
+    ws = await websocket_connect(a.url, max_message_size=64 << 20, on_message_callback=on_frame)
+    for op in subscribe_ops(a):
+        await ws.write_message(json.dumps(op))
+    print("READY", flush=True)
+    lines, event = commands()
+    while True:
+        while not lines:
+            await asyncio.sleep(0.05)
+        words = lines.pop(0)
+        if words[:1] == ["result"]:
+            report(small=small, camera=camera, statuses=statuses[:20], status_count=len(statuses), closed=closed)
+        elif words[:1] == ["quit"]:
+            break
+    ws.close()
+
+
+# ---- console -----------------------------------------------------------------------------------------------
+
+CHROMIUM_FLAGS = ["--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--disable-quic",
+                  "--no-first-run", "--disable-background-networking", "--disable-component-update",
+                  "--disable-sync", "--disable-background-timer-throttling",
+                  "--disable-renderer-backgrounding", "--disable-backgrounding-occluded-windows"]
+
+
+def wait(what, predicate, timeout=60):
+    deadline = time.monotonic() + timeout
+    while True:
+        value = predicate()
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            raise SystemExit(f"console: timed out after {timeout} s waiting for {what}")
+        time.sleep(0.2)
+
+
+def open_console(driver, a):
+    """The console as a driver sets it up: the small topic opened in the Topics panel, the camera chosen in the
+    Camera panel, both shown at once (the console's tabs show one at a time: the Topics tab is kept visible
+    beside the Camera tab, as bench/page_bench.py does)."""
+    wait("the page connected", lambda: driver.execute_script(
+        "return document.querySelector('#conn')?.dataset.state") == "connected")
+    open_small = """const row = document.querySelector('tr[data-topic="%s"] button');
+                    if (row) row.click(); return Boolean(row);""" % a.small
+    wait(f"{a.small} listed in Topics", lambda: driver.execute_script(open_small))
+    choose = """const button = document.getElementById('tab-button-camera'); if (button) button.click();
+                const select = document.getElementById('camera-topic');
+                if (!select || ![...select.options].some(o => o.value === '%s')) return false;
+                select.value = '%s'; select.dispatchEvent(new Event('change'));
+                const topics = document.getElementById('tab-topics'); if (topics) topics.hidden = false;
+                return true;""" % (a.camera, a.camera)
+    wait(f"{a.camera} listed in Camera", lambda: driver.execute_script(choose))
+
+
+def console(a):
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    profile = tempfile.mkdtemp(prefix="badlink-chromium-")
+    options = webdriver.ChromeOptions()
+    options.binary_location = "/usr/bin/chromium"
+    for flag in CHROMIUM_FLAGS:
+        options.add_argument(flag)
+    width, height = map(int, a.window.split(","))
+    options.add_argument(f"--user-data-dir={profile}")
+    options.add_argument(f"--window-size={width},{height}")
+    driver = webdriver.Chrome(service=Service(executable_path="/usr/bin/chromedriver"), options=options)
+    try:
+        driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride", {
+            "width": width, "height": height, "deviceScaleFactor": 1, "mobile": False})
+        driver.set_script_timeout(30)
+        driver.get(a.url)
+        if a.mode == "bridge":
+            open_console(driver, a)
+        small_selectors = [f'.open-topic[data-topic="{a.small}"] .message', "#small"]
+        driver.execute_script(f"window.badlinkConfig = {json.dumps({'smallSelectors': small_selectors})};\n"
+                              + (BENCH / "badlink_page.js").read_text())
+        wait("a camera picture with a readable stamp", lambda: driver.execute_script(
+            "return window.badlink.camera.length > 0"), timeout=90)
+        print("READY", flush=True)
+        lines, event = commands()
+        while True:
+            event.wait(1.0)
+            event.clear()
+            while lines:
+                words = lines.pop(0)
+                if words[:1] == ["result"]:
+                    got = driver.execute_script("return window.badlink")
+                    report(camera=[[t / 1000, age / 1000] for t, age in got["camera"]],
+                           small=[[t / 1000, age / 1000] for t, age in got["small"]],
+                           frames=[t / 1000 for t in got["frames"]], readouts=got["readouts"][-40:],
+                           in_view=[[t / 1000, camera, small] for t, camera, small in got["inView"]],
+                           element=got["element"])
+                elif words[:1] == ["shot"]:  # the whole page, not only the viewport
+                    shot = driver.execute_cdp_cmd("Page.captureScreenshot",
+                                                  {"format": "png", "captureBeyondViewport": True})
+                    Path(words[1]).write_bytes(base64.b64decode(shot["data"]))
+                    print(f"SHOT {words[1]}", flush=True)
+                elif words[:1] == ["quit"]:
+                    return
+    finally:
+        driver.quit()
+        shutil.rmtree(profile, ignore_errors=True)
+
+
+# ---- sink --------------------------------------------------------------------------------------------------
+
+def sink(a):
+    host, port = a.listen.rsplit(":", 1)
+    server = socket.create_server((host, int(port)))
+    print("READY", flush=True)
+    conn, _ = server.accept()
+    total, first = 0, None
+    while True:
+        data = conn.recv(1 << 16)
+        if not data:
+            break
+        if first is None:
+            first = time.monotonic()
+        total += len(data)
+    seconds = time.monotonic() - first if first else 0
+    report(bytes=total, seconds=seconds, mbit=total * 8 / seconds / 1e6 if seconds else 0)
+
+
+if __name__ == "__main__":
+    main()
