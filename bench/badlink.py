@@ -34,7 +34,8 @@ PY = "/usr/bin/python3"
 VENV_PY = str(REPO / ".build" / "venv" / "bin" / "python")  # (Selenium)
 TBF = "burst 32kbit latency 50ms"
 LINKS = (20, 5)  # Mbit/s
-CLIENTS = ("roslibjs", "careful", "console")
+CLIENTS = ("roslibjs", "careful", "console", "driver")
+DRIVER_CUTS = ("kill", "cut")  # how a driver goes away: its process killed, its link cut
 PICTURES = ("camera-like", "busy")
 SERVERS = ("bridge", "plain", "reference")
 REFERENCE_TAG = "0.11.17"
@@ -124,6 +125,7 @@ class Bench:
         self.picture = None
         self.spawned = 0
         self.before_ws = None
+        self.sizes = {}  # picture -> its sizes, as the rover printed them
 
     def spawn(self, args, name, inside=False):
         self.spawned += 1
@@ -170,6 +172,7 @@ class Bench:
         self.rover = self.spawn([PY, BENCH / "rover.py", "--picture", picture], f"rover-{picture}")
         self.wait_line(self.rover, r"^READY", 60)
         self.picture = picture
+        self.sizes[picture] = json.loads(re.search(r"^PICTURE (.*)$", self.rover.output(), re.M).group(1))
 
     def published(self, t0, t1):
         before = len(re.findall(r"^RESULT (.*)$", self.rover.output(), re.M))
@@ -268,6 +271,53 @@ class Bench:
         print(f"badlink: {name}: " + json.dumps({k: round(v, 3) if isinstance(v, float) else v
                                                  for k, v in figures.items()}), file=sys.stderr, flush=True)
         return figures
+
+    def drive(self, mbit, server, how):
+        """A driver (watching the camera) publishes Twist at 20 Hz, then is killed (its connection ends) or its
+        link is cut (the namespace's end of the veth goes down: no FIN, as when a phone loses Wi-Fi). Returns
+        when the rover got a zero Twist after that, and the ages of the Twists before it."""
+        name = f"{mbit}mbit-driver-{how}-{server}"
+        print(f"badlink: {name}", file=sys.stderr, flush=True)
+        self.show(self.picture or "camera-like")
+        self.link.shape(mbit)
+        code = code_state() if server == "bridge" else None
+        srv, stat, ws_url, _ = self.server(server)
+        client = None
+        try:
+            client = self.spawn([PY, BENCH / "badlink_clients.py", "driver", "--url", ws_url], f"driver-{server}",
+                                inside=True)
+            self.wait_line(client, r"^READY", 60)
+            time.sleep(3.0)
+            self.twists()  # (forget the start)
+            time.sleep(3.0)
+            end = time.time()
+            if how == "kill":
+                os.kill(client.pid, signal.SIGKILL)  # (ip netns exec execs the driver: this is its pid)
+            else:
+                sh("ip", "-n", self.link.ns, "link", "set", self.link.there, "down")
+            time.sleep(4.0)
+            twists = self.twists()
+        finally:
+            if how == "cut":
+                sh("ip", "-n", self.link.ns, "link", "set", self.link.there, "up")
+            self.stop(client, srv)
+        before = [(t, z) for t, x, z in twists if x != 0 and t < end + 2.0]
+        zero = next((t for t, x, z in twists if x == 0 and z == 0 and t >= end - 0.05), None)
+        last = max((t for t, _ in before), default=None)
+        ages = [t - z for t, z in before if t < end]
+        figures = {"how": how, "zero_after_end": zero - end if zero else None,
+                   "zero_after_last": zero - last if zero and last else None, "zeros": sum(
+                       1 for t, x, z in twists if x == 0 and z == 0 and t >= end - 0.05),
+                   "twist_p50": pct(ages, 0.5), "twist_p95": pct(ages, 0.95), "twist_max": max(ages, default=None),
+                   "twist_rate": len(ages) / 3.0, "code": code}
+        (self.workdir / f"{name}.json").write_text(json.dumps({"figures": figures, "raw": twists}))
+        print(f"badlink: {name}: " + json.dumps(figures), file=sys.stderr, flush=True)
+        return figures
+
+    def twists(self):
+        before = len(re.findall(r"^RESULT (.*)$", self.rover.output(), re.M))
+        self.tell(self.rover, "twists")
+        return json.loads(self.wait_line(self.rover, r"^RESULT (.*)$", 20, after=before))["twists"]
 
     def raw_capacity(self, mbit, seconds=4.0):
         """TCP goodput through the shaped link: a bulk sender here, the sink inside."""
@@ -433,12 +483,14 @@ def summarize(got, kind, t0, t1, published):
 def fmt(value, unit):
     if value is None:
         return "n/a"
+    if value != value:  # NaN: measured, and it never came
+        return "none"
     if unit == "%":
         return f"{value * 100:.0f} %"
     if unit == "s":
         return f"{value:.2f} s" if value < 10 else f"{value:.1f} s"
-    if unit == "ms":
-        return f"{value * 1000:.0f} ms"  # (values in s)
+    if unit == "ms":  # (values in s)
+        return f"{value * 1000:.1f} ms" if value < 0.01 else f"{value * 1000:.0f} ms"
     if unit == "/s":
         return f"{value:.1f}/s"
     if unit == "MB":
@@ -512,6 +564,8 @@ def table(results, capacity):
             t.row(f"{mbit} Mbit/s link: raw TCP goodput through it (one bulk sender)", capacity[mbit], "Mbit/s",
                   "", None)
         for kind in CLIENTS:
+            if kind == "driver":
+                continue
             for picture in PICTURES:
                 bridge = results.get((mbit, kind, picture, primary))
                 if not bridge:
@@ -547,12 +601,40 @@ def table(results, capacity):
                 trend("camera_p95", "camera")
                 row("rss_growth", "server RSS growth", "MB")
                 row("cpu_ms_per_frame", "server CPU per camera frame delivered", "cpu ms")
+        for how in DRIVER_CUTS:
+            driven = results.get((mbit, "driver", how, primary))
+            if not driven:
+                continue
+            others = {server: results.get((mbit, "driver", how, server)) or {} for server in t.extra}
+            where = f"{mbit} Mbit/s, a driver (Twist at 20 Hz, watching the camera as the careful client)"
+
+            def zero(f, key):
+                return f.get(key) if f.get(key) is not None else (None if not f else float("nan"))
+            if how == "kill":
+                t.row(f"{where}, killed: zero Twist after its connection's end", zero(driven, "zero_after_end"),
+                      "ms", "", None, "<= 0.5 s", (driven.get("zero_after_end") or 9) <= 0.5,
+                      {k: zero(v, "zero_after_end") for k, v in others.items()})
+            else:
+                t.row(f"{where}, its link cut (no FIN): zero Twist after the last Twist that arrived",
+                      zero(driven, "zero_after_last"), "ms", "", None, "<= 1 s (the timeout)",
+                      (driven.get("zero_after_last") or 9) <= 1.0,
+                      {k: zero(v, "zero_after_last") for k, v in others.items()})
+                t.row(f"{where}: Twist age at the rover p50 / p95 / max (client -> ROS while the camera fills the "
+                      "link)", driven.get("twist_p95"), "ms", "", None, "", None,
+                      {k: v.get("twist_p95") for k, v in others.items()})
+                t.rows[-1][1] = "/".join(fmt(driven.get(k), "ms").replace(" ms", "")
+                                         for k in ("twist_p50", "twist_p95", "twist_max")) + " ms"
     return t
 
 
 def notes(results):
     lines = []
     for (mbit, kind, picture, server), f in sorted(results.items()):
+        if kind == "driver":
+            lines.append(f"- {mbit} Mbit/s, driver {picture}, {server}: {f['zeros']} zero Twist(s) after the end, "
+                         f"{f['twist_rate']:.1f} Twists/s arrived before it" + (f", code `{f['code']}`"
+                                                                               if f.get("code") else ""))
+            continue
         bits = [f"CPU {f['cpu_share'] * 100:.0f} %", f"tbf drops {f['tbf_drops']}",
                 f"tbf queue p50 {f['tbf_backlog_p50'] / 1e3:.0f} kB, max {f['tbf_backlog_max'] / 1e3:.0f} kB"]
         if kind == "console":
@@ -650,13 +732,12 @@ def main():
     results, capacity, sizes = {}, {}, {}
     try:
         for picture in PICTURES:
-            kinds = [k for k in a.clients if k == "console" or picture == "camera-like"]
+            kinds = [k for k in a.clients if k == "console" or picture == "camera-like" and k != "driver"]
             if picture not in a.pictures and "console" in kinds:
                 kinds.remove("console")
             if not kinds:
                 continue
             bench.show(picture)
-            sizes[picture] = json.loads(re.search(r"^PICTURE (.*)$", bench.rover.output(), re.M).group(1))
             for mbit in a.links:
                 if mbit not in capacity:
                     capacity[mbit] = bench.raw_capacity(mbit)
@@ -670,8 +751,20 @@ def main():
                             remarks.append(f"{mbit} Mbit/s, {kind}, {picture}, {server}: the case failed: "
                                            f"{str(error).strip().splitlines()[0][:200]} (logs: {workdir})")
                             print(f"badlink: {remarks[-1]}", file=sys.stderr, flush=True)
+        if "driver" in a.clients:  # (the dead-man stop does not depend on the rate: the narrowest link)
+            for how in DRIVER_CUTS:
+                for server in a.servers:
+                    if server == "plain":  # (it takes no publish)
+                        continue
+                    try:
+                        results[(min(a.links), "driver", how, server)] = bench.drive(min(a.links), server, how)
+                    except Exception as error:
+                        remarks.append(f"driver {how}, {server}: the case failed: "
+                                       f"{str(error).strip().splitlines()[0][:200]} (logs: {workdir})")
+                        print(f"badlink: {remarks[-1]}", file=sys.stderr, flush=True)
     finally:
         bench.close()
+    sizes = {picture: bench.sizes[picture] for picture in PICTURES if picture in bench.sizes}
     elapsed = time.monotonic() - started
     footer = (f"Measured {time.strftime('%Y-%m-%d %H:%M')} at {git_head()} on {os.cpu_count()} CPUs, "
               f"{a.seconds:.0f} s per case after {a.warmup:.0f} s of warm-up; took {elapsed:.0f} s; load average "

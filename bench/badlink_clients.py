@@ -11,6 +11,9 @@ link). One role per process:
            python) on a page: --mode bridge, the console (the Camera panel showing the camera, the small topic
            opened in the Topics panel, both on screen); --mode plain, bench/plain_server.py's page. It injects
            bench/badlink_page.js, which reads the picture's age from its pixels and the small topic's from its text
+  driver   drives: advertises /rover/cmd_vel and publishes a Twist at 20 Hz (linear.x 1.0, its send time in
+           linear.z), watching the camera meanwhile as the careful client does (CBOR, throttle_rate 66,
+           queue_length 1), until it is killed or its link is cut
   sink     reads a TCP stream and reports its goodput (the link's raw capacity)
 
 Protocol: READY when connected and subscribed; then each line on stdin is a command: `result` prints
@@ -33,16 +36,18 @@ BENCH = Path(__file__).resolve().parent
 
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("role", choices=["ws", "console", "sink"])
+    p.add_argument("role", choices=["ws", "console", "sink", "driver"])
     p.add_argument("--url")
     p.add_argument("--style", choices=["roslibjs", "careful"], default="roslibjs")
     p.add_argument("--mode", choices=["bridge", "plain"], default="bridge")
     p.add_argument("--small", default="/rover/stamp")
     p.add_argument("--camera", default="/rover/camera")
+    p.add_argument("--cmd-vel", default="/rover/cmd_vel")
     p.add_argument("--listen", help="sink: address:port")
     p.add_argument("--window", default="1280,1100", help="console: the browser's viewport, width,height")
     a = p.parse_args()
-    {"ws": lambda: asyncio.run(ws_client(a)), "console": lambda: console(a), "sink": lambda: sink(a)}[a.role]()
+    {"ws": lambda: asyncio.run(ws_client(a)), "console": lambda: console(a), "sink": lambda: sink(a),
+     "driver": lambda: asyncio.run(driver(a))}[a.role]()
 
 
 def commands():
@@ -117,6 +122,25 @@ async def ws_client(a):
         elif words[:1] == ["quit"]:
             break
     ws.close()
+
+
+async def driver(a):
+    from tornado.websocket import websocket_connect
+
+    ws = await websocket_connect(a.url, max_message_size=64 << 20, on_message_callback=lambda frame: None)
+    ws.stream.set_nodelay(True)
+    await ws.write_message(json.dumps({"op": "advertise", "topic": a.cmd_vel, "type": "geometry_msgs/Twist"}))
+    await ws.write_message(json.dumps({"op": "subscribe", "topic": a.camera, "type": "sensor_msgs/Image",
+                                       "compression": "cbor", "throttle_rate": 66, "queue_length": 1}))
+    period, due, n = 0.05, time.monotonic(), 0
+    while True:
+        twist = {"linear": {"x": 1.0, "y": 0.0, "z": time.time()}, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}}
+        ws.write_message(json.dumps({"op": "publish", "topic": a.cmd_vel, "msg": twist}))  # (a dead link: queued)
+        n += 1
+        if n == 10:
+            print("READY", flush=True)
+        due += period
+        await asyncio.sleep(max(0.0, due - time.monotonic()))
 
 
 # ---- console -----------------------------------------------------------------------------------------------
@@ -195,7 +219,9 @@ def console(a):
                            frames=[t / 1000 for t in got["frames"]], readouts=got["readouts"][-40:],
                            in_view=[[t / 1000, camera, small] for t, camera, small in got["inView"]],
                            element=got["element"])
-                elif words[:1] == ["shot"]:  # the whole page, not only the viewport
+                elif words[:1] == ["shot"]:  # the whole page, not only the viewport (from its top: a sticky
+                    driver.execute_script("window.scrollTo(0, 0)")  # header would be drawn where it is scrolled to)
+                    time.sleep(0.3)
                     shot = driver.execute_cdp_cmd("Page.captureScreenshot",
                                                   {"format": "png", "captureBeyondViewport": True})
                     Path(words[1]).write_bytes(base64.b64decode(shot["data"]))

@@ -88,7 +88,7 @@
       if (!source || state.misses % 15 === 0) {  // look again (every ~0.25 s while nothing readable is shown)
         const found = find();
         if (found) {
-          if (!source) found.scrollIntoView({ block: 'start' });
+          if (!source) found.scrollIntoView({ block: 'nearest' });
           source = found;
           state.element = describe(found);
           stamp = read(found);

@@ -16,9 +16,12 @@ blocks, most significant first, white = 1), then a 6-bit check. It survives JPEG
 0.35x (`python3 bench/rover.py --check` tries that), so a page's picture tells its age from its pixels
 (bench/badlink_page.js decodes it in the browser).
 
+It also listens to /rover/cmd_vel (geometry_msgs/Twist), as a rover's base does.
+
 Protocol with bench/badlink.py: prints the pictures' sizes, then READY once publishing; a line
 `count <t0> <t1>` on stdin answers `RESULT {"small": n, "camera": m}`: how many of each it published with a
-stamp in [t0, t1) (wall seconds)."""
+stamp in [t0, t1) (wall seconds); `twists` answers `RESULT {"twists": [[arrived, linear.x, linear.z], ...]}`,
+the Twists received since the last time asked."""
 import argparse
 import io
 import json
@@ -150,6 +153,7 @@ def jpeg_again(img, quality):
 def publish(a, frames):
     import rospy
     from sensor_msgs.msg import Image
+    from geometry_msgs.msg import Twist
     from std_msgs.msg import Float64, Header
 
     rospy.init_node("rover", disable_signals=True)
@@ -181,6 +185,13 @@ def publish(a, frames):
             due += period
             time.sleep(max(0.0, due - time.monotonic()))
 
+    twists = []  # [arrived, linear.x, linear.z]: the bench's drivers put their send time in linear.z
+
+    def driven(msg):
+        with lock:
+            twists.append((time.time(), msg.linear.x, msg.linear.z))
+    rospy.Subscriber(a.cmd_vel, Twist, driven, tcp_nodelay=True)
+
     for loop in (small_loop, camera_loop):
         threading.Thread(target=loop, daemon=True).start()
     print("READY", flush=True)
@@ -191,6 +202,10 @@ def publish(a, frames):
             with lock:
                 counts = {k: sum(t0 <= s < t1 for s in v) for k, v in stamps.items()}
             print("RESULT " + json.dumps(counts), flush=True)
+        elif words[:1] == ["twists"]:  # what arrived on cmd_vel since the last time asked
+            with lock:
+                got, twists[:] = list(twists), []
+            print("RESULT " + json.dumps({"twists": got}), flush=True)
 
 
 def main():
@@ -198,6 +213,7 @@ def main():
     p.add_argument("--picture", choices=sorted(PICTURES), default="camera-like")
     p.add_argument("--small", default="/rover/stamp")
     p.add_argument("--camera", default="/rover/camera")
+    p.add_argument("--cmd-vel", default="/rover/cmd_vel")
     p.add_argument("--check", action="store_true", help="print both pictures' sizes, test the barcode, and exit")
     p.add_argument("--save", metavar="DIR", help="with --check: write a PNG of each picture's first frame there")
     a = p.parse_args()
