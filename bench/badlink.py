@@ -220,8 +220,8 @@ class Bench:
     def client(self, kind, ws_url, page_url, server):
         if kind == "console":
             proc = self.spawn([VENV_PY, BENCH / "badlink_clients.py", "console", "--url", page_url,
-                               "--mode", "plain" if server == "plain" else "bridge"], f"console-{server}",
-                              inside=True)
+                               "--mode", "plain" if server == "plain" else "bridge",
+                               *(["--phone"] if self.a.phone else [])], f"console-{server}", inside=True)
         else:
             proc = self.spawn([PY, BENCH / "badlink_clients.py", "ws", "--url", ws_url, "--style", kind],
                               f"{kind}-{server}", inside=True)
@@ -500,6 +500,7 @@ def fmt(value, unit):
     return f"{value:.3g} {unit}".strip()
 
 
+PHONE = False  # (--phone: the console cases ran on a phone's screen)
 EXTRA = {"reference": f"rosbridge_server {REFERENCE_TAG}"}  # more servers measured: their columns' titles
 
 
@@ -552,7 +553,7 @@ def goals(mbit, kind, picture):
 
 CLIENT_NAMES = {"roslibjs": "roslibjs-style (JSON, no throttle, no queue)",
                 "careful": "careful (camera CBOR, throttle_rate 66, queue_length 1)",
-                "console": "the console in Chromium"}
+                "console": "the console in Chromium", "phone": "the console in Chromium on a phone's screen"}
 
 
 def table(results, capacity):
@@ -573,7 +574,8 @@ def table(results, capacity):
                 plain = results.get((mbit, kind, picture, "plain")) or {}
                 others = {server: results.get((mbit, kind, picture, server)) or {} for server in t.extra}
                 g = goals(mbit, kind, picture)
-                where = f"{mbit} Mbit/s, {CLIENT_NAMES[kind]}" + (f", {picture} picture" if kind == "console" else "")
+                name = "phone" if kind == "console" and PHONE else kind
+                where = f"{mbit} Mbit/s, {CLIENT_NAMES[name]}" + (f", {picture} picture" if kind == "console" else "")
                 base = "plain forwarder" if kind != "console" else "JPEG q50 page (rosboard's way)"
                 ms = "ms" if kind == "console" else "s"
 
@@ -687,14 +689,18 @@ def main():
                    help="a clone of rosbridge_suite (default: $ROSBRIDGE_SUITE_SRC, else cloned from GitHub)")
     p.add_argument("--rosauth-src", default=os.environ.get("ROSAUTH_SRC"),
                    help="a clone of rosauth (default: $ROSAUTH_SRC, else cloned from GitHub)")
+    p.add_argument("--phone", action="store_true", help="the console on a phone's screen (390x844), not a desktop's")
     p.add_argument("--no-readme", action="store_true")
     p.add_argument("--render", metavar="DIR", help="print (and with --readme, write) the text of an earlier run "
                    "from its directory's run.json, measuring nothing")
     p.add_argument("--readme", action="store_true", help="with --render: write the README sections")
     a = p.parse_args()
+    global PHONE
+    PHONE = a.phone
     if a.render:
         run = json.loads((Path(a.render) / "run.json").read_text())
         EXTRA.update(run["extra"])
+        PHONE = run.get("phone", False)
         results = {tuple(json.loads(k)): v for k, v in run["results"].items()}
         text = render(results, {int(k): v for k, v in run["capacity"].items()}, run["sizes"], run["remarks"],
                       run["footer"])
@@ -708,7 +714,7 @@ def main():
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: sys.exit("badlink: stopped by signal"))
     full = (a.links == list(LINKS) and a.clients == list(CLIENTS) and a.pictures == list(PICTURES)
-            and a.servers == list(SERVERS))
+            and a.servers == list(SERVERS) and not a.phone)
     started, load_before = time.monotonic(), os.getloadavg()[0]
     workdir = Path(tempfile.mkdtemp(prefix="badlink-"))
     remarks = []
@@ -773,7 +779,7 @@ def main():
               f"{workdir}")
     (workdir / "run.json").write_text(json.dumps({
         "results": {json.dumps(k): v for k, v in results.items()}, "capacity": capacity, "sizes": sizes,
-        "remarks": remarks, "footer": footer, "extra": EXTRA}))
+        "remarks": remarks, "footer": footer, "extra": EXTRA, "phone": PHONE}))
     text = render(results, capacity, sizes, remarks, footer)
     print(text)
     if full and not a.no_readme:

@@ -45,6 +45,7 @@ def main():
     p.add_argument("--cmd-vel", default="/rover/cmd_vel")
     p.add_argument("--listen", help="sink: address:port")
     p.add_argument("--window", default="1280,1100", help="console: the browser's viewport, width,height")
+    p.add_argument("--phone", action="store_true", help="console: a phone's screen (390x844 at 3x, touch)")
     a = p.parse_args()
     {"ws": lambda: asyncio.run(ws_client(a)), "console": lambda: console(a), "sink": lambda: sink(a),
      "driver": lambda: asyncio.run(driver(a))}[a.role]()
@@ -189,13 +190,17 @@ def console(a):
     options.binary_location = "/usr/bin/chromium"
     for flag in CHROMIUM_FLAGS:
         options.add_argument(flag)
-    width, height = map(int, a.window.split(","))
+    width, height = (390, 844) if a.phone else map(int, a.window.split(","))
     options.add_argument(f"--user-data-dir={profile}")
     options.add_argument(f"--window-size={width},{height}")
+    if a.phone:  # (as test/browser's phone screen)
+        options.add_experimental_option("mobileEmulation", {"deviceMetrics": {
+            "width": width, "height": height, "pixelRatio": 3, "touch": True}})
     driver = webdriver.Chrome(service=Service(executable_path="/usr/bin/chromedriver"), options=options)
     try:
-        driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride", {
-            "width": width, "height": height, "deviceScaleFactor": 1, "mobile": False})
+        if not a.phone:
+            driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride", {
+                "width": width, "height": height, "deviceScaleFactor": 1, "mobile": False})
         driver.set_script_timeout(30)
         driver.get(a.url)
         if a.mode == "bridge":
