@@ -60,7 +60,7 @@ def _base64_text(data, spliced):
     return SPLICE_MARK
 
 
-# Arrays of this many elements or fewer are written from a tuple, as before: cheaper for a few values.
+# Arrays of this many elements or fewer are written from a tuple (_ints, _floats, _bools): cheaper for a few values.
 _SMALL = 64
 _BYTES_CHUNK = 1 << 16  # elements of a one-byte array written at once (_ByteTable)
 _NUMBERS_CHUNK = 1 << 13  # elements of a wider numeric array written at once (_Numbers)
@@ -93,18 +93,15 @@ class _ByteTable:
     no plane holds any. About 10 ns per element, against 100 for a tuple of ints and a str each."""
 
     def __init__(self, texts):
-        self.texts = tuple(texts)
         width = max(map(len, texts))
         padded = [text.encode("ascii").ljust(width, b"\0") for text in texts]
         self.planes = [bytes(text[k] for text in padded) for k in range(width)]
         self.commas = b"," * _BYTES_CHUNK
 
     def __call__(self, b, p, n, s):
-        """The text of the n elements at b[p:]: in line, or SPLICE_MARKs with the text in s (see _array_text)."""
+        """The text of the n elements at b[p:] (n > 0): in line, or SPLICE_MARKs with the text in s (_array_text)."""
         end = p + n
         check_length(b, end)
-        if n <= _SMALL:
-            return ",".join(map(self.texts.__getitem__, b[p:end]))
         view = memoryview(b)
         pieces = [self._chunk(view[start:min(start + _BYTES_CHUNK, end)].tobytes())
                   for start in range(p, end, _BYTES_CHUNK)]
@@ -127,15 +124,16 @@ class _ByteTable:
 
 
 class _Numbers:
-    """The JSON text of an array of wider numbers (int16 to uint64, float32, float64): as _ints and _floats for a
-    few, and for more from a memoryview cast to their type, a chunk at a time, with no tuple of them all (each
-    value is an object only while its text is made)."""
+    """The JSON text of an array of wider numbers (int16 to uint64, float32, float64) from a memoryview cast to
+    their type, a chunk at a time, with no tuple of them all (each value is an object only while its text is made):
+    the text of _ints and _floats."""
 
     def __init__(self, code):
         self.code, self.size, self.floats = code, struct.calcsize(code), code in "fd"
 
     def __call__(self, b, p, n, s):
-        if n <= _SMALL or not _LITTLE_ENDIAN:
+        """As _ByteTable's."""
+        if not _LITTLE_ENDIAN:
             values = struct.unpack_from(f"<{n}{self.code}", b, p)
             return _floats(values) if self.floats else _ints(values)
         end = p + n * self.size
@@ -305,10 +303,7 @@ class _Generator:
             reader.value(text)
             reader.text('"')
             return
-        if base in _ARRAYS and (size is None or size > _SMALL):  # (a few fixed ones: from a tuple)
-            width = struct.calcsize("<" + _CODES[base])
-            reader.statement(f"{text} = _{base}_array(b, p, {count}, s); p += {width} * {count}")
-        elif base in _CODES or base in _TIME_CODES:
+        if base in _CODES or base in _TIME_CODES:
             code, per_item = (_TIME_CODES[base], 2) if base in _TIME_CODES else (_CODES[base], 1)
             width = struct.calcsize("<" + code) * per_item
             if size is None:
@@ -317,7 +312,13 @@ class _Generator:
                 unpack = f"{self.constant(struct.Struct('<' + code * per_item * size).unpack_from)}(b, p)"
             join = "_floats" if base in _FLOATS else "_times" if base in _TIME_CODES else \
                 "_bools" if base == "bool" else "_ints"
-            reader.statement(f"{text} = {join}({unpack}); p += {width} * {count}")
+            small = f"{join}({unpack})"  # (a few values: from a tuple)
+            if base not in _ARRAYS or size is not None and size <= _SMALL:
+                reader.statement(f"{text} = {small}; p += {width} * {count}")
+            elif size is None:
+                reader.statement(f"{text} = {small} if n <= {_SMALL} else _{base}_array(b, p, n, s); p += {width} * n")
+            else:
+                reader.statement(f"{text} = _{base}_array(b, p, {size}, s); p += {width * size}")
         elif base == "string":
             reader.statement(f"{text} = []")
             reader.statement(f"for _ in range({count}):\n"
