@@ -27,6 +27,7 @@ from rosbridge.ros_side import RosBackend
 from rosbridge.ros_side.recovery import MasterWatch
 from rosbridge.rosapi import Rosapi
 from rosbridge.settings import Settings
+from rosbridge.streams import stream_routes
 from rosbridge.websocket import BridgeSocket, DriverLeases
 
 MAX_LOGGED_KINDS = 1000  # kinds of refusal remembered for rate limiting (refused origins are kinds)
@@ -72,11 +73,11 @@ class Bridge:
 
 
 def routes(bridge, web_root, recorder=None):
-    """The route table: "/" is the websocket (and the page), /bags the bag recorder (bag_pages.py), other paths
-    are files of web_root."""
+    """The route table: "/" is the websocket (and the page), the camera streams (streams.py), other paths are
+    files of web_root."""
     index = Path(web_root) / "index.html" if web_root else None
     table = [(r"/", BridgeSocket, {"bridge": bridge, "index_page": index if index and index.is_file() else None}),
-             *bag_routes(bridge, recorder)]
+             *stream_routes(bridge), *bag_routes(bridge, recorder)]
     if web_root:
         table.append((r"/(.+)", PageFiles, {"path": str(web_root)}))
     return table

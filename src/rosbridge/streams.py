@@ -1,0 +1,933 @@
+"""Camera streams on the bridge's HTTP port, as web_video_server serves them (README, Camera streams):
+`/stream` (MJPEG: multipart/x-mixed-replace), `/snapshot` (one JPEG), `/stream_viewer` (a page showing a stream)
+and `/streams` (the image topics, as HTML or JSON). The same access rules as the websocket: origins,
+authenticate (rosauth fields as query parameters), topics_glob; at most max_clients viewers at once.
+
+What lives where: jpeg.py makes the pictures (pure: reading the messages, decoding, resizing, JPEG, and the
+adaptation's ladder and policy); this file holds the requests (the handlers, thin), each topic's frames and
+subscription (StreamTopic, a backend.Client: one subscription per topic through the bridge's RosBackend, shared
+with the websocket clients), the viewers (StreamViewer, SnapshotViewer) and the encoder thread.
+
+Each viewer gets the newest frame and never a backlog: one frame is written to it at a time, and while its
+socket has not taken it (the IOStream's write future not done; unsent.limit_unsent keeps the kernel's share
+small), newer frames only replace the one it will get next. Each frame is made at most once per (size, quality,
+invert) for every viewer, and only when a viewer wants it.
+
+Threads (everything runs on the event loop but the encoding):
+- the loop: the handlers, Streams, every StreamTopic, Frame (its `variants`, what was made of it) and viewer, and
+  their streams;
+- the encoder (Encoder, one thread): decodes a frame and makes the JPEGs asked of it (jpeg.Picture). A job gets
+  the frame's Picture (which only the encoder touches; the loop only drops its reference) and a list of keys,
+  and its results go back to the loop (IOLoop.add_callback) to be stored in the frame's variants. A topic has at
+  most one job in flight: frames arriving meanwhile only replace the topic's newest frame, and the next job takes
+  the newest frame for the viewers still waiting (newest wins), so a busy encoder costs frames, never a backlog;
+- master look-ups (a topic's type, the image topics) are the backend's /rosapi/topics call, on one of its
+  service-call threads; the reply comes back on the loop (TopicTypes shares one look-up between requests)."""
+import concurrent.futures
+import functools
+import html
+import json
+import time
+import urllib.parse
+
+import rosgraph.names
+import tornado.concurrent
+import tornado.ioloop
+import tornado.iostream
+import tornado.web
+
+from rosbridge import globs as globs_module
+from rosbridge import jpeg
+from rosbridge.auth import mac_is_valid
+from rosbridge.errors import ClientError, log_bug
+from rosbridge.origins import origin_allowed
+from rosbridge.pages import SECURITY_HEADERS
+from rosbridge.unsent import limit_unsent
+
+BOUNDARY = "boundarydonotcross"  # web_video_server's
+DEFAULT_QUALITY = 95  # web_video_server's, for a stream that does not adapt
+STREAM_TYPES = ("mjpeg", "ros_compressed")
+MAX_SIDE = 4096  # largest width or height a request may ask for
+SNAPSHOT_TIMEOUT = 5.0  # seconds a snapshot waits for the next frame
+SNAPSHOT_GRACE = 2.0  # then seconds it may take to make the newest frame seen, if one was
+WAIT_POLL = 1.0  # seconds between looks at the master for a topic nobody publishes yet
+LINGER = 5.0  # seconds a topic's subscription outlives its last viewer (a reload or the next snapshot reuses it)
+TYPES_MAX_AGE = 0.5  # seconds the master's topic types answer for
+LOOKUP_TIMEOUT = 5.0
+MAX_KEYS_PER_JOB = 8  # variants one encoding job makes; more wait for the next job
+MAX_DISCARDED = 64 * 1024  # bytes a viewer may send after its request before its stream is closed
+AUTH_FIELDS = ("mac", "client", "dest", "rand", "t", "level", "end")
+PASS = "pass"  # the key of a CompressedImage sent as it is
+NO_CACHE = "no-cache, no-store, must-revalidate, pre-check=0, post-check=0, max-age=0"
+
+
+class BadRequest(Exception):
+    """A request refused: the HTTP status and the text the client gets."""
+
+    def __init__(self, status, text):
+        super().__init__(text)
+        self.status, self.text = status, text
+
+
+# ---- requests ---------------------------------------------------------------------------------------------------
+class StreamRequest:
+    """What a /stream, /snapshot or /stream_viewer request asks (web_video_server's query parameters, plus
+    adaptive). quality is None when not given; width and height 0 when not given (or -1, web_video_server's
+    "as the source")."""
+    __slots__ = ("topic", "type", "width", "height", "quality", "invert", "adaptive", "transport")
+
+    def __init__(self, args):
+        self.topic = _text(args, "topic") or ""
+        if not self.topic:
+            raise BadRequest(400, "topic is required, e.g. ?topic=/camera/image_raw")
+        self.type = _text(args, "type") or "mjpeg"
+        if self.type not in STREAM_TYPES:
+            video = " (web_video_server's video codecs are not offered by this bridge)" \
+                if self.type in ("vp8", "vp9", "h264", "png") else ""
+            raise BadRequest(400, f"stream type {self.type!r} is not supported{video}: use type=mjpeg "
+                                  f"(or ros_compressed)")
+        self.width = _integer(args, "width", 0, MAX_SIDE)
+        self.height = _integer(args, "height", 0, MAX_SIDE)
+        self.quality = _integer(args, "quality", 1, 100, default=None)
+        self.adaptive = _flag(args, "adaptive", absent=False, bare=True)
+        self.invert = _flag(args, "invert", absent=False, bare=True)
+        self.transport = _text(args, "default_transport") or "raw"
+        if self.transport not in ("raw", "compressed"):
+            raise BadRequest(400, f"default_transport must be raw or compressed, got {self.transport!r}")
+
+    @property
+    def resized(self):
+        return bool(self.width or self.height or self.quality is not None or self.invert or self.adaptive)
+
+
+def _text(args, name):
+    values = args.get(name)
+    return values[-1].decode("utf-8", "replace").strip() if values else None
+
+
+def _integer(args, name, low, high, default=0):
+    text = _text(args, name)
+    if text is None or text == "":
+        return default
+    try:
+        value = int(text)
+    except ValueError:
+        value = None
+    if value == -1 and name in ("width", "height"):
+        return 0
+    if value is None or not low <= value <= high:
+        raise BadRequest(400, f"{name} must be an integer from {low} to {high}, got {text!r}")
+    return value
+
+
+def _flag(args, name, absent, bare):
+    text = _text(args, name)
+    if text is None:
+        return absent
+    text = text.lower()
+    if text == "":
+        return bare
+    if text in ("1", "true", "yes", "on"):
+        return True
+    if text in ("0", "false", "no", "off"):
+        return False
+    raise BadRequest(400, f"{name} must be 1 or 0, got {text!r}")
+
+
+class Source:
+    """The topic a viewer's frames come from: its name and type, and pass: "any" to send a CompressedImage's JPEG or
+    PNG as it is (type=ros_compressed), "jpeg" to send its JPEG as it is (nothing resized), None to make JPEGs."""
+    __slots__ = ("topic", "type", "pass_mode")
+
+    def __init__(self, topic, type_name, pass_mode=None):
+        self.topic, self.type, self.pass_mode = topic, type_name, pass_mode
+
+
+def choose_source(request, topic, types):
+    """The Source of a request for `topic` (resolved) from the master's {topic: type} (the allowed ones), or None
+    while nobody publishes it. As web_video_server: type=ros_compressed (and default_transport=compressed) take
+    `topic`/compressed when it exists, else `topic` itself."""
+    compressed = topic.rstrip("/") + "/compressed"
+    if types.get(compressed) == jpeg.COMPRESSED:
+        if request.type == "ros_compressed" and not request.adaptive:
+            return Source(compressed, jpeg.COMPRESSED, "any")
+        if request.type == "ros_compressed" or request.transport == "compressed":
+            return Source(compressed, jpeg.COMPRESSED)
+    kind = types.get(topic)
+    if not kind:
+        return None
+    if kind not in jpeg.IMAGE_TYPES:
+        raise BadRequest(404, f"topic {topic} is a {kind}, not an image ({jpeg.IMAGE} or {jpeg.COMPRESSED})")
+    if kind == jpeg.COMPRESSED and request.type == "ros_compressed" and not request.adaptive:
+        return Source(topic, kind, "any")
+    return Source(topic, kind, "jpeg" if kind == jpeg.COMPRESSED and not request.resized else None)
+
+
+# ---- the master's topics -----------------------------------------------------------------------------------------
+class TopicTypes:
+    """The allowed topics' types, from the backend's /rosapi/topics (filtered by topics_glob), asked at most once
+    per TYPES_MAX_AGE; the requests that come while a look-up runs share it. It is the look-ups' backend.Client."""
+    is_closed = False
+
+    def __init__(self, backend):
+        self._backend = backend
+        self._types, self._taken = None, float("-inf")
+        self._waiting = None  # callbacks waiting for the look-up in flight
+
+    def get(self, callback):
+        """callback(types, None) or callback(None, error text), on the loop (at once when fresh)."""
+        if self._types is not None and time.monotonic() - self._taken < TYPES_MAX_AGE:
+            callback(self._types, None)
+            return
+        if self._waiting is not None:
+            self._waiting.append(callback)
+            return
+        self._waiting = [callback]
+        try:
+            self._backend.call_service(self, "/rosapi/topics", {}, None, LOOKUP_TIMEOUT, self._answered)
+        except ClientError as error:
+            self._answered(False, str(error))
+
+    def _answered(self, ok, values):
+        waiting, self._waiting = self._waiting or [], None
+        if ok:
+            self._types, self._taken = dict(zip(values["topics"], values["types"])), time.monotonic()
+        for callback in waiting:
+            try:
+                callback(self._types, None) if ok else callback(None, str(values))
+            except Exception:
+                log_bug("answering a camera stream's topic look-up")
+
+    # (backend.Client: nothing else is ever sent to a look-up)
+    def deliver(self, message):
+        pass
+
+    def ros_refused(self, op, name, text):
+        pass
+
+    def request_service(self, call_id, service, args):
+        pass
+
+    def status(self, level, msg, request_id=None):
+        pass
+
+
+# ---- frames and topics -------------------------------------------------------------------------------------------
+class Frame:
+    """One message of a topic, and what was made of it for its viewers (on the loop): variants, key -> (content
+    type, bytes) or the jpeg.ImageError that making it raised."""
+    __slots__ = ("seq", "type", "message", "variants", "picture", "_read")
+
+    def __init__(self, seq, type_name, message):
+        self.seq, self.type, self.message = seq, type_name, message
+        self.variants = {}
+        self.picture = None  # its jpeg.Picture, made for its first encoding job (then used by the encoder only)
+        self._read = None
+
+    def read(self):
+        """The message read in place (jpeg.RawImage or CompressedFrame); raises jpeg.ImageError."""
+        if self._read is None:
+            try:
+                self._read = jpeg.read_frame(self.type, self.message.data)
+            except jpeg.ImageError as error:
+                self._read = error
+        if isinstance(self._read, jpeg.ImageError):
+            raise self._read
+        return self._read
+
+    @property
+    def stamp(self):
+        """Its header stamp, or when the bridge received it if the stamp is unset (X-Timestamp)."""
+        try:
+            return self.read().stamp or self.message.stamp
+        except jpeg.ImageError:
+            return self.message.stamp
+
+
+class Encoder:
+    """The encoder thread: makes the JPEGs asked of a frame (see the module's docstring for the hand-off)."""
+
+    def __init__(self, loop):
+        self._loop = loop
+        self._pool = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="stream encoder")
+
+    def submit(self, picture, keys, done):
+        """done(results) runs on the loop: key -> ("image/jpeg", bytes) or jpeg.ImageError."""
+        def finished(future):  # (on the encoder thread)
+            try:
+                results = future.result()
+            except Exception as error:  # a bug: the viewers are told, and the topic's next job can start
+                log_bug("encoding a camera frame", error)
+                results = {key: jpeg.ImageError("the frame could not be encoded") for key in keys}
+            self._loop.add_callback(done, results)
+        self._pool.submit(_encode, picture, keys).add_done_callback(finished)
+
+
+def _encode(picture, keys):
+    """On the encoder thread."""
+    results = {}
+    for key in keys:
+        size, quality, invert = key
+        try:
+            results[key] = ("image/jpeg", picture.jpeg(size, quality, invert))
+        except jpeg.ImageError as error:
+            results[key] = error
+        except Exception as error:  # a bug (or a picture Pillow chokes on): the viewers are told, and it is logged
+            log_bug("encoding a camera frame", error)
+            results[key] = jpeg.ImageError(f"the frame could not be encoded ({type(error).__name__})")
+    return results
+
+
+class StreamTopic:
+    """One topic that viewers watch: its subscription (this object is its backend.Client), its newest frame and
+    the viewers waiting for it to be made as they ask."""
+
+    def __init__(self, streams, source):
+        self._streams, self.topic, self.type = streams, source.topic, source.type
+        self.viewers = set()
+        self.latest = None
+        self.interval = jpeg.FrameInterval()
+        self.is_closed = False
+        self._seq = 0
+        self._waiting = {}  # viewers waiting for the newest frame to be made as they ask (in order)
+        self._job = None  # the frame being encoded
+        self._linger = None
+        self._offering = False  # a new frame is being offered to every viewer: one job for all of them after
+
+    def add(self, viewer):
+        if self._linger is not None:
+            self._streams.loop.remove_timeout(self._linger)
+            self._linger = None
+        self.viewers.add(viewer)
+
+    def remove(self, viewer):
+        self.viewers.discard(viewer)
+        self._waiting.pop(viewer, None)
+        if not self.viewers and not self.is_closed and self._linger is None:
+            self._linger = self._streams.loop.call_later(LINGER, self.close)
+
+    def close(self):
+        if self.is_closed:
+            return
+        self.is_closed = True
+        self._linger = None
+        if self._streams.topics.get(self.topic) is self:
+            del self._streams.topics[self.topic]
+        self.latest, self._waiting = None, {}
+        self._streams.backend.unsubscribe(self, self.topic)
+        for viewer in list(self.viewers):
+            viewer.fail(503, f"the subscription to {self.topic} ended")
+
+    # ---- backend.Client
+    def deliver(self, message):
+        if self.is_closed:
+            return
+        self._seq += 1
+        frame, old = Frame(self._seq, self.type, message), self.latest
+        self.latest = frame
+        if old is not None:
+            old.picture = None  # (a job still making it holds its own reference)
+        self.interval.arrived(time.monotonic())
+        self._offering = True
+        try:
+            for viewer in list(self.viewers):
+                viewer.new_frame(frame)
+        finally:
+            self._offering = False
+        self._kick()
+
+    def ros_refused(self, op, name, text):
+        for viewer in list(self.viewers):
+            viewer.fail(503, text)
+        self.close()
+
+    def request_service(self, call_id, service, args):
+        pass
+
+    def status(self, level, msg, request_id=None):
+        pass
+
+    # ---- making frames for viewers
+    def want(self, viewer):
+        """The viewer (not writing) wants the newest frame it has not had, made as it asks."""
+        frame = self.latest
+        if self.is_closed or frame is None or frame.seq <= viewer.sent_seq:
+            return  # (the next frame will be offered to it)
+        if self._serve(viewer, frame) is None:
+            self._waiting.pop(viewer, None)
+        else:
+            self._waiting[viewer] = None
+            self._kick()
+
+    def _serve(self, viewer, frame):
+        """Gives the viewer `frame` if what it wants of it is made (or cannot be); else returns its key."""
+        try:
+            key = viewer.key_for(frame)
+            if key == PASS and PASS not in frame.variants:
+                compressed = frame.read()
+                frame.variants[PASS] = (jpeg.compressed_content_type(compressed.format), compressed.data)
+        except jpeg.ImageError as error:
+            viewer.take(frame, error)
+            return None
+        made = frame.variants.get(key)
+        if made is None:
+            return key
+        viewer.take(frame, made)
+        return None
+
+    def _kick(self):
+        """Starts an encoding job for the waiting viewers, of the newest frame, unless one runs."""
+        if self._job is not None or not self._waiting or self.is_closed or self._offering:
+            return
+        frame, keys = self.latest, []
+        for viewer in list(self._waiting):
+            if viewer not in self._waiting:  # (it left as another was served)
+                continue
+            if frame.seq <= viewer.sent_seq:
+                del self._waiting[viewer]
+                continue
+            key = self._serve(viewer, frame)
+            if key is None:
+                self._waiting.pop(viewer, None)
+            elif key not in keys and len(keys) < MAX_KEYS_PER_JOB:
+                keys.append(key)
+        if not keys:
+            return
+        if frame.picture is None:
+            frame.picture = jpeg.Picture(frame.read())
+        self._job = frame
+        self._streams.encoder.submit(frame.picture, keys, functools.partial(self._encoded, frame))
+
+    def _encoded(self, frame, results):
+        self._job = None
+        if self.is_closed:
+            return
+        frame.variants.update(results)
+        if frame is not self.latest:
+            frame.picture = None
+        for viewer in list(self._waiting):
+            if viewer in self._waiting and frame.seq > viewer.sent_seq and self._serve(viewer, frame) is None:
+                self._waiting.pop(viewer, None)
+        self._kick()
+
+
+# ---- viewers -----------------------------------------------------------------------------------------------------
+class Viewer:
+    """One /stream or /snapshot viewer: what it asks, its topic once found, and its adaptation."""
+
+    def __init__(self, streams, request, topic_name):
+        self.streams, self.request, self.topic_name = streams, request, topic_name
+        self.topic = None
+        self.pass_mode = None
+        self.sent_seq = 0  # the last frame given to it
+        self.ended = False
+        self.ladder = self.adaptation = None
+        if request.adaptive:
+            self.ladder = jpeg.Ladder(request.quality or jpeg.ADAPTIVE_QUALITY)
+            self.adaptation = jpeg.Adaptation(len(self.ladder))
+        self._level = 0  # the level of the last key asked
+        self._poll = None
+        streams.viewers.add(self)
+
+    # ---- finding the topic
+    def find(self, source):
+        """Joins source's topic, or (None) looks for it every WAIT_POLL seconds until someone publishes it."""
+        if self.ended:
+            return
+        if source is None:
+            self._poll = self.streams.loop.call_later(WAIT_POLL, self._look)
+            return
+        try:
+            self.topic = self.streams.topic_of(source)
+        except BadRequest as error:
+            self.fail(error.status, error.text)
+            return
+        self.pass_mode = source.pass_mode
+        self.topic.add(self)
+        self.joined()
+
+    def _look(self):
+        self._poll = None
+        if not self.ended:
+            self.streams.find_source(self.request, self.topic_name, self._found)
+
+    def _found(self, source, error):
+        if error is not None and error.status == 503:  # the master: try again
+            source, error = None, None
+        if error is not None:
+            self.fail(error.status, error.text)
+        else:
+            self.find(source)
+
+    def joined(self):
+        """It has its topic."""
+
+    # ---- frames
+    def key_for(self, frame):
+        """What it wants made of `frame`: PASS, or (size, quality, invert). Raises jpeg.ImageError."""
+        request, picture = self.request, frame.read()
+        if self.pass_mode is not None:
+            content_type = jpeg.compressed_content_type(picture.format)
+            if content_type == "image/jpeg" or (content_type and self.pass_mode == "any"):
+                return PASS
+        if self.ladder is None:
+            size = jpeg.output_size(picture.size, request.width, request.height)
+            return size, request.quality or DEFAULT_QUALITY, request.invert
+        top_side = 0 if request.width or request.height else jpeg.ADAPTIVE_MAX_SIDE
+        top = jpeg.output_size(picture.size, request.width, request.height, top_side)
+        self._level = self.adaptation.level
+        size, quality = self.ladder.level(self._level, top)
+        return size, quality, request.invert
+
+    def new_frame(self, frame):
+        """A new frame of its topic."""
+
+    def take(self, frame, made):
+        """`frame` made as it asked: (content type, bytes), or a jpeg.ImageError."""
+
+    # ---- ending
+    def fail(self, status, text):
+        self.end()
+
+    def end(self):
+        if self.ended:
+            return
+        self.ended = True
+        self.streams.viewers.discard(self)
+        if self._poll is not None:
+            self.streams.loop.remove_timeout(self._poll)
+            self._poll = None
+        if self.topic is not None:
+            self.topic.remove(self)
+
+
+class StreamViewer(Viewer):
+    """A /stream viewer on its own (detached) connection: the multipart response, one frame at a time."""
+
+    def __init__(self, streams, request, topic_name, stream, extra_headers):
+        super().__init__(streams, request, topic_name)
+        self._stream = stream
+        self._writing = None  # (when, level) of the frame being written, or None
+        self._arrived = 0  # frames that arrived while it was being written
+        self._discarded = 0
+        self.skipped = 0
+        head = ["HTTP/1.1 200 OK", "Connection: close", "Server: rosbridge_websocket", f"Cache-Control: {NO_CACHE}",
+                "Pragma: no-cache", f"Content-Type: multipart/x-mixed-replace;boundary={BOUNDARY}",
+                "X-Content-Type-Options: nosniff", *(f"{name}: {value}" for name, value in extra_headers)]
+        stream.set_close_callback(self.end)
+        try:
+            limit_unsent(stream.socket)
+            stream.set_nodelay(True)
+            stream.write(("\r\n".join(head) + f"\r\n\r\n--{BOUNDARY}\r\n").encode())
+        except tornado.iostream.StreamClosedError:
+            self.end()
+            return
+        self._read()
+
+    def _read(self):
+        """Reads what the client sends (nothing, normally) so that its leaving is seen at once."""
+        try:
+            self._stream.read_bytes(4096, partial=True).add_done_callback(self._discard)
+        except tornado.iostream.StreamClosedError:
+            self.end()
+
+    def _discard(self, read):
+        if read.cancelled() or read.exception() is not None:
+            self.end()
+            return
+        self._discarded += len(read.result())
+        if self._discarded > MAX_DISCARDED:
+            self._stream.close()
+        else:
+            self._read()
+
+    def joined(self):
+        if self.topic.latest is not None:  # the newest frame at once (a reload shows the picture again)
+            self.topic.want(self)
+
+    def new_frame(self, frame):
+        if self._writing is not None:
+            self._arrived += 1
+            if self._arrived > 1:  # the frame that waited is replaced
+                self.skipped += 1
+                if self.adaptation is not None:
+                    self.adaptation.skipped(self._writing[1], time.monotonic())
+            return
+        self.topic.want(self)
+
+    def take(self, frame, made):
+        if self.ended or self._writing is not None:
+            return
+        if isinstance(made, jpeg.ImageError):
+            self.streams.bridge.log_refusal(("stream frame", self.topic.topic),
+                                            f"camera stream of {self.topic.topic}: {made}")
+            self.fail(415, f"{self.topic.topic}: {made}")
+            return
+        content_type, data = made
+        self.sent_seq = frame.seq
+        head = (f"Content-Type: {content_type}\r\nContent-Length: {len(data)}\r\n"
+                f"X-Timestamp: {frame.stamp:.6f}\r\n\r\n").encode()
+        stream = self._stream
+        try:
+            stream.write(head)
+            stream.write(data)
+            written = stream.write(f"\r\n--{BOUNDARY}\r\n".encode())
+        except tornado.iostream.StreamClosedError:
+            self.end()
+            return
+        self._writing, self._arrived = (time.monotonic(), self._level), 0
+        written.add_done_callback(self._written)
+
+    def _written(self, written):
+        if written.cancelled() or written.exception() is not None:
+            self.end()
+            return
+        started, level = self._writing
+        self._writing = None
+        if self.ended:
+            return
+        if self.adaptation is not None:
+            now = time.monotonic()
+            self.adaptation.taken(level, now - started, self.topic.interval.seconds, now)
+        self.topic.want(self)
+
+    def fail(self, status, text):
+        """Ends the stream with a last part holding the text (its headers are long sent)."""
+        if self.ended:
+            return
+        stream = self._stream
+        Viewer.end(self)
+        body = f"{text}\n".encode()
+        try:
+            stream.write(f"Content-Type: text/plain; charset=UTF-8\r\nContent-Length: {len(body)}\r\n\r\n".encode()
+                         + body + f"\r\n--{BOUNDARY}--\r\n".encode()).add_done_callback(lambda _: stream.close())
+        except tornado.iostream.StreamClosedError:
+            pass
+
+    def end(self):
+        Viewer.end(self)
+        if not self._stream.closed():
+            self._stream.close()
+
+
+class SnapshotViewer(Viewer):
+    """A /snapshot viewer: the next frame (or, if none comes within SNAPSHOT_TIMEOUT, the newest one seen).
+    result: a Future of (frame, (content type, bytes)), or of a BadRequest."""
+
+    def __init__(self, streams, request, topic_name):
+        super().__init__(streams, request, topic_name)
+        self.result = tornado.concurrent.Future()
+        self._timer = streams.loop.call_later(SNAPSHOT_TIMEOUT, self._timed_out)
+        self._grace = False
+
+    def joined(self):
+        if self.topic.latest is not None:
+            self.sent_seq = self.topic.latest.seq  # (the next one)
+
+    def new_frame(self, frame):
+        self.topic.want(self)
+
+    def take(self, frame, made):
+        if self.ended:
+            return
+        if isinstance(made, jpeg.ImageError):
+            self.fail(415, f"{self.topic.topic}: {made}")
+            return
+        self.sent_seq = frame.seq
+        if not self.result.done():
+            self.result.set_result((frame, made))
+        self.end()
+
+    def _timed_out(self):
+        self._timer = None
+        if self.ended:
+            return
+        if self.topic is not None and self.topic.latest is not None and not self._grace:
+            self.sent_seq, self._grace = 0, True  # the newest frame seen will do
+            self._timer = self.streams.loop.call_later(SNAPSHOT_GRACE, self._timed_out)
+            self.topic.want(self)
+            return
+        what = f"no frame from {self.topic_name} within {SNAPSHOT_TIMEOUT:g} s" if self.topic is not None else \
+            f"nobody publishes {self.topic_name} (waited {SNAPSHOT_TIMEOUT:g} s)"
+        self.fail(504, what)
+
+    def fail(self, status, text):
+        if not self.result.done():
+            self.result.set_exception(BadRequest(status, text))
+        self.end()
+
+    def end(self):
+        if self._timer is not None:
+            self.streams.loop.remove_timeout(self._timer)
+            self._timer = None
+        super().end()
+
+
+# ---- what the endpoints share ------------------------------------------------------------------------------------
+class Streams:
+    """The stream endpoints' shared state: the topics watched, the viewers, the encoder, the type look-ups."""
+
+    def __init__(self, bridge):
+        self.bridge, self.backend = bridge, bridge.backend
+        self.loop = tornado.ioloop.IOLoop.current()
+        self.topics = {}  # source topic -> StreamTopic
+        self.viewers = set()  # the /stream and /snapshot viewers (and requests being checked) now
+        self.pending = 0  # requests holding a place while their topic is looked up
+        self.encoder = Encoder(self.loop)
+        self.types = TopicTypes(bridge.backend)
+
+    # ---- access
+    def refusal(self, request):
+        """(status, text) when the request is refused by the origin rules or authentication, else None."""
+        bridge, origin = self.bridge, request.headers.get("Origin")
+        if origin is not None:
+            same_origin = origin.lower().partition("://")[2] == request.host.lower()
+            if not origin_allowed(origin, same_origin, request.remote_ip, bridge.allowed_origins):
+                bridge.log_refusal(("stream origin", origin), f"Refused a camera stream request from the web page "
+                                   f"at origin {origin} (browser at {request.remote_ip}); allowed_origins decides, "
+                                   "as for the websocket")
+                return 403, (f"Cross origin requests not allowed: the web page at {origin} may not use this "
+                             "bridge (allowed_origins)")
+        config = bridge.config
+        if config.authenticate:
+            text = self._auth_refusal(request.query_arguments, config)
+            if text is not None:
+                return 401, text
+        return None
+
+    @staticmethod
+    def _auth_refusal(args, config):
+        missing = [name for name in AUTH_FIELDS if not _text(args, name)]
+        if missing:
+            return ("authentication required: this bridge runs with authenticate on; give the rosauth fields as "
+                    f"query parameters ({', '.join(AUTH_FIELDS)}); missing: {', '.join(missing)}")
+        auth = {name: _text(args, name) for name in AUTH_FIELDS}
+        try:
+            auth["t"], auth["end"] = float(auth["t"]), float(auth["end"])
+        except ValueError:
+            return "authentication failed: t and end must be numbers"
+        if not mac_is_valid(auth, config.auth_secret, time.time(), config.auth_time_delta):
+            return "authentication failed (bad MAC, or t/end out of time)"
+        return None
+
+    def checked_topic(self, request):
+        """The request's topic as ROS names it (resolved in the bridge's namespace), if topics_glob allows it."""
+        topic = self.backend.resolve_name(request.topic) if rosgraph.names.is_legal_name(request.topic) else None
+        if not topic or not rosgraph.names.is_legal_name(topic):
+            raise BadRequest(400, f"{request.topic!r} is not a ROS topic name")
+        patterns = self.bridge.config.globs.topics
+        if not globs_module.allowed(topic, patterns):
+            self.bridge.log_refusal(("stream glob", topic), f"Refused a camera stream of {topic}: not in topics_glob")
+            raise BadRequest(403, f"topic {topic!r} is not allowed by topics_glob {patterns}")
+        return topic
+
+    def has_room(self):
+        limit = self.bridge.settings.max_clients
+        if len(self.viewers) + self.pending < limit:
+            return True
+        self.bridge.log_refusal("stream max_clients", f"a camera stream refused: {len(self.viewers)} viewers "
+                                f"(max_clients {limit})")
+        return False
+
+    # ---- topics
+    def find_source(self, request, topic, callback):
+        """callback(Source or None (not published yet), None) or callback(None, BadRequest), on the loop."""
+        def answered(types, error):
+            if error is not None:
+                callback(None, BadRequest(503, f"cannot ask the ROS master about {topic}: {error}"))
+                return
+            try:
+                source = choose_source(request, topic, types)
+            except BadRequest as refused:
+                callback(None, refused)
+                return
+            callback(source, None)
+        self.types.get(answered)
+
+    def topic_of(self, source):
+        """The StreamTopic of source, subscribed through the backend if new."""
+        topic = self.topics.get(source.topic)
+        if topic is not None:
+            if topic.type != source.type:
+                raise BadRequest(409, f"{source.topic} is watched as a {topic.type}, not a {source.type}")
+            return topic
+        topic = StreamTopic(self, source)
+        try:
+            self.backend.subscribe(topic, source.topic, source.type)
+        except ClientError as error:
+            raise BadRequest(404, str(error)) from None
+        self.topics[source.topic] = topic
+        return topic
+
+
+# ---- handlers ----------------------------------------------------------------------------------------------------
+class _Handler(tornado.web.RequestHandler):
+    def initialize(self, streams):
+        self.streams = streams
+
+    def set_default_headers(self):
+        for name, value in SECURITY_HEADERS.items():
+            self.set_header(name, value)
+        self.set_header("Cache-Control", NO_CACHE)
+
+    def compute_etag(self):
+        return None  # (every answer is fresh: no hash of it)
+
+    def refuse(self, status, text):
+        self.clear()
+        self.set_status(status)
+        self.set_header("Content-Type", "text/plain; charset=UTF-8")
+        if status == 401:
+            self.set_header("WWW-Authenticate", 'rosauth realm="rosbridge"')
+        self.finish(text + "\n")
+
+    def allowed_origin_headers(self):
+        origin = self.request.headers.get("Origin")
+        return [("Access-Control-Allow-Origin", origin), ("Vary", "Origin")] if origin else []
+
+    def checked(self):
+        """The request (StreamRequest) and its topic, or None once refused."""
+        refusal = self.streams.refusal(self.request)
+        if refusal is not None:
+            self.refuse(*refusal)
+            return None
+        try:
+            request = StreamRequest(self.request.query_arguments)
+            return request, self.streams.checked_topic(request)
+        except BadRequest as error:
+            self.refuse(error.status, error.text)
+            return None
+
+    async def source(self, request, topic):
+        """The request's Source (None: nobody publishes the topic yet); raises BadRequest. A place among the
+        viewers is held meanwhile."""
+        future = tornado.concurrent.Future()
+        self.streams.pending += 1
+        try:
+            self.streams.find_source(request, topic, lambda source, error: future.set_exception(error)
+                                     if error is not None else future.set_result(source))
+            return await future
+        finally:
+            self.streams.pending -= 1
+
+
+class StreamHandler(_Handler):
+    """GET /stream?topic=...: multipart/x-mixed-replace JPEGs (type=mjpeg), or the CompressedImage's own pictures
+    (type=ros_compressed)."""
+
+    async def get(self):
+        checked = self.checked()
+        if checked is None:
+            return
+        request, topic = checked
+        if not self.streams.has_room():
+            self.refuse(503, "too many camera stream viewers (max_clients)")
+            return
+        try:
+            source = await self.source(request, topic)
+        except BadRequest as error:
+            self.refuse(error.status, error.text)
+            return
+        viewer = StreamViewer(self.streams, request, topic, self.detach(), self.allowed_origin_headers())
+        viewer.find(source)
+
+
+class SnapshotHandler(_Handler):
+    """GET /snapshot?topic=...: one JPEG of the topic's next frame."""
+
+    async def get(self):
+        checked = self.checked()
+        if checked is None:
+            return
+        request, topic = checked
+        if not self.streams.has_room():
+            self.refuse(503, "too many camera stream viewers (max_clients)")
+            return
+        try:
+            source = await self.source(request, topic)
+        except BadRequest as error:
+            self.refuse(error.status, error.text)
+            return
+        if source is not None and source.pass_mode == "any":
+            source.pass_mode = "jpeg"  # (a snapshot is a JPEG)
+        viewer = self._viewer = SnapshotViewer(self.streams, request, topic)
+        viewer.find(source)
+        try:
+            frame, (content_type, data) = await viewer.result
+        except BadRequest as error:
+            self.refuse(error.status, error.text)
+            return
+        finally:
+            viewer.end()
+        for name, value in self.allowed_origin_headers():
+            self.set_header(name, value)
+        self.set_header("Content-Type", content_type)
+        self.set_header("X-Timestamp", f"{frame.stamp:.6f}")
+        self.finish(bytes(data))
+
+    def on_connection_close(self):
+        viewer = getattr(self, "_viewer", None)
+        if viewer is not None:
+            viewer.end()
+
+
+class StreamViewerPage(_Handler):
+    """GET /stream_viewer?topic=...: a page showing the stream (web_video_server's)."""
+
+    def get(self):
+        checked = self.checked()
+        if checked is None:
+            return
+        _, topic = checked
+        query = html.escape(self.request.query, quote=True)
+        title = html.escape(topic)
+        self.set_header("Content-Type", "text/html; charset=UTF-8")
+        self.finish(f"<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>{title}</title></head><body>"
+                    f"<h1>{title}</h1><img src=\"stream?{query}\" alt=\"{title}\"></body></html>")
+
+
+class StreamListHandler(_Handler):
+    """GET /streams: the image topics (sensor_msgs/Image and CompressedImage) that topics_glob allows, as HTML
+    with links (web_video_server's list at "/"), or ?format=json: {"topics": [{"topic", "type"}, ...]}."""
+
+    async def get(self):
+        refusal = self.streams.refusal(self.request)
+        if refusal is not None:
+            self.refuse(*refusal)
+            return
+        fmt = _text(self.request.query_arguments, "format") or "html"
+        if fmt not in ("html", "json"):
+            self.refuse(400, f"format must be html or json, got {fmt!r}")
+            return
+        future = tornado.concurrent.Future()
+        self.streams.types.get(lambda types, error: future.set_result((types, error)))
+        types, error = await future
+        if error is not None:
+            self.refuse(503, f"cannot ask the ROS master for its topics: {error}")
+            return
+        images = sorted((topic, kind) for topic, kind in types.items() if kind in jpeg.IMAGE_TYPES)
+        for name, value in self.allowed_origin_headers():
+            self.set_header(name, value)
+        if fmt == "json":
+            self.set_header("Content-Type", "application/json")
+            self.finish(json.dumps({"topics": [{"topic": topic, "type": kind} for topic, kind in images]}))
+            return
+        auth = "".join(f"&{name}={urllib.parse.quote(_text(self.request.query_arguments, name) or '')}"
+                       for name in AUTH_FIELDS if self.streams.bridge.config.authenticate)
+        items = []
+        for topic, kind in images:
+            query = html.escape(f"topic={urllib.parse.quote(topic)}{auth}", quote=True)
+            name = html.escape(topic)
+            items.append(f"<li><a href=\"stream_viewer?{query}\">{name}</a> ({html.escape(kind)}) "
+                         f"(<a href=\"stream?{query}\">Stream</a>) (<a href=\"snapshot?{query}\">Snapshot</a>)</li>")
+        self.set_header("Content-Type", "text/html; charset=UTF-8")
+        self.finish("<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>ROS Image Topic List</title></head>"
+                    "<body><h1>Available ROS Image Topics:</h1><ul>" + "".join(items) + "</ul></body></html>")
+
+
+def stream_routes(bridge):
+    """The stream endpoints' routes (server.routes puts them before the page's files)."""
+    streams = Streams(bridge)
+    options = {"streams": streams}
+    return [(r"/stream", StreamHandler, options), (r"/snapshot", SnapshotHandler, options),
+            (r"/stream_viewer", StreamViewerPage, options), (r"/streams", StreamListHandler, options)]

@@ -1,0 +1,691 @@
+"""Camera streams on the bridge's HTTP port (streams.py), web_video_server's endpoints, through real processes: a
+bridge, rospy publishers in this process, and HTTP read from raw sockets (so that a test decides how fast it
+reads): decodable JPEGs at the topic's rate, snapshots, sizes, encodings, the newest frame and never a backlog
+for a slow reader, shared encodes, the list, bad requests, access rules, and no leak."""
+import collections
+import hashlib
+import io
+import json
+import socket
+import threading
+import time
+import urllib.error
+import urllib.request
+
+import pytest
+from PIL import Image
+
+from harness import ProcStat, make_workdir, start_bridge, wait_for
+
+BOUNDARY = b"--boundarydonotcross"
+GLOB = "[/streams_test/*]"
+
+
+# ---- publishing -------------------------------------------------------------------------------------------------
+def camera_pictures(width, height, count=4, noise=0.25):
+    """Pictures that compress like a camera's: a gradient with some noise, a different one each frame."""
+    base = Image.linear_gradient("L").resize((width, height)).convert("RGB")
+    return [Image.blend(base, Image.effect_noise((width, height), 60 + 10 * i).convert("RGB"), noise)
+            for i in range(count)]
+
+
+class Camera:
+    """A rospy publisher of sensor_msgs/Image (or any message made by make(index, stamp)) at `rate` Hz; remembers
+    the header stamps it published (published[stamp text] = when)."""
+
+    def __init__(self, node, topic, rate, make, cls=None):
+        from sensor_msgs.msg import Image as RosImage
+        self.pub = node.Publisher(topic, cls or RosImage, queue_size=1)
+        self.make, self.rate, self.node = make, rate, node
+        self.published = collections.OrderedDict()
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def _run(self):
+        index, period, next_at = 0, 1.0 / self.rate, time.monotonic()
+        while not self.stop.is_set():
+            stamp = self.node.Time.now()
+            self.pub.publish(self.make(index, stamp))
+            self.published[f"{stamp.to_sec():.6f}"] = time.monotonic()
+            while len(self.published) > 10_000:
+                self.published.popitem(last=False)
+            index += 1
+            next_at += period
+            self.stop.wait(max(0.0, next_at - time.monotonic()))
+
+    def close(self):
+        self.stop.set()
+        self.thread.join()
+        self.pub.unregister()
+
+
+def image_maker(pictures, encoding="rgb8"):
+    from sensor_msgs.msg import Image as RosImage
+    raws = [picture.tobytes() for picture in pictures]
+
+    def make(index, stamp):
+        picture = pictures[index % len(pictures)]
+        msg = RosImage(width=picture.width, height=picture.height, encoding=encoding,
+                       step=len(picture.getbands()) * picture.width, data=raws[index % len(raws)])
+        msg.header.stamp, msg.header.frame_id = stamp, "camera"
+        return msg
+    return make
+
+
+def compressed_maker(pictures):
+    from sensor_msgs.msg import CompressedImage
+    files = []
+    for picture in pictures:
+        out = io.BytesIO()
+        picture.save(out, "JPEG", quality=70)
+        files.append(out.getvalue())
+
+    def make(index, stamp):
+        msg = CompressedImage(format="jpeg", data=files[index % len(files)])
+        msg.header.stamp = stamp
+        return msg
+    return make, files
+
+
+# ---- reading ----------------------------------------------------------------------------------------------------
+class Http:
+    """One HTTP request over a raw socket; the answer's head is read at once, the body as the test decides."""
+
+    def __init__(self, port, path, headers=None, rcvbuf=None, timeout=10.0):
+        self.sock = socket.socket()
+        if rcvbuf:  # (before connecting: the window the bridge sees)
+            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
+        self.sock.settimeout(timeout)
+        self.sock.connect(("127.0.0.1", port))
+        lines = [f"GET {path} HTTP/1.1", f"Host: 127.0.0.1:{port}",
+                 *(f"{name}: {value}" for name, value in (headers or {}).items())]
+        self.sock.sendall(("\r\n".join(lines) + "\r\n\r\n").encode())
+        self.buf = bytearray()
+        head = self.until(b"\r\n\r\n").decode()
+        status_line, *header_lines = head.split("\r\n")
+        self.status = int(status_line.split()[1])
+        self.headers = {k.lower(): v.strip() for k, _, v in (line.partition(":") for line in header_lines)}
+
+    def fill(self, most=65536):
+        data = self.sock.recv(most)
+        if not data:
+            raise EOFError("the bridge closed the connection")
+        self.buf += data
+        return len(data)
+
+    def until(self, marker):
+        while marker not in self.buf:
+            self.fill()
+        at = self.buf.index(marker)
+        out = bytes(self.buf[:at])
+        del self.buf[:at + len(marker)]
+        return out
+
+    def exactly(self, count):
+        while len(self.buf) < count:
+            self.fill()
+        out = bytes(self.buf[:count])
+        del self.buf[:count]
+        return out
+
+    def part(self):
+        """The next part of a multipart stream: (headers, body)."""
+        self.until(BOUNDARY + b"\r\n")
+        lines = self.until(b"\r\n\r\n").decode().split("\r\n")
+        headers = {k.lower(): v.strip() for k, _, v in (line.partition(":") for line in lines)}
+        return headers, self.exactly(int(headers["content-length"]))
+
+    def body(self):
+        return self.exactly(int(self.headers["content-length"]))
+
+    def close(self):
+        self.sock.close()
+
+
+def get(port, path, headers=None, timeout=15.0):
+    """(status, headers, body) of a plain GET."""
+    request = urllib.request.Request(f"http://127.0.0.1:{port}{path}", headers=headers or {})
+    try:
+        with urllib.request.urlopen(request, timeout=timeout) as answer:
+            return answer.status, {k.lower(): v for k, v in answer.headers.items()}, answer.read()
+    except urllib.error.HTTPError as error:
+        return error.code, {k.lower(): v for k, v in error.headers.items()}, error.read()
+
+
+def jpeg_size(body):
+    image = Image.open(io.BytesIO(body))
+    assert image.format == "JPEG"
+    image.load()
+    return image.size
+
+
+# ---- fixtures ---------------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def bridge_proc(ros):
+    proc, port = start_bridge(ros, node_name="streams_bridge", topics_glob=GLOB)
+    yield proc, port
+    proc.stop()
+
+
+@pytest.fixture(scope="module")
+def bridge(bridge_proc):
+    return bridge_proc[1]
+
+
+@pytest.fixture(scope="module")
+def camera(node):
+    """/streams_test/cam: 640x480 rgb8 at 20 Hz."""
+    cam = Camera(node, "/streams_test/cam", 20, image_maker(camera_pictures(640, 480)))
+    yield cam
+    cam.close()
+
+
+def wait_streaming(port, topic, timeout=20):
+    """Waits until a snapshot of `topic` comes (the bridge and the publisher are connected)."""
+    return wait_for(lambda: get(port, f"/snapshot?topic={topic}")[0] == 200, timeout, interval=0.2,
+                    what=f"a snapshot of {topic}")
+
+
+# ---- the stream -------------------------------------------------------------------------------------------------
+def test_a_stream_delivers_decodable_jpegs_at_the_topics_rate(bridge, camera):
+    wait_streaming(bridge, "/streams_test/cam")
+    stream = Http(bridge, "/stream?topic=/streams_test/cam")
+    try:
+        assert stream.status == 200
+        assert stream.headers["content-type"] == "multipart/x-mixed-replace;boundary=boundarydonotcross"
+        assert stream.headers["connection"] == "close" and "no-cache" in stream.headers["cache-control"]
+        stream.part()  # (the newest frame, sent at once)
+        start, parts = time.monotonic(), []
+        while time.monotonic() - start < 3.0:
+            parts.append(stream.part())
+        rate = len(parts) / (time.monotonic() - start)
+    finally:
+        stream.close()
+    assert rate > 0.75 * 20, f"{rate:.1f} frames/s of 20"
+    stamps = [headers["x-timestamp"] for headers, _ in parts]
+    assert all(stamp in camera.published for stamp in stamps), "X-Timestamp is not the header stamp"
+    assert stamps == sorted(stamps) and len(set(stamps)) == len(stamps)
+    for headers, body in parts:
+        assert headers["content-type"] == "image/jpeg" and int(headers["content-length"]) == len(body)
+        assert jpeg_size(body) == (640, 480)
+
+
+@pytest.mark.parametrize("query, size", [
+    ("width=320", (320, 240)), ("height=120", (160, 120)), ("width=100&height=100", (100, 100)),
+    ("width=0&height=0", (640, 480)), ("width=-1&height=-1", (640, 480)), ("quality=20&width=64", (64, 48))])
+def test_width_and_height(bridge, camera, query, size):
+    wait_streaming(bridge, "/streams_test/cam")
+    stream = Http(bridge, f"/stream?topic=/streams_test/cam&{query}")
+    try:
+        for _ in range(3):
+            assert jpeg_size(stream.part()[1]) == size
+    finally:
+        stream.close()
+
+
+def test_invert_turns_the_picture_over(bridge, node):
+    from sensor_msgs.msg import Image as RosImage
+    top_white = bytes([255] * 3 * 32 * 16 + [0] * 3 * 32 * 16)  # 32x32: the top half white
+
+    def make(index, stamp):
+        msg = RosImage(width=32, height=32, encoding="rgb8", step=96, data=top_white)
+        msg.header.stamp = stamp
+        return msg
+    cam = Camera(node, "/streams_test/halves", 20, make)
+    try:
+        wait_streaming(bridge, "/streams_test/halves")
+        for query, top in (("", 255), ("&invert", 0), ("&invert=1", 0), ("&invert=0", 255)):
+            status, _, body = get(bridge, f"/snapshot?topic=/streams_test/halves{query}")
+            image = Image.open(io.BytesIO(body)).convert("L")
+            assert status == 200 and abs(image.getpixel((16, 4)) - top) < 30, query
+    finally:
+        cam.close()
+
+
+def test_a_snapshot_is_one_jpeg_of_the_next_frame(bridge, camera):
+    wait_streaming(bridge, "/streams_test/cam")
+    status, headers, body = get(bridge, "/snapshot?topic=/streams_test/cam&width=200&quality=60")
+    assert status == 200 and headers["content-type"] == "image/jpeg"
+    assert headers["x-timestamp"] in camera.published
+    assert time.monotonic() - camera.published[headers["x-timestamp"]] < 1.0
+    assert jpeg_size(body) == (200, 150) and int(headers["content-length"]) == len(body)
+
+
+def test_a_snapshot_of_a_topic_nobody_publishes_times_out_with_504(bridge):
+    start = time.monotonic()
+    status, _, body = get(bridge, "/snapshot?topic=/streams_test/nobody")
+    assert status == 504 and b"nobody publishes /streams_test/nobody" in body
+    assert 4 < time.monotonic() - start < 9
+
+
+def test_a_stream_waits_for_a_topic_published_later(bridge, node):
+    stream = Http(bridge, "/stream?topic=/streams_test/later&width=32")
+    cam = None
+    try:
+        assert stream.status == 200
+        time.sleep(1.5)
+        cam = Camera(node, "/streams_test/later", 10, image_maker(camera_pictures(64, 48)))
+        headers, body = stream.part()
+        assert headers["x-timestamp"] in cam.published and jpeg_size(body) == (32, 24)
+    finally:
+        stream.close()
+        if cam:
+            cam.close()
+
+
+# ---- encodings --------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("encoding, pixel, expected", [
+    ("bgr8", (255, 0, 0), (0, 0, 255)), ("rgba8", (0, 255, 0, 9), (0, 255, 0)), ("mono8", (77,), (77, 77, 77))])
+def test_encodings(bridge, node, encoding, pixel, expected):
+    from sensor_msgs.msg import Image as RosImage
+    topic = f"/streams_test/{encoding}"
+
+    def make(index, stamp):
+        msg = RosImage(width=16, height=16, encoding=encoding, step=16 * len(pixel), data=bytes(pixel) * 256)
+        msg.header.stamp = stamp
+        return msg
+    cam = Camera(node, topic, 20, make)
+    try:
+        wait_streaming(bridge, topic)
+        status, _, body = get(bridge, f"/snapshot?topic={topic}")
+        got = Image.open(io.BytesIO(body)).convert("RGB").getpixel((8, 8))
+        assert status == 200 and all(abs(a - b) < 8 for a, b in zip(got, expected)), got
+    finally:
+        cam.close()
+
+
+def test_an_unsupported_encoding_is_named(bridge, node):
+    from sensor_msgs.msg import Image as RosImage
+
+    def make(index, stamp):
+        return RosImage(width=4, height=4, encoding="yuv422", step=8, data=bytes(32))
+    cam = Camera(node, "/streams_test/yuv", 20, make)
+    try:
+        status, _, body = wait_for(lambda: (answer := get(bridge, "/snapshot?topic=/streams_test/yuv"))[0] != 504
+                                   and answer, 20, what="an answer")
+        assert status == 415 and b"encoding 'yuv422' is not supported" in body
+        stream = Http(bridge, "/stream?topic=/streams_test/yuv")
+        headers, body = stream.part()  # the stream's last part says why
+        assert headers["content-type"].startswith("text/plain") and b"yuv422" in body
+        with pytest.raises((EOFError, ConnectionError)):
+            stream.fill()
+            stream.fill()
+        stream.close()
+    finally:
+        cam.close()
+
+
+def test_compressed_images_pass_through_or_are_made_jpegs(bridge, node):
+    """type=ros_compressed takes <topic>/compressed as it is (web_video_server); a CompressedImage topic asked as
+    mjpeg goes out as it is unless a size or quality is asked."""
+    from sensor_msgs.msg import CompressedImage
+    pictures = camera_pictures(320, 240)
+    raw = Camera(node, "/streams_test/pair", 10, image_maker(pictures))
+    make, files = compressed_maker(pictures)
+    compressed = Camera(node, "/streams_test/pair/compressed", 10, make, CompressedImage)
+    try:
+        wait_streaming(bridge, "/streams_test/pair")
+        wait_streaming(bridge, "/streams_test/pair/compressed")
+        for path in ("/stream?topic=/streams_test/pair&type=ros_compressed",
+                     "/stream?topic=/streams_test/pair/compressed"):
+            stream = Http(bridge, path)
+            headers, body = stream.part()
+            stream.close()
+            assert headers["content-type"] == "image/jpeg" and body in files, path
+            assert headers["x-timestamp"] in compressed.published
+        stream = Http(bridge, "/stream?topic=/streams_test/pair/compressed&width=80")
+        headers, body = stream.part()
+        stream.close()
+        assert body not in files and jpeg_size(body) == (80, 60)
+        stream = Http(bridge, "/stream?topic=/streams_test/pair&default_transport=compressed&width=160")
+        headers, body = stream.part()
+        stream.close()
+        assert headers["x-timestamp"] in compressed.published and jpeg_size(body) == (160, 120)
+    finally:
+        raw.close()
+        compressed.close()
+
+
+# ---- freshness and sharing ----------------------------------------------------------------------------------------
+def newest_published(camera):
+    return float(next(reversed(camera.published)))
+
+
+def test_a_slow_reader_gets_fresh_frames_never_a_backlog_and_memory_stays_bounded(bridge_proc, node):
+    """A viewer that reads 4 kB/s (a frame is ~100 kB) for 10 s, then reads at full speed: what it gets next
+    is at most the frame it was in and one fresh frame, not the 10 s of frames in between. Meanwhile a fast viewer
+    keeps the topic's rate and the bridge's memory stays flat."""
+    proc, port = bridge_proc
+    cam = Camera(node, "/streams_test/busy", 20, image_maker(camera_pictures(640, 480, noise=0.5)))
+    stat = ProcStat(proc.pid)
+    try:
+        wait_streaming(port, "/streams_test/busy")
+        slow = Http(port, "/stream?topic=/streams_test/busy", rcvbuf=8192)
+        fast = Http(port, "/stream?topic=/streams_test/busy")
+        fast_parts, done = [], threading.Event()
+
+        def read_fast():
+            while not done.is_set():
+                fast_parts.append(fast.part()[0]["x-timestamp"])
+        reader = threading.Thread(target=read_fast, daemon=True)
+        reader.start()
+        rss_before = stat.rss_mb()
+        start = time.monotonic()
+        while time.monotonic() - start < 10:
+            slow.fill(400)
+            time.sleep(0.1)
+        rss_after = stat.rss_mb()
+        fast_rate = len(fast_parts) / (time.monotonic() - start)
+        done.set()
+        reader.join(10)
+        fast.close()
+        stamps = []
+        for _ in range(3):
+            stamps.append(float(slow.part()[0]["x-timestamp"]))
+        newest = newest_published(cam)
+        slow.close()
+    finally:
+        cam.close()
+    assert fast_rate > 0.75 * 20, f"the fast viewer got {fast_rate:.1f} frames/s"
+    assert newest - stamps[1] < 1.0, f"the second part after speeding up is {newest - stamps[1]:.1f} s old"
+    # (the first part was the one being written when the reader slowed down)
+    assert cam.published[f"{stamps[0]:.6f}"] < start + 2
+    assert rss_after - rss_before < 30, f"the bridge grew {rss_after - rss_before:.0f} MB"
+
+
+def cpu_per_second(stat, seconds):
+    before, start = stat.cpu_seconds(), time.monotonic()
+    time.sleep(seconds)
+    return (stat.cpu_seconds() - before) / (time.monotonic() - start)
+
+
+@pytest.mark.slow
+def test_viewers_of_the_same_size_and_quality_share_one_encode(bridge_proc, node):
+    """The bridge's CPU above a baseline (the topic received, one viewer of a tiny picture): six viewers of six
+    qualities cost six encodes of every 1280x720 frame; six viewers of one quality cost about one, so far less.
+    If each viewer encoded its own, both would cost the same."""
+    proc, port = bridge_proc
+    cam = Camera(node, "/streams_test/hd", 15, image_maker(camera_pictures(1280, 720)))
+    stat = ProcStat(proc.pid)
+
+    def cost(queries):
+        streams = [Http(port, f"/stream?topic=/streams_test/hd&{query}") for query in queries]
+        counts, done = [0] * len(streams), threading.Event()
+
+        def read(index):
+            try:
+                while not done.is_set():
+                    streams[index].part()
+                    counts[index] += 1
+            except (OSError, EOFError):  # (closed at the end)
+                pass
+        readers = [threading.Thread(target=read, args=(i,), daemon=True) for i in range(len(streams))]
+        for reader in readers:
+            reader.start()
+        time.sleep(1.5)
+        start_counts = list(counts)
+        cpu = cpu_per_second(stat, 5.0)
+        rates = [(c - s) / 5.0 for c, s in zip(counts, start_counts)]
+        done.set()
+        for reader in readers:
+            reader.join(10)
+        for stream in streams:
+            stream.close()
+        return cpu, rates
+
+    try:
+        wait_streaming(port, "/streams_test/hd")
+        base, base_rates = cost(["width=16"])
+        shared, shared_rates = cost(["quality=85"] * 6)
+        separate, separate_rates = cost([f"quality={q}" for q in range(85, 79, -1)])
+    finally:
+        cam.close()
+    print(f"bridge CPU (s/s): baseline {base:.3f}, 6 viewers of one quality {shared:.3f}, of six {separate:.3f}")
+    assert min(base_rates + shared_rates + separate_rates) > 10, (base_rates, shared_rates, separate_rates)
+    assert separate - base > 2.5 * (shared - base), (base, shared, separate)
+
+
+def complete_parts(stream):
+    """The parts wholly in what the stream has read so far: [(headers, body)]."""
+    parts = []
+    while True:
+        at = stream.buf.find(BOUNDARY + b"\r\n")
+        end = stream.buf.find(b"\r\n\r\n", at)
+        if at < 0 or end < 0:
+            return parts
+        length = int(bytes(stream.buf[at:end]).decode().lower().split("content-length:")[1].split("\r\n")[0])
+        if len(stream.buf) < end + 4 + length:
+            return parts
+        parts.append(stream.part())
+
+
+def read_at(stream, rate, seconds, burst=8192):
+    """Reads a stream at `rate` bytes/s (a link of that rate: at most `burst` bytes at once) for `seconds`;
+    returns [(seconds since start, X-Timestamp (text), JPEG width, when read (monotonic))]."""
+    parts, start, allowance, last = [], time.monotonic(), 0.0, time.monotonic()
+    while time.monotonic() - start < seconds:
+        now = time.monotonic()
+        allowance, last = min(burst, allowance + (now - last) * rate), now
+        if allowance >= 1024:
+            allowance -= stream.fill(int(allowance))
+            for headers, body in complete_parts(stream):
+                now = time.monotonic()
+                parts.append((now - start, headers["x-timestamp"], jpeg_size(body)[0], now))
+        time.sleep(0.005)
+    return parts
+
+
+def test_adaptive_keeps_the_frame_rate_on_a_narrow_link(bridge, node):
+    """A viewer behind a 250 kB/s link of a 20 Hz camera whose q50 JPEG is ~40 kB (800 kB/s): adaptive=1 steps
+    down until the frames fit and gets most of them; without adaptive, it gets a third of them at best."""
+    cam = Camera(node, "/streams_test/narrow", 20, image_maker(camera_pictures(640, 480)))
+    try:
+        wait_streaming(bridge, "/streams_test/narrow")
+        results = {}
+        for query in ("adaptive=1", "quality=50"):
+            stream = Http(bridge, f"/stream?topic=/streams_test/narrow&{query}", rcvbuf=16384)
+            parts = read_at(stream, 250_000, 10)
+            stream.close()
+            results[query] = [part for part in parts if part[0] > 4]  # (after the first steps)
+    finally:
+        cam.close()
+    adaptive, fixed = results["adaptive=1"], results["quality=50"]
+    widths = collections.Counter(width for _, _, width, _ in adaptive)
+    ages = sorted(read - cam.published[stamp] for _, stamp, _, read in adaptive)
+    print(f"frames/s over 6 s: adaptive {len(adaptive) / 6:.1f}, fixed {len(fixed) / 6:.1f}; adaptive widths "
+          f"{sorted(widths.items())}, age p50 {ages[len(ages) // 2]:.3f} s, p95 {ages[int(len(ages) * .95)]:.3f} s")
+    assert len(adaptive) / 6 > 14 and len(adaptive) > 2 * len(fixed), (len(adaptive), len(fixed))
+    assert widths[640] < len(adaptive) / 4, widths
+    assert ages[int(len(ages) * .95)] < 0.5
+
+
+# ---- the list, the viewer page, bad requests ----------------------------------------------------------------------
+def test_the_list_of_image_topics(bridge, camera, node):
+    from sensor_msgs.msg import CompressedImage
+    from std_msgs.msg import String
+    make, _ = compressed_maker(camera_pictures(32, 24, 1))
+    compressed = Camera(node, "/streams_test/small/compressed", 5, make, CompressedImage)
+    text = node.Publisher("/streams_test/text", String, queue_size=1)
+    hidden = Camera(node, "/hidden_cam", 5, image_maker(camera_pictures(32, 24, 1)))
+    try:
+        def listed():
+            status, headers, body = get(bridge, "/streams?format=json")
+            topics = {entry["topic"]: entry["type"] for entry in json.loads(body)["topics"]}
+            return status == 200 and headers["content-type"] == "application/json" and \
+                "/streams_test/small/compressed" in topics and topics
+        topics = wait_for(listed, 10, what="the compressed topic listed")
+        assert topics["/streams_test/cam"] == "sensor_msgs/Image"
+        assert topics["/streams_test/small/compressed"] == "sensor_msgs/CompressedImage"
+        assert "/streams_test/text" not in topics and "/hidden_cam" not in topics  # not images; outside topics_glob
+        status, headers, body = get(bridge, "/streams")
+        page = body.decode()
+        assert status == 200 and headers["content-type"].startswith("text/html")
+        assert '<a href="stream_viewer?topic=/streams_test/cam">/streams_test/cam</a>' in page
+        assert '<a href="snapshot?topic=/streams_test/cam">' in page and "/hidden_cam" not in page
+    finally:
+        compressed.close()
+        hidden.close()
+        text.unregister()
+
+
+def test_the_viewer_page_shows_the_stream(bridge):
+    status, headers, body = get(bridge, "/stream_viewer?topic=/streams_test/cam&width=320")
+    assert status == 200 and headers["content-type"].startswith("text/html")
+    assert '<img src="stream?topic=/streams_test/cam&amp;width=320"' in body.decode()
+    status, headers, body = get(bridge, "/stream_viewer?topic=/streams_test/%3Cscript%3E")
+    assert status == 400 and headers["content-type"].startswith("text/plain")  # (not a page: no script runs)
+
+
+@pytest.mark.parametrize("query, status, text", [
+    ("", 400, "topic is required"),
+    ("topic=/streams_test/cam&quality=abc", 400, "quality must be an integer from 1 to 100, got 'abc'"),
+    ("topic=/streams_test/cam&quality=0", 400, "quality must be an integer from 1 to 100"),
+    ("topic=/streams_test/cam&quality=101", 400, "quality must be an integer from 1 to 100"),
+    ("topic=/streams_test/cam&width=-5", 400, "width must be an integer from 0 to 4096, got '-5'"),
+    ("topic=/streams_test/cam&height=1e3", 400, "height must be an integer"),
+    ("topic=/streams_test/cam&width=99999", 400, "width must be an integer from 0 to 4096"),
+    ("topic=/streams_test/cam&type=vp8", 400, "stream type 'vp8' is not supported"),
+    ("topic=/streams_test/cam&type=h264", 400, "video codecs are not offered"),
+    ("topic=/streams_test/cam&adaptive=maybe", 400, "adaptive must be 1 or 0"),
+    ("topic=/streams_test/cam&default_transport=theora", 400, "default_transport must be raw or compressed"),
+    ("topic=/streams_test/a%20b", 400, "is not a ROS topic name"),
+    ("topic=/rosout", 403, "not allowed by topics_glob"),
+    ("topic=/secret_cam", 403, "topic '/secret_cam' is not allowed by topics_glob ['/streams_test/*']"),
+])
+@pytest.mark.parametrize("endpoint", ["stream", "snapshot", "stream_viewer"])
+def test_bad_requests_are_refused_with_a_clear_text(bridge, endpoint, query, status, text):
+    got, headers, body = get(bridge, f"/{endpoint}?{query}")
+    assert (got, text) == (status, text) and text in body.decode(), body
+    assert headers["content-type"].startswith("text/plain")
+
+
+def test_a_topic_that_is_not_an_image_is_404(bridge, node):
+    from std_msgs.msg import String
+    pub = node.Publisher("/streams_test/words", String, queue_size=1)
+    try:
+        wait_for(lambda: get(bridge, "/stream?topic=/streams_test/words")[0] == 404, 10, what="404")
+        status, _, body = get(bridge, "/snapshot?topic=/streams_test/words")
+        assert status == 404 and b"is a std_msgs/String, not an image" in body
+    finally:
+        pub.unregister()
+
+
+# ---- access rules -----------------------------------------------------------------------------------------------
+def test_origins_are_checked_as_for_the_websocket(bridge, camera):
+    wait_streaming(bridge, "/streams_test/cam")
+    for origin in ("http://evil.example", "null-ish", ""):
+        status, _, body = get(bridge, "/snapshot?topic=/streams_test/cam", {"Origin": origin})
+        assert status == 403 and b"Cross origin requests not allowed" in body, origin
+        refused = Http(bridge, "/stream?topic=/streams_test/cam", {"Origin": origin})
+        assert refused.status == 403
+        refused.close()
+    own = f"http://127.0.0.1:{bridge}"
+    status, headers, _ = get(bridge, "/snapshot?topic=/streams_test/cam", {"Origin": own})
+    assert status == 200 and headers["access-control-allow-origin"] == own
+    stream = Http(bridge, "/stream?topic=/streams_test/cam", {"Origin": "http://localhost:8000"})
+    assert stream.status == 200 and stream.headers["access-control-allow-origin"] == "http://localhost:8000"
+    stream.close()
+    status, _, _ = get(bridge, "/streams?format=json", {"Origin": "http://evil.example"})
+    assert status == 403
+
+
+SECRET = "streams-secret"
+
+
+def auth_query(secret=SECRET, **changes):
+    fields = {"client": "127.0.0.1", "dest": "127.0.0.1", "rand": "r4nd", "t": int(time.time()), "level": "admin",
+              "end": int(time.time()) + 600}
+    fields.update(changes)
+    text = "".join(str(fields[name]) for name in ("client", "dest", "rand", "t", "level", "end"))
+    fields["mac"] = hashlib.sha512((secret + text).encode()).hexdigest()
+    return "&".join(f"{name}={value}" for name, value in fields.items())
+
+
+def test_authenticate_requires_the_rosauth_fields(ros, node, camera):
+    secret_file = make_workdir("streams-auth") / "secret"
+    secret_file.write_text(SECRET)
+    proc, port = start_bridge(ros, node_name="streams_auth_bridge", authenticate="true",
+                              secret_file=str(secret_file), topics_glob=GLOB)
+    try:
+        status, headers, body = get(port, "/snapshot?topic=/streams_test/cam")
+        assert status == 401 and b"authentication required" in body and b"mac, client, dest, rand, t" in body
+        assert "www-authenticate" in headers
+        for endpoint in ("stream", "stream_viewer", "streams"):
+            assert get(port, f"/{endpoint}?topic=/streams_test/cam")[0] == 401, endpoint
+        for bad in (auth_query(secret="guess"), auth_query(t=int(time.time()) - 60), auth_query(end=1)):
+            status, _, body = get(port, f"/snapshot?topic=/streams_test/cam&{bad}")
+            assert status == 401 and b"authentication failed" in body
+        status, _, body = get(port, f"/snapshot?topic=/streams_test/cam&{auth_query(t='soon')}")
+        assert status == 401 and b"t and end must be numbers" in body
+        good = auth_query()
+        status, headers, body = wait_for(
+            lambda: (answer := get(port, f"/snapshot?topic=/streams_test/cam&{good}"))[0] == 200 and answer, 20,
+            what="an authenticated snapshot")
+        assert jpeg_size(body) == (640, 480)
+        stream = Http(port, f"/stream?topic=/streams_test/cam&width=64&{good}")
+        assert stream.status == 200 and jpeg_size(stream.part()[1]) == (64, 48)
+        stream.close()
+        status, _, body = get(port, f"/streams?format=json&{good}")
+        assert status == 200 and "/streams_test/cam" in body.decode()
+        status, _, body = get(port, f"/streams?{good}")
+        assert "mac=" in body.decode()  # (the links carry the fields)
+    finally:
+        proc.stop()
+
+
+def test_viewers_are_bounded_by_max_clients(ros, camera):
+    proc, port = start_bridge(ros, node_name="streams_small_bridge", max_clients=3)
+    try:
+        wait_streaming(port, "/streams_test/cam")
+        streams = [Http(port, "/stream?topic=/streams_test/cam&width=32") for _ in range(3)]
+        assert [s.status for s in streams] == [200] * 3
+        status, _, body = get(port, "/stream?topic=/streams_test/cam")
+        assert status == 503 and b"too many camera stream viewers" in body
+        assert get(port, "/snapshot?topic=/streams_test/cam")[0] == 503
+        streams.pop().close()
+        wait_for(lambda: get(port, "/snapshot?topic=/streams_test/cam")[0] == 200, 10, what="room again")
+        for stream in streams:
+            stream.close()
+    finally:
+        proc.stop()
+
+
+# ---- no leak ----------------------------------------------------------------------------------------------------
+def open_fds(pid):
+    import os
+    return len(os.listdir(f"/proc/{pid}/fd"))
+
+
+def bridge_subscribes(ros, topic, node_name="/streams_bridge"):
+    _, subscribers, _ = ros.master().getSystemState()
+    return node_name in dict(subscribers).get(topic, [])
+
+
+@pytest.mark.slow
+def test_a_thousand_viewers_coming_and_going_leave_nothing(ros, bridge_proc, node):
+    proc, port = bridge_proc
+    cam = Camera(node, "/streams_test/churn", 30, image_maker(camera_pictures(320, 240)))
+    stat = ProcStat(proc.pid)
+    try:
+        wait_streaming(port, "/streams_test/churn")
+        for _ in range(50):  # (warm up: the allocator's pools)
+            stream = Http(port, "/stream?topic=/streams_test/churn&width=80")
+            stream.part()
+            stream.close()
+        time.sleep(1)
+        fds, threads, rss = open_fds(proc.pid), stat.threads(), stat.rss_mb()
+        for index in range(1000):
+            stream = Http(port, f"/stream?topic=/streams_test/churn&width={80 + index % 3}")
+            if index % 2:
+                stream.part()  # half of them leave in the middle of the stream, half before their first frame
+            stream.close()
+        time.sleep(1)
+        assert open_fds(proc.pid) <= fds + 3, (fds, open_fds(proc.pid))
+        assert stat.threads() <= threads + 2
+        assert stat.rss_mb() - rss < 20, f"the bridge grew {stat.rss_mb() - rss:.0f} MB"
+        assert get(port, "/snapshot?topic=/streams_test/churn")[0] == 200  # (and still serves)
+    finally:
+        cam.close()
+    # the topic's subscription goes a few seconds after its last viewer
+    wait_for(lambda: not bridge_subscribes(ros, "/streams_test/churn"), 20, what="the subscription dropped")

@@ -1,0 +1,246 @@
+"""streams.py without processes: a topic's frames made once per (frame, size, quality) for all its viewers, only
+when a viewer wants them, one encoding job at a time with the newest frame winning; the requests' parameters and
+which topic a request streams from."""
+import io
+
+import pytest
+from sensor_msgs.msg import Image as RosImage
+
+from rosbridge import jpeg, streams
+from rosbridge.frames import TopicMessage
+
+
+class FakeLoop:
+    def __init__(self):
+        self.timers = []
+
+    def call_later(self, delay, fn):
+        handle = [delay, fn]
+        self.timers.append(handle)
+        return handle
+
+    def remove_timeout(self, handle):
+        self.timers.remove(handle)
+
+    def run_timers(self):
+        timers, self.timers = self.timers, []
+        for _, fn in timers:
+            fn()
+
+
+class FakeEncoder:
+    """Holds each job until the test finishes it; the JPEG of a key is a text naming the frame and the key."""
+
+    def __init__(self):
+        self.jobs = []
+
+    def submit(self, picture, keys, done):
+        self.jobs.append((picture, list(keys), done))
+
+    def finish(self):
+        picture, keys, done = self.jobs.pop(0)
+        done({key: ("image/jpeg", f"{picture.frame.stamp:g} {key}".encode()) for key in keys})
+
+
+class FakeBackend:
+    def __init__(self):
+        self.unsubscribed = []
+
+    def unsubscribe(self, session, topic):
+        self.unsubscribed.append(topic)
+
+
+class FakeStreams:
+    def __init__(self):
+        self.loop, self.encoder, self.backend = FakeLoop(), FakeEncoder(), FakeBackend()
+        self.topics = {}
+
+
+class FakeViewer:
+    """A viewer whose link takes a frame when the test says (written())."""
+
+    def __init__(self, topic, key=((64, 48), 80, False)):
+        self.topic, self.key, self.sent_seq, self.writing, self.got, self.failed = topic, key, 0, False, [], None
+        topic.add(self)
+
+    def key_for(self, frame):
+        frame.read()
+        return self.key
+
+    def new_frame(self, frame):
+        if not self.writing:
+            self.topic.want(self)
+
+    def take(self, frame, made):
+        assert not self.writing
+        self.got.append((frame.seq, made))
+        self.sent_seq, self.writing = frame.seq, True
+
+    def written(self):
+        self.writing = False
+        self.topic.want(self)
+
+    def fail(self, status, text):
+        self.failed = (status, text)
+        self.topic.remove(self)
+
+
+def image_message(index, encoding="rgb8"):
+    msg = RosImage(width=4, height=4, encoding=encoding, step=12, data=bytes(48))
+    msg.header.stamp.secs = index
+    out = io.BytesIO()
+    msg.serialize(out)
+    return TopicMessage("/cam", RosImage, out.getvalue(), 1000.0 + index)
+
+
+@pytest.fixture
+def topic():
+    shared = FakeStreams()
+    made = streams.StreamTopic(shared, streams.Source("/cam", jpeg.IMAGE))
+    shared.topics["/cam"] = made
+    return made
+
+
+def encoder(topic):
+    return topic._streams.encoder
+
+
+def test_viewers_of_one_size_and_quality_share_one_encode_of_each_frame(topic):
+    first, second = FakeViewer(topic), FakeViewer(topic)
+    assert encoder(topic).jobs == []  # nothing is made before a frame comes
+    topic.deliver(image_message(1))
+    assert len(encoder(topic).jobs) == 1 and encoder(topic).jobs[0][1] == [((64, 48), 80, False)]
+    encoder(topic).finish()
+    assert first.got == second.got and first.got[0][1][1] is second.got[0][1][1]  # the very same bytes
+    third = FakeViewer(topic)
+    topic.want(third)  # a viewer joining later gets what is made already, without a new job
+    assert third.got == first.got and encoder(topic).jobs == []
+
+
+def test_different_sizes_are_made_in_one_job_each_once(topic):
+    keys = [((64, 48), 80, False), ((32, 24), 80, False), ((64, 48), 50, False), ((64, 48), 80, True)]
+    viewers = [FakeViewer(topic, key) for key in keys * 2]
+    topic.deliver(image_message(1))
+    assert len(encoder(topic).jobs) == 1 and sorted(encoder(topic).jobs[0][1]) == sorted(keys)
+    encoder(topic).finish()
+    assert all(viewer.got[0][1][1] == f"1 {viewer.key}".encode() for viewer in viewers)
+
+
+def test_at_most_MAX_KEYS_PER_JOB_variants_a_job_the_rest_in_the_next(topic):
+    viewers = [FakeViewer(topic, ((8 + i, 6), 80, False)) for i in range(streams.MAX_KEYS_PER_JOB + 3)]
+    topic.deliver(image_message(1))
+    assert len(encoder(topic).jobs[0][1]) == streams.MAX_KEYS_PER_JOB
+    encoder(topic).finish()
+    assert len(encoder(topic).jobs) == 1 and len(encoder(topic).jobs[0][1]) == 3
+    encoder(topic).finish()
+    assert all(len(viewer.got) == 1 for viewer in viewers)
+
+
+def test_one_job_at_a_time_and_the_newest_frame_wins(topic):
+    viewer = FakeViewer(topic)
+    topic.deliver(image_message(1))
+    for index in (2, 3, 4):  # frames arriving while the first is being made: no job of their own
+        topic.deliver(image_message(index))
+    assert len(encoder(topic).jobs) == 1
+    encoder(topic).finish()
+    assert [seq for seq, _ in viewer.got] == [1]  # (made: it goes out at once)
+    viewer.written()
+    assert len(encoder(topic).jobs) == 1 and encoder(topic).jobs[0][0].frame.stamp == 4  # the newest, not 2
+    encoder(topic).finish()
+    assert [seq for seq, _ in viewer.got] == [1, 4]
+
+
+def test_a_viewer_that_is_writing_gets_the_newest_frame_after_never_a_backlog(topic):
+    slow, fast = FakeViewer(topic), FakeViewer(topic)
+    for index in range(1, 6):
+        topic.deliver(image_message(index))
+        encoder(topic).finish()
+        fast.written()
+    assert [seq for seq, _ in fast.got] == [1, 2, 3, 4, 5]
+    assert [seq for seq, _ in slow.got] == [1]  # still writing the first
+    slow.written()
+    assert [seq for seq, _ in slow.got] == [1, 5]  # already made for the fast one: no new job
+    assert encoder(topic).jobs == []
+
+
+def test_a_frame_that_cannot_be_made_is_told_to_the_viewer(topic):
+    viewer = FakeViewer(topic)
+    topic.deliver(image_message(1, encoding="yuv422"))
+    made = encoder(topic).jobs  # (the fake encoder makes anything: read what the real one does)
+    picture, keys, done = made.pop()
+    done(streams._encode(picture, keys))
+    (_, error), = viewer.got
+    assert isinstance(error, jpeg.UnsupportedEncoding)
+
+
+def test_the_subscription_lingers_after_the_last_viewer_then_goes(topic):
+    shared = topic._streams
+    viewer = FakeViewer(topic)
+    topic.remove(viewer)
+    assert len(shared.loop.timers) == 1 and shared.loop.timers[0][0] == streams.LINGER
+    again = FakeViewer(topic)  # a reload within LINGER keeps it
+    assert shared.loop.timers == []
+    topic.remove(again)
+    shared.loop.run_timers()
+    assert topic.is_closed and shared.topics == {} and shared.backend.unsubscribed == ["/cam"]
+    topic.deliver(image_message(1))  # (a message still on its way)
+    assert encoder(topic).jobs == []
+
+
+def test_a_refused_subscription_ends_its_viewers(topic):
+    viewer = FakeViewer(topic)
+    topic.ros_refused("subscribe", "/cam", "the topic is published as std_msgs/String")
+    assert viewer.failed == (503, "the topic is published as std_msgs/String") and topic.is_closed
+
+
+# ---- requests ---------------------------------------------------------------------------------------------------
+def args(query):
+    import urllib.parse
+    parsed = urllib.parse.parse_qs(query, keep_blank_values=True)
+    return {name: [value.encode() for value in values] for name, values in parsed.items()}
+
+
+def test_a_request_with_web_video_servers_defaults():
+    request = streams.StreamRequest(args("topic=/cam"))
+    assert (request.topic, request.type, request.width, request.height, request.quality, request.invert,
+            request.adaptive, request.transport) == ("/cam", "mjpeg", 0, 0, None, False, False, "raw")
+    request = streams.StreamRequest(args("topic=/cam&width=-1&height=200&quality=30&invert&adaptive=1"))
+    assert (request.width, request.height, request.quality, request.invert, request.adaptive) == \
+        (0, 200, 30, True, True)
+
+
+@pytest.mark.parametrize("query, text", [
+    ("", "topic is required"), ("topic=/c&type=vp9", "not supported"), ("topic=/c&quality=x", "quality must be"),
+    ("topic=/c&width=4097", "width must be an integer from 0 to 4096"), ("topic=/c&adaptive=2", "adaptive must"),
+])
+def test_bad_parameters(query, text):
+    with pytest.raises(streams.BadRequest, match=text) as refused:
+        streams.StreamRequest(args(query))
+    assert refused.value.status == 400
+
+
+TYPES = {"/cam": jpeg.IMAGE, "/cam/compressed": jpeg.COMPRESSED, "/jpeg_only": jpeg.COMPRESSED,
+         "/text": "std_msgs/String", "/unknown": ""}
+
+
+@pytest.mark.parametrize("query, topic, expected", [
+    ("type=mjpeg", "/cam", ("/cam", jpeg.IMAGE, None)),
+    ("type=ros_compressed", "/cam", ("/cam/compressed", jpeg.COMPRESSED, "any")),
+    ("type=ros_compressed&adaptive=1", "/cam", ("/cam/compressed", jpeg.COMPRESSED, None)),
+    ("default_transport=compressed", "/cam", ("/cam/compressed", jpeg.COMPRESSED, None)),
+    ("type=mjpeg", "/jpeg_only", ("/jpeg_only", jpeg.COMPRESSED, "jpeg")),
+    ("type=mjpeg&width=10", "/jpeg_only", ("/jpeg_only", jpeg.COMPRESSED, None)),
+    ("type=mjpeg&quality=10", "/jpeg_only", ("/jpeg_only", jpeg.COMPRESSED, None)),
+    ("type=ros_compressed", "/jpeg_only", ("/jpeg_only", jpeg.COMPRESSED, "any")),
+    ("type=ros_compressed", "/nobody", None),
+    ("type=mjpeg", "/unknown", None),
+])
+def test_which_topic_a_request_streams_from(query, topic, expected):
+    source = streams.choose_source(streams.StreamRequest(args(f"topic={topic}&{query}")), topic, TYPES)
+    assert (source.topic, source.type, source.pass_mode) == expected if expected else source is None
+
+
+def test_a_topic_of_another_type_is_404():
+    with pytest.raises(streams.BadRequest, match="topic /text is a std_msgs/String, not an image") as refused:
+        streams.choose_source(streams.StreamRequest(args("topic=/text")), "/text", TYPES)
+    assert refused.value.status == 404
