@@ -224,12 +224,14 @@ def decode_compressed(frame, at_least=None):
 class Picture:
     """One frame, decoded once for every JPEG made of it. Not thread-safe: one thread at a time (streams.py's
     encoder) may use it."""
-    __slots__ = ("frame", "_image", "_decoded_for")
+    __slots__ = ("frame", "_image", "_decoded_for", "_resized")
+    MAX_SIZES = 4  # resized images kept (several qualities of one size are resized once)
 
     def __init__(self, frame):
         self.frame = frame  # a RawImage or CompressedFrame
         self._image = None
         self._decoded_for = None  # the size a reduced decode (draft) covers; None: full size
+        self._resized = {}  # size -> the decoded image resized to it
 
     def image(self, at_least=None):
         """The decoded image, at full size or (a JPEG CompressedImage) at least `at_least`."""
@@ -241,14 +243,27 @@ class Picture:
         if self._image is None or (self._decoded_for is not None and (
                 at_least is None or at_least[0] > self._decoded_for[0] or at_least[1] > self._decoded_for[1])):
             self._image = decode_compressed(frame, at_least)
-            self._decoded_for = at_least
+            self._decoded_for, self._resized = at_least, {}
         return self._image
+
+    def resized(self, size):
+        """The picture at `size`: shrunk by averaging (a box filter: OpenCV's INTER_AREA, and a third cheaper
+        than bilinear here), enlarged bilinearly."""
+        image = self.image(size)
+        if image.size == size:
+            return image
+        resized = self._resized.get(size)
+        if resized is None:
+            shrink = size[0] <= image.width and size[1] <= image.height
+            resized = image.resize(size, Image.Resampling.BOX if shrink else Image.Resampling.BILINEAR)
+            if len(self._resized) >= self.MAX_SIZES:
+                self._resized.clear()
+            self._resized[size] = resized
+        return resized
 
     def jpeg(self, size, quality, invert=False):
         """The picture as a JPEG of `size` (width, height) at `quality` (1-100), turned 180 degrees with invert."""
-        image = self.image(size)
-        if image.size != size:
-            image = image.resize(size, Image.Resampling.BILINEAR, reducing_gap=2.0)
+        image = self.resized(size)
         if invert:
             image = image.transpose(Image.Transpose.ROTATE_180)
         out = io.BytesIO()
