@@ -73,8 +73,8 @@ class Bridge:
 
 
 def routes(bridge, web_root, recorder=None):
-    """The route table: "/" is the websocket (and the page), the camera streams (streams.py), other paths are
-    files of web_root."""
+    """The route table: "/" is the websocket (and the page), /bags the bag recorder (bag_pages.py), /stream,
+    /snapshot, /stream_viewer and /streams the camera streams (streams.py), other paths are files of web_root."""
     index = Path(web_root) / "index.html" if web_root else None
     table = [(r"/", BridgeSocket, {"bridge": bridge, "index_page": index if index and index.is_file() else None}),
              *stream_routes(bridge), *bag_routes(bridge, recorder)]
