@@ -56,6 +56,7 @@ TYPES_MAX_AGE = 0.5  # seconds the master's topic types answer for
 LOOKUP_TIMEOUT = 5.0
 MAX_KEYS_PER_JOB = 8  # variants one encoding job makes; more wait for the next job
 MAX_DISCARDED = 64 * 1024  # bytes a viewer may send after its request before its stream is closed
+STALLED = 30.0  # seconds a frame may take to leave before its viewer is dropped (a dead link sends no FIN)
 AUTH_FIELDS = ("mac", "client", "dest", "rand", "t", "level", "end")
 PASS = "pass"  # the key of a CompressedImage sent as it is
 NO_CACHE = "no-cache, no-store, must-revalidate, pre-check=0, post-check=0, max-age=0"
@@ -429,6 +430,11 @@ class Viewer:
         self._poll = None
         streams.viewers.add(self)
 
+    @property
+    def writing_since(self):
+        """When the frame being written to it was, or None."""
+        return None
+
     # ---- finding the topic
     def find(self, source):
         """Joins source's topic, or (None) looks for it every WAIT_POLL seconds until someone publishes it."""
@@ -523,6 +529,10 @@ class StreamViewer(Viewer):
             self.end()
             return
         self._read()
+
+    @property
+    def writing_since(self):
+        return self._writing[0] if self._writing is not None else None
 
     def _read(self):
         """Reads what the client sends (nothing, normally) so that its leaving is seen at once."""
@@ -675,6 +685,13 @@ class Streams:
         self.pending = 0  # requests holding a place while their topic is looked up
         self.encoder = Encoder(self.loop)
         self.types = TopicTypes(bridge.backend)
+        tornado.ioloop.PeriodicCallback(self._drop_stalled, STALLED / 6 * 1000).start()
+
+    def _drop_stalled(self):
+        now = time.monotonic()
+        for viewer in list(self.viewers):
+            if viewer.writing_since is not None and now - viewer.writing_since > STALLED:
+                viewer.end()
 
     # ---- access
     def refusal(self, request):

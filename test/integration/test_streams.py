@@ -500,6 +500,23 @@ def test_adaptive_keeps_the_frame_rate_on_a_narrow_link(bridge, node):
     assert ages[int(len(ages) * .95)] < 0.5
 
 
+@pytest.mark.slow
+def test_a_viewer_that_stops_reading_is_dropped(bridge, camera):
+    """A link that died without a FIN: the frame being written never leaves; after 30 s the viewer is dropped."""
+    wait_streaming(bridge, "/streams_test/cam")
+    stream = Http(bridge, "/stream?topic=/streams_test/cam", rcvbuf=4096)
+    time.sleep(streams_stalled() + 6)
+    with pytest.raises((EOFError, ConnectionError)):
+        while True:  # what was sent, then the end
+            stream.fill()
+    stream.close()
+
+
+def streams_stalled():
+    from rosbridge.streams import STALLED
+    return STALLED
+
+
 # ---- the list, the viewer page, bad requests ----------------------------------------------------------------------
 def test_the_list_of_image_topics(bridge, camera, node):
     from sensor_msgs.msg import CompressedImage
