@@ -679,7 +679,6 @@ def bridge_subscribes(ros, topic, node_name="/streams_bridge"):
     return node_name in dict(subscribers).get(topic, [])
 
 
-@pytest.mark.slow
 def test_a_thousand_viewers_coming_and_going_leave_nothing(ros, bridge_proc, node):
     proc, port = bridge_proc
     cam = Camera(node, "/streams_test/churn", 30, image_maker(camera_pictures(320, 240)))
