@@ -1,22 +1,51 @@
 """Micro-benchmark of the ROS <-> JSON conversion, in microseconds per call: the bridge's direct roads
-(rosbridge.codec.ros_to_json: ROS bytes -> JSON text; codec.json_to_ros: parsed JSON -> ROS bytes) beside the genpy roads
-(deserialize + convert.to_json + dumps; convert.from_json + serialize), and the other wire encodings (best of several repeats, so a busy machine disturbs it less). No roscore needed:
+(rosbridge.codec.ros_to_json: ROS bytes -> JSON text; codec.json_to_ros: parsed JSON -> ROS bytes;
+codec.ros_to_cbor: ROS bytes -> CBOR) beside the genpy roads (deserialize + convert.to_json + dumps; convert.from_json
++ serialize), and the other wire encodings (best of several repeats, so a busy machine disturbs it less).
 
-    export PATH=/usr/bin:$PATH; source .build/setup.bash; python3 bench/convert_bench.py
+Then the big messages a rover publishes (a 4000x4000 nav_msgs/OccupancyGrid, a 300k-point sensor_msgs/PointCloud2),
+each encoded into the frame the bridge sends (as frames.TopicMessage does), as JSON and as CBOR, by each road: `now`
+(the direct roads), `genpy` (the message deserialized by genpy, then to_json + dumps, or to_cbor_value: the road the
+bridge took for CBOR before ros_to_cbor) and, with --before REV, the direct roads of that git revision. Each road
+runs in a process of its own, encoding the message --reps times (the genpy road's JSON, a second a map, at most 3),
+a cloud and a laser scan encoded the same way between two. The table gives the CPU of the 1st and the last, and
+per MB of ROS bytes; the process's peak RSS above what it held before (VmHWM, reset before each), at the 1st and
+the last; what it still holds after the last (all medians over --rounds runs). No roscore needed:
+
+    export PATH=/usr/bin:$PATH; source .build/setup.bash; python3 bench/convert_bench.py [--before REV]
 """
+import argparse
+import ctypes
+import gc
 import io
+import itertools
 import json
+import math
+import os
+import random
+import statistics
+import subprocess
+import sys
+import time
 import timeit
+import types
 
+import genpy
+import genpy.dynamic
 import geometry_msgs.msg
 import sensor_msgs.msg
+import std_msgs.msg
 
 from rosbridge.codec.json_values import dumps, from_json, to_json
-from rosbridge.codec.cbor import to_cbor_value
+from rosbridge.codec.cbor import cbor_parts, to_cbor_value
 from rosbridge.codec.wrapping import png_frame
-from rosbridge.frames import cbor_frame
+from rosbridge.frames import Utf8Text, cbor_frame
 from rosbridge.codec.json_to_ros import packer
-from rosbridge.codec.ros_to_json import json_text
+from rosbridge.codec.ros_to_cbor import cbor_value
+from rosbridge.codec.ros_to_json import SPLICE_MARK, json_parts, json_text
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+TOPIC = "/bench"
 
 
 def best_microseconds(function, repeats=5):
@@ -25,13 +54,27 @@ def best_microseconds(function, repeats=5):
     return min(timer.repeat(repeats, number)) / number * 1e6
 
 
+def laser_scan():
+    """A 1081-ray scan, as a rover's lidar at 40 Hz: ranges with NaN (no return) and inf (out of range)."""
+    rng = random.Random(2)
+    scan = sensor_msgs.msg.LaserScan(angle_min=-2.35619, angle_max=2.35619, angle_increment=0.004363323,
+                                     range_min=0.05, range_max=30.0)
+    scan.header.frame_id = "laser"
+    scan.ranges = [rng.choice([math.nan, math.inf]) if rng.random() < 0.05 else rng.uniform(0.1, 30)
+                   for _ in range(1081)]
+    scan.intensities = [float(rng.randrange(256)) for _ in range(1081)]
+    return scan
+
+
 def samples():
     twist = geometry_msgs.msg.Twist()
     twist.linear.x, twist.angular.z = 1.5, -0.25
     image = sensor_msgs.msg.Image(height=480, width=640, encoding="rgb8", step=640 * 3,
                                   data=bytes(range(256)) * (640 * 480 * 3 // 256))
     image.header.frame_id = "camera"
-    return {"geometry_msgs/Twist": twist, "sensor_msgs/Image 640x480 rgb8": image}
+    return {"geometry_msgs/Twist": twist, "sensor_msgs/LaserScan 1081 rays": deserialized(sensor_msgs.msg.LaserScan,
+                                                                                        serialized(laser_scan())),
+            "sensor_msgs/Image 640x480 rgb8": image}
 
 
 def serialized(msg):
@@ -46,7 +89,7 @@ def deserialized(cls, data):
     return msg
 
 
-def main():
+def micro_table():
     print(f"{'message':34} {'operation':36} {'us/call':>10}")
     for name, msg in samples().items():
         value = to_json(msg)
@@ -55,6 +98,8 @@ def main():
         cases = {
             "bytes -> text: genpy, to_json, dumps": lambda: dumps(to_json(deserialized(cls, data))),
             "bytes -> text: wire.json_text": lambda: json_text(cls)(data),
+            "bytes -> cbor: genpy, to_cbor_value": lambda: cbor_frame(to_cbor_value(deserialized(cls, data))),
+            "bytes -> cbor: ros_to_cbor": lambda: cbor_frame(cbor_value(cls)(data)),
             "parsed -> bytes: from_json, genpy": lambda: serialized(from_json(cls, parsed)),
             "parsed -> bytes: packing.packer": lambda: packer(cls)(parsed),
             "to_json": lambda: to_json(msg),
@@ -66,6 +111,188 @@ def main():
         }
         for operation, function in cases.items():
             print(f"{name:34} {operation:36} {best_microseconds(function):10.2f}")
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Big messages
+
+def occupancy_grid_class():
+    try:
+        import nav_msgs.msg
+        return nav_msgs.msg.OccupancyGrid
+    except ImportError:  # (ros-nav-msgs missing: the same layout, generated here)
+        definition = ("std_msgs/Header header\nnav_msgs/MapMetaData info\nint8[] data\n" + "=" * 80 +
+                      f"\nMSG: std_msgs/Header\n{std_msgs.msg.Header._full_text}\n" + "=" * 80 +
+                      "\nMSG: nav_msgs/MapMetaData\ntime map_load_time\nfloat32 resolution\nuint32 width\n"
+                      "uint32 height\ngeometry_msgs/Pose origin\n" + "=" * 80 +
+                      f"\nMSG: geometry_msgs/Pose\n{geometry_msgs.msg.Pose._full_text}\n")
+        return genpy.dynamic.generate_dynamic("nav_msgs/OccupancyGrid", definition)["nav_msgs/OccupancyGrid"]
+
+
+def occupancy_grid(side=4000):
+    """A side x side map as SLAM makes one: unknown (-1) around the explored part, free (0) inside it, walls and
+    obstacles (100) and some cells in between; its serialized bytes."""
+    rng = random.Random(0)
+    cells = bytearray(b"\xff") * (side * side)
+    for y in range(side // 8, side - side // 8):
+        cells[y * side + side // 8:y * side + side - side // 8] = bytes(side - side // 4)
+    for _ in range(side * 5):
+        at = rng.randrange(side * side - 8)
+        cells[at:at + 8] = bytes([rng.choice([100, 100, 100, 50, 99, 1])]) * 8
+    cls = occupancy_grid_class()
+    grid = cls()
+    grid.header.frame_id = "map"
+    grid.info.resolution, grid.info.width, grid.info.height = 0.05, side, side
+    grid.info.origin.orientation.w = 1.0
+    empty = serialized(grid)  # (data, the last field, empty: its length 0 at the end)
+    return cls, empty[:-4] + len(cells).to_bytes(4, "little") + bytes(cells)
+
+
+def point_cloud(points=300_000):
+    """An organised-less cloud of x, y, z, intensity (float32 each: 16 bytes a point), as a lidar driver sends."""
+    cloud = sensor_msgs.msg.PointCloud2(height=1, width=points, is_bigendian=False, point_step=16,
+                                        row_step=16 * points, is_dense=True)
+    cloud.header.frame_id = "lidar"
+    cloud.fields = [sensor_msgs.msg.PointField(name=name, offset=4 * i, datatype=7, count=1)
+                    for i, name in enumerate(("x", "y", "z", "intensity"))]
+    cloud.data = random.Random(1).randbytes(16 * points)
+    return sensor_msgs.msg.PointCloud2, serialized(cloud)
+
+
+BIG = {"nav_msgs/OccupancyGrid 4000x4000": occupancy_grid,
+       "sensor_msgs/PointCloud2 300k points": point_cloud}
+
+
+def module_at(revision, path, name):
+    """The module at `path` as it was at git `revision` (its imports from the rosbridge package of today)."""
+    source = subprocess.run(["git", "-C", REPO, "show", f"{revision}:{path}"], capture_output=True, text=True,
+                            check=True).stdout
+    module = types.ModuleType(name)
+    module.__file__ = f"{revision}:{path}"
+    sys.modules[name] = module
+    exec(compile(source, module.__file__, "exec"), module.__dict__)
+    return module
+
+
+def json_publish(text, spliced):
+    """The frame of a publish op as frames.TopicMessage makes it: its parts (the big ones by reference)."""
+    text = '{"op":"publish","topic":%s,"msg":%s}' % (dumps(TOPIC), text)
+    if spliced:
+        pieces = text.encode().split(SPLICE_MARK.encode())
+        return [*itertools.chain.from_iterable(zip(pieces, spliced)), pieces[-1]]
+    return [Utf8Text(text.encode())]
+
+
+def encoder(road, encoding, before=None):
+    """road, encoding -> a function (cls, data) -> the frame's parts."""
+    if road == "now" and encoding == "json":
+        return lambda cls, data: json_publish(*json_parts(cls)(data))
+    if road == "now":
+        return lambda cls, data: cbor_parts({"op": "publish", "topic": TOPIC, "msg": cbor_value(cls)(data)})
+    if road == "genpy" and encoding == "json":
+        return lambda cls, data: json_publish(dumps(to_json(deserialized(cls, data))), [])
+    if road == "genpy":
+        return lambda cls, data: cbor_parts({"op": "publish", "topic": TOPIC,
+                                             "msg": to_cbor_value(deserialized(cls, data))})
+    if encoding == "json":  # before: REV's ros_to_json
+        old = module_at(before, "src/rosbridge/codec/ros_to_json.py", "ros_to_json_before")
+        return lambda cls, data: json_publish(*old.json_parts(cls)(data))
+    # before, CBOR: REV's cbor.to_cbor_value of genpy's message if REV has no ros_to_cbor, else its ros_to_cbor
+    try:
+        old = module_at(before, "src/rosbridge/codec/ros_to_cbor.py", "ros_to_cbor_before")
+        return lambda cls, data: cbor_parts({"op": "publish", "topic": TOPIC, "msg": old.cbor_value(cls)(data)})
+    except subprocess.CalledProcessError:
+        old_cbor = module_at(before, "src/rosbridge/codec/cbor.py", "cbor_before")
+        return lambda cls, data: old_cbor.cbor_parts({"op": "publish", "topic": TOPIC,
+                                                      "msg": old_cbor.to_cbor_value(deserialized(cls, data))})
+
+
+def _status_kb(*keys):
+    with open("/proc/self/status") as status:
+        found = {line.split(":")[0]: int(line.split()[1]) for line in status if line.startswith(keys)}
+    return [found[key] for key in keys]
+
+
+def _trim():
+    """glibc gives the free memory at the top of its heap back (the idle figure is then what is really in use)."""
+    try:
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):
+        pass
+
+
+def _reset_peak():
+    with open("/proc/self/clear_refs", "w") as refs:  # (Linux: VmHWM starts again from VmRSS)
+        refs.write("5")
+
+
+def one_road(name, road, encoding, reps, before):
+    """In a process of its own: reps encodings of the big message `name`, a cloud and a scan between two; prints
+    JSON: [[cpu s, peak kB above idle, kB held after], ...], the frame's size."""
+    cls, data = BIG[name]()
+    others = [point_cloud(), (sensor_msgs.msg.LaserScan, serialized(laser_scan()))]
+    encode = encoder(road, encoding, before)
+    encode(cls, serialized(cls()))  # (readers generated, modules imported: not counted)
+    for other_cls, other in others:
+        encode(other_cls, other)
+    gc.collect()
+    results = []
+    for _ in range(reps):
+        gc.collect()
+        _trim()
+        (idle,) = _status_kb("VmRSS")
+        _reset_peak()
+        started = time.process_time()
+        parts = encode(cls, data)
+        cpu = time.process_time() - started
+        (peak,) = _status_kb("VmHWM")
+        size = sum(map(len, parts))
+        del parts
+        gc.collect()
+        (after,) = _status_kb("VmRSS")  # (not trimmed: what the process keeps)
+        results.append([cpu, peak - idle, after - idle])
+        for other_cls, other in others:
+            encode(other_cls, other)
+    print(json.dumps({"results": results, "size": size, "bytes": len(data)}))
+
+
+def big_table(roads, reps, rounds, before):
+    runs = {}
+    for _ in range(rounds):  # (rounds alternate the roads, so a busy moment hits them alike)
+        for name, encoding, road in itertools.product(BIG, ("json", "cbor"), roads):
+            reps_here = reps if road != "genpy" or encoding == "cbor" else min(reps, 3)  # (3 s a map each)
+            command = [sys.executable, os.path.abspath(__file__), "--one", name, road, encoding, "--reps",
+                       str(reps_here)] + (["--before", before] if before else [])
+            out = subprocess.run(command, capture_output=True, text=True, check=True).stdout
+            runs.setdefault((name, encoding, road), []).append(json.loads(out))
+    label = {"now": "now", "genpy": "genpy", "before": f"before ({before})"}
+    print(f"\n{'big message':36} {'road':22} {'CPU ms: 1st / last':>19} {'ms/MB':>7} "
+          f"{'peak MB: 1st / last':>20} {'held MB':>8} {'frame MB':>9}")
+    for (name, encoding, road), results in runs.items():
+        def median(index, rep):
+            return statistics.median(run["results"][rep][index] for run in results)
+        cpu = statistics.median(statistics.median(rep[0] for rep in run["results"]) for run in results)
+        road_name = f"{encoding.upper()}: {label[road]}"
+        print(f"{name:36} {road_name:22} {median(0, 0) * 1e3:9.1f} / {median(0, -1) * 1e3:7.1f} "
+              f"{cpu / results[0]['bytes'] * 1e9:7.2f} {median(1, 0) / 1024:9.0f} / {median(1, -1) / 1024:8.0f} "
+              f"{median(2, -1) / 1024:8.1f} {results[0]['size'] / 1e6:9.1f}")
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--before", metavar="REV", help="also the direct roads of this git revision (e.g. HEAD~3)")
+    p.add_argument("--reps", type=int, default=10, help="encodings of each big message per process")
+    p.add_argument("--rounds", type=int, default=1, help="processes per road (the table shows medians)")
+    p.add_argument("--big-only", action="store_true", help="only the big messages")
+    p.add_argument("--one", nargs=3, metavar=("MESSAGE", "ROAD", "ENCODING"), help=argparse.SUPPRESS)
+    a = p.parse_args()
+    if a.one:
+        one_road(*a.one, a.reps, a.before)
+        return
+    if not a.big_only:
+        micro_table()
+    roads = ["genpy"] + (["before"] if a.before else []) + ["now"]
+    big_table(roads, a.reps, a.rounds, a.before)
 
 
 if __name__ == "__main__":

@@ -274,7 +274,8 @@ def test_a_map_and_a_cloud_as_cbor_are_not_copied():
                                         data=os.urandom(4_800_000), is_dense=True)
     cloud.fields = [sensor_msgs.msg.PointField(name=name, offset=4 * i, datatype=7, count=1)
                     for i, name in enumerate("xyz")]
-    for cls, data, cells in ((GRID, grid, grid[-2000 * 2000:]), (sensor_msgs.msg.PointCloud2, serialized(cloud), cloud.data)):
+    cases = ((GRID, grid, grid[-2000 * 2000:]), (sensor_msgs.msg.PointCloud2, serialized(cloud), cloud.data))
+    for cls, data, cells in cases:
         convert = cbor_value(cls)
         cbor_frame({"op": "publish", "topic": "/t", "msg": convert(data)})  # (what is made once: not counted)
         tracemalloc.start()

@@ -150,13 +150,10 @@ SPECIAL_FLOAT32S = [math.nan, math.inf, -math.inf, -0.0, 1e-45, 3.40282346638528
 
 
 def _big_arrays_type():
-    import std_msgs.msg
-    from sensor_msgs.msg import ChannelFloat32
     separator = "=" * 80 + "\n"
-    definition = BIG_ARRAYS_FIELDS + "".join(
-        f"{separator}MSG: {cls._type}\n{cls._full_text}\n"
-        for cls in (ChannelFloat32, std_msgs.msg.Int8MultiArray, std_msgs.msg.MultiArrayLayout,
-                    std_msgs.msg.MultiArrayDimension))
+    nested = [ChannelFloat32] + [message_class(f"std_msgs/{name}")
+                                 for name in ("Int8MultiArray", "MultiArrayLayout", "MultiArrayDimension")]
+    definition = BIG_ARRAYS_FIELDS + "".join(f"{separator}MSG: {cls._type}\n{cls._full_text}\n" for cls in nested)
     return genpy.dynamic.generate_dynamic("test_wire/BigArrays", definition)["test_wire/BigArrays"]
 
 
@@ -249,9 +246,8 @@ def map_bytes(side, seed=0):
     return struct.pack("<I", len(cells)) + bytes(cells)
 
 
-GRID = genpy.dynamic.generate_dynamic(
-    "test_wire/Grid", "std_msgs/Header header\nint8[] data\n" + "=" * 80 + f"\nMSG: std_msgs/Header\n{Header._full_text}\n"
-)["test_wire/Grid"]
+_GRID_DEFINITION = "std_msgs/Header header\nint8[] data\n" + "=" * 80 + f"\nMSG: std_msgs/Header\n{Header._full_text}\n"
+GRID = genpy.dynamic.generate_dynamic("test_wire/Grid", _GRID_DEFINITION)["test_wire/Grid"]  # (a map's header, cells)
 
 
 def test_a_map_gives_the_text_of_genpy_and_convert():
