@@ -1,5 +1,5 @@
-"""Work too long for the event loop: encoding a big message (a 16 MB map takes a second or more as JSON, which
-would hold every other client and topic meanwhile). One thread for the whole bridge, jobs in the order given.
+"""Work too long for the event loop: encoding a big message (a 16 MB map would hold every other client and topic
+meanwhile), making a camera stream's JPEGs (streams.py). One thread per use, jobs in the order given.
 
 Hand-off: run(fn, then) is called on the loop; fn() runs on the encoding thread and must touch nothing but what
 it was given (a TopicMessage's class and bytes, which nothing changes); then(result) runs on the loop
@@ -10,18 +10,17 @@ from rosbridge.errors import log_bug
 
 
 class EncodingThread:
-    def __init__(self, loop):
-        self._loop = loop
-        self._pool = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="rosbridge-encode")
+    def __init__(self, loop, name="rosbridge-encode"):
+        self._loop, self._name = loop, name
+        self._pool = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix=name)
 
     def run(self, fn, then):
         self._pool.submit(fn).add_done_callback(lambda done: self._loop.add_callback(self._finish, done, then))
 
-    @staticmethod
-    def _finish(done, then):
+    def _finish(self, done, then):
         try:
             result = done.result()
         except Exception:
-            log_bug("encoding a big message off the loop")
+            log_bug(f"a job of the {self._name} thread")
             result = None
         then(result)

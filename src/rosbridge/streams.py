@@ -23,7 +23,6 @@ Threads (everything runs on the event loop but the encoding):
   the newest frame for the viewers still waiting (newest wins), so a busy encoder costs frames, never a backlog;
 - master look-ups (a topic's type, the image topics) are the backend's /rosapi/topics call, on one of its
   service-call threads; the reply comes back on the loop (TopicTypes shares one look-up between requests)."""
-import concurrent.futures
 import functools
 import html
 import json
@@ -37,10 +36,9 @@ import tornado.iostream
 import tornado.web
 
 from rosbridge import globs as globs_module
-from rosbridge import jpeg
-from rosbridge.auth import mac_is_valid
+from rosbridge import http_access, jpeg
+from rosbridge.off_loop import EncodingThread
 from rosbridge.errors import ClientError, log_bug
-from rosbridge.origins import origin_allowed
 from rosbridge.pages import SECURITY_HEADERS
 from rosbridge.unsent import limit_unsent
 
@@ -57,7 +55,6 @@ LOOKUP_TIMEOUT = 5.0
 MAX_KEYS_PER_JOB = 8  # variants one encoding job makes; more wait for the next job
 MAX_DISCARDED = 64 * 1024  # bytes a viewer may send after its request before its stream is closed
 STALLED = 30.0  # seconds a frame may take to leave before its viewer is dropped (a dead link sends no FIN)
-AUTH_FIELDS = ("mac", "client", "dest", "rand", "t", "level", "end")
 PASS = "pass"  # the key of a CompressedImage sent as it is
 NO_CACHE = "no-cache, no-store, must-revalidate, pre-check=0, post-check=0, max-age=0"
 
@@ -101,9 +98,7 @@ class StreamRequest:
         return bool(self.width or self.height or self.quality is not None or self.invert or self.adaptive)
 
 
-def _text(args, name):
-    values = args.get(name)
-    return values[-1].decode("utf-8", "replace").strip() if values else None
+_text = http_access.query_text
 
 
 def _integer(args, name, low, high, default=0):
@@ -249,19 +244,15 @@ class Encoder:
     """The encoder thread: makes the JPEGs asked of a frame (see the module's docstring for the hand-off)."""
 
     def __init__(self, loop):
-        self._loop = loop
-        self._pool = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="stream encoder")
+        self._thread = EncodingThread(loop, "stream encoder")
 
     def submit(self, picture, keys, done):
         """done(results) runs on the loop: key -> ("image/jpeg", bytes) or jpeg.ImageError."""
-        def finished(future):  # (on the encoder thread)
-            try:
-                results = future.result()
-            except Exception as error:  # a bug: the viewers are told, and the topic's next job can start
-                log_bug("encoding a camera frame", error)
+        def finished(results):
+            if results is None:  # a bug (logged): the viewers are told, and the topic's next job can start
                 results = {key: jpeg.ImageError("the frame could not be encoded") for key in keys}
-            self._loop.add_callback(done, results)
-        self._pool.submit(_encode, picture, keys).add_done_callback(finished)
+            done(results)
+        self._thread.run(functools.partial(_encode, picture, keys), finished)
 
 
 def _encode(picture, keys):
@@ -696,36 +687,7 @@ class Streams:
     # ---- access
     def refusal(self, request):
         """(status, text) when the request is refused by the origin rules or authentication, else None."""
-        bridge, origin = self.bridge, request.headers.get("Origin")
-        if origin is not None:
-            same_origin = origin.lower().partition("://")[2] == request.host.lower()
-            if not origin_allowed(origin, same_origin, request.remote_ip, bridge.allowed_origins):
-                bridge.log_refusal(("stream origin", origin), f"Refused a camera stream request from the web page "
-                                   f"at origin {origin} (browser at {request.remote_ip}); allowed_origins decides, "
-                                   "as for the websocket")
-                return 403, (f"Cross origin requests not allowed: the web page at {origin} may not use this "
-                             "bridge (allowed_origins)")
-        config = bridge.config
-        if config.authenticate:
-            text = self._auth_refusal(request.query_arguments, config)
-            if text is not None:
-                return 401, text
-        return None
-
-    @staticmethod
-    def _auth_refusal(args, config):
-        missing = [name for name in AUTH_FIELDS if not _text(args, name)]
-        if missing:
-            return ("authentication required: this bridge runs with authenticate on; give the rosauth fields as "
-                    f"query parameters ({', '.join(AUTH_FIELDS)}); missing: {', '.join(missing)}")
-        auth = {name: _text(args, name) for name in AUTH_FIELDS}
-        try:
-            auth["t"], auth["end"] = float(auth["t"]), float(auth["end"])
-        except ValueError:
-            return "authentication failed: t and end must be numbers"
-        if not mac_is_valid(auth, config.auth_secret, time.time(), config.auth_time_delta):
-            return "authentication failed (bad MAC, or t/end out of time)"
-        return None
+        return http_access.refusal(self.bridge, request, "a camera stream")
 
     def checked_topic(self, request):
         """The request's topic as ROS names it (resolved in the bridge's namespace), if topics_glob allows it."""
@@ -930,7 +892,7 @@ class StreamListHandler(_Handler):
             self.finish(json.dumps({"topics": [{"topic": topic, "type": kind} for topic, kind in images]}))
             return
         auth = "".join(f"&{name}={urllib.parse.quote(_text(self.request.query_arguments, name) or '')}"
-                       for name in AUTH_FIELDS if self.streams.bridge.config.authenticate)
+                       for name in http_access.AUTH_FIELDS if self.streams.bridge.config.authenticate)
         items = []
         for topic, kind in images:
             query = html.escape(f"topic={urllib.parse.quote(topic)}{auth}", quote=True)
