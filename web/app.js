@@ -5,6 +5,7 @@ import { readAddress, keepInAddress } from './address.js';
 import { Connection, bridgeUrl } from './connection.js';
 import { PANELS, viewersFor } from './registry.js';
 import { Feedback } from './panels/feedback.js';
+import { linkReport } from './panels/link.js';
 
 const TAB_PARAM = 'tab';  // ?tab=services: the console's tab shown
 
@@ -21,16 +22,22 @@ export function start() {
       if (session) panel.attach(session);
       else panel.detach();
     }
-    session?.onStatus(status => status.level === 'error' && page.feedback.add(`Bridge: ${status.msg}`, 'error'));
+    // (what a slow link cost is counted in the link's health strip, not written here once a second)
+    session?.onStatus(status => status.level === 'error' && !linkReport(status) &&
+      page.feedback.add(`Bridge: ${status.msg}`, 'error'));
   };
   new Connection(url, { onState: connectionShown(url, page.feedback), onSession }).start();
 }
 
-// A panel's element, empty, in its place: in the world's card, a card of its own beside the world (headed by
-// its title), or a console tab (its button named by its title).
+// A panel's element, empty, in its place: in the page's header bar, in the world's card, a card of its own beside
+// the world (headed by its title), or a console tab (its button named by its title).
 function placeFor({ name, title, place }) {
   const root = document.createElement(place === 'console' ? 'div' : 'section');
-  if (place === 'world') {
+  if (place === 'bar') {
+    root.id = name;
+    root.setAttribute('aria-label', title);
+    document.getElementById('conn').before(root);
+  } else if (place === 'world') {
     root.setAttribute('aria-label', title);
     document.querySelector('.layout .world').append(root);
   } else if (place === 'side') {

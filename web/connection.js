@@ -1,10 +1,15 @@
 // The page's one link to the bridge. Connection reconnects with backoff; each time it is connected it makes a
-// RosSession, the only owner of ROSLIB objects, and drops it when the socket goes: subscriptions and
-// advertisements live on the server side of one socket, so every panel makes its own again on the next session.
+// RosSession, the only owner of ROSLIB objects and of the bridge's picture streams, and drops it when the socket
+// goes: subscriptions and advertisements live on the server side of one socket, so every panel makes its own
+// again on the next session.
+import { MultipartReader, boundaryOf } from './multipart.js';
+
 const FIRST_RETRY_MS = 500;
 const MAX_RETRY_MS = 5000;
 const CALL_TIMEOUT_S = 10;
 const REFUSAL_MS = 500;  // a publish the bridge has not refused by then counts as published
+const STREAMS_WAIT_MS = 3000;  // how long the bridge has to say it serves picture streams (/streams) at connection
+const CLOCK_SAMPLES = 10;  // the clock is compared with the bridge's by the quickest of the last so many round trips
 
 export class Connection {
   // onState(state, detail): state is 'connecting' | 'connected' | 'closed' | 'error'.
@@ -25,13 +30,17 @@ export class Connection {
   attempt() {
     const ros = new ROSLIB.Ros();
     let session = null;
+    let announced = false;  // the panels were given the session
     let ended = false;
-    ros.on('connection', () => {
+    ros.on('connection', async () => {
       this.everConnected = true;
       this.retryMs = FIRST_RETRY_MS;
       this.retrying = false;
-      session = new RosSession(ros);
+      session = new RosSession(ros, this.url);
       this.onState('connected', this.url);
+      await session.start();  // (what the bridge serves besides the websocket is known before panels ask)
+      if (ended) return;
+      announced = true;
       this.onSession(session);
     });
     const end = () => {  // 'error' and 'close' may both fire for one failure
@@ -40,7 +49,7 @@ export class Connection {
       ros.close();
       if (session) {
         session.close();
-        this.onSession(null);
+        if (announced) this.onSession(null);
       }
       const delay = this.retryMs;
       this.retryMs = Math.min(this.retryMs * 2, MAX_RETRY_MS);
@@ -57,13 +66,118 @@ export class Connection {
   }
 }
 
-// One connected socket's ROS objects. Every callback it hands out is silenced once the session is closed,
-// so that a late answer from a dead socket never reaches a panel that has moved on.
+// One connected socket's ROS objects, and the picture streams fetched beside it from the same bridge. Every
+// callback it hands out is silenced once the session is closed, so that a late answer from a dead socket never
+// reaches a panel that has moved on. It also keeps what the link health shows: the bytes received, and the
+// bridge's clock as measured by round trips (ping()), by which header stamps are aged.
 export class RosSession {
-  constructor(ros) {
+  constructor(ros, url = ros.socket?.url ?? '') {
     this.ros = ros;
     this.closed = false;
     this.topics = new Set();
+    this.http = url.replace(/^ws/, 'http');  // the bridge's HTTP address: the websocket's, ws -> http, wss -> https
+    this.streaming = false;  // whether the bridge serves picture streams (known once start() resolves)
+    this.fetches = new Set();  // the AbortController of each stream being read
+    // Bytes received: each websocket message's payload and each stream's body, as read by the page (the
+    // network's own overhead, headers and compression are not seen from here: an approximation).
+    this.received = 0;
+    this.clockSamples = [];  // [round trip s, ROS time - this machine's time s], the latest CLOCK_SAMPLES
+    ros.socket?.addEventListener?.('message', event => {
+      const data = event.data;
+      this.received += typeof data === 'string' ? data.length : data.byteLength ?? data.size ?? 0;
+    });
+    // The bridge tells a client at level warning what its slow link made it skip (only the newest message of a
+    // topic kept); the default level, error, would hide that.
+    ros.callOnConnection({ op: 'set_level', level: 'warning' });
+  }
+
+  // Asks whether the bridge serves picture streams (web_video_server's /streams); a bridge from elsewhere does
+  // not, and the pictures then come over the websocket.
+  async start() {
+    const asked = new AbortController();
+    const timer = setTimeout(() => asked.abort(), STREAMS_WAIT_MS);
+    try {
+      const answer = await fetch(new URL('streams?format=json', this.http), { signal: asked.signal, cache: 'no-store' });
+      this.streaming = answer.ok && Boolean(await answer.json());
+    } catch {
+      this.streaming = false;
+    } finally {
+      clearTimeout(timer);
+    }
+  }
+
+  // Reads the bridge's MJPEG stream of an image topic (/stream?topic=...&type=mjpeg and params, e.g. adaptive,
+  // quality, width). onFrame({ bytes, type, stamp, size }) for each picture: its JPEG, its MIME type, its stamp in
+  // ROS seconds (X-Timestamp: the header's, or when the bridge received it) or null; onEnd(error or null) when
+  // the stream ends by itself (not after close()); a refused request's error has the HTTP `status`. The console
+  // does not authenticate (it sends no rosauth), so neither do its streams. Returns { close() }.
+  stream(topic, params, { onFrame, onEnd }) {
+    const url = new URL('stream', this.http);
+    for (const [key, value] of Object.entries({ topic, type: 'mjpeg', ...params })) url.searchParams.set(key, value);
+    const asked = new AbortController();
+    this.fetches.add(asked);
+    const read = async () => {
+      const answer = await fetch(url, { signal: asked.signal, cache: 'no-store' });
+      if (!answer.ok) {
+        const text = (await answer.text()).replace(/<[^>]*>/g, ' ').replace(/\s+/g, ' ').trim().slice(0, 200);
+        throw Object.assign(new Error(`${answer.status} ${text || answer.statusText}`), { status: answer.status });
+      }
+      const boundary = boundaryOf(answer.headers.get('content-type'));
+      if (!boundary) throw new Error(`not a picture stream (${answer.headers.get('content-type')})`);
+      let failure = null;  // a stream that fails after its start says why in a last part, of text
+      const parts = new MultipartReader(boundary, ({ headers, body }) => {
+        const type = headers.get('content-type') || 'image/jpeg';
+        if (type.startsWith('text/')) {
+          failure = new Error(new TextDecoder().decode(body).trim());
+          return;
+        }
+        if (this.closed || asked.signal.aborted) return;
+        const stamp = Number.parseFloat(headers.get('x-timestamp'));
+        onFrame({ bytes: body, type, stamp: Number.isFinite(stamp) && stamp > 0 ? stamp : null, size: body.length });
+      });
+      const reader = answer.body.getReader();
+      for (;;) {
+        const { done, value } = await reader.read();
+        if (done) break;
+        this.received += value.length;
+        parts.push(value);
+      }
+      if (failure) throw failure;
+    };
+    read().then(() => null, error => error).then(error => {
+      this.fetches.delete(asked);
+      if (!asked.signal.aborted && !this.closed) onEnd(error);
+    });
+    return {
+      close: () => {
+        this.fetches.delete(asked);
+        asked.abort();
+      },
+    };
+  }
+
+  // Times a cheap call (/rosapi/get_time) and compares the clocks by it; resolves with the round trip in s.
+  async ping() {
+    const sent = performance.now();
+    const wall = Date.now() / 1000;
+    const { time } = await this.rosapi('get_time');
+    const roundTrip = (performance.now() - sent) / 1000;
+    this.clockSamples.push([roundTrip, time.secs + time.nsecs / 1e9 - (wall + roundTrip / 2)]);
+    if (this.clockSamples.length > CLOCK_SAMPLES) this.clockSamples.shift();
+    return roundTrip;
+  }
+
+  // The ROS time now as this page reckons it: its own clock set by the quickest recent round trip to the bridge
+  // (within half of it), or its own clock alone before the first.
+  rosNow() {
+    const best = this.clockSamples.reduce((a, b) => (b[0] < a[0] ? b : a), [Infinity, 0]);
+    return Date.now() / 1000 + best[1];
+  }
+
+  // Seconds since a ROS stamp ({secs, nsecs} or seconds), or null for none (absent or zero).
+  ageOf(stamp) {
+    const seconds = typeof stamp === 'number' ? stamp : stamp ? stamp.secs + stamp.nsecs / 1e9 : 0;
+    return seconds > 0 ? this.rosNow() - seconds : null;
   }
 
   // Subscribes; returns a handle whose close() unsubscribes. options: throttle_rate, queue_length, compression.
@@ -165,6 +279,8 @@ export class RosSession {
   close() {
     this.closed = true;
     this.topics.clear();  // (the socket is gone: the bridge already dropped them)
+    for (const asked of this.fetches) asked.abort();
+    this.fetches.clear();
   }
 }
 

@@ -1,15 +1,21 @@
 // Every panel and every viewer of the page, in one table: app.js makes the page from it and from nothing else.
 //
 // A panel (panels/panel.js says its shape): `name` keys its element ids and the ?tab= of the address, `title`
-// names it (its tab in the console, its card's heading, or its region), `place` is where it lives: 'world' (the
-// world's card, in order), 'side' (a card beside the world) or 'console' (a tab).
+// names it (its tab in the console, its card's heading, or its region), `place` is where it lives: 'bar' (the
+// page's header, before the connection's badge), 'world' (the world's card, in order), 'side' (a card beside the
+// world) or 'console' (a tab).
 //
 // A viewer draws the messages of one topic, offered for the message `types` it declares wherever that topic is
 // opened (the Topics panel). Its shape, the whole of it:
-//   new Viewer(element, { topic, type })  fills element (empty, its own) for that topic;
+//   new Viewer(element, { topic, type, onChange })  fills element (empty, its own) for that topic; onChange() is
+//                                         for the viewer to call when what it asks of the subscription changes;
 //   viewer.draw(message)                  each message, as the subscription delivers it;
 //   viewer.close()                        it is taken away: stop its timers;
-//   static subscription (optional)        what it asks of the topic's subscription while shown (e.g. binary CBOR).
+//   static subscription (optional)        what it asks of the topic's subscription while shown (e.g. binary CBOR);
+//   viewer.subscription (optional)        the same, when it depends on the session: read at each subscribe;
+//                                         null when the viewer needs no messages from it;
+//   viewer.attach(session), viewer.detach()  (optional) the connected RosSession, and its loss, for a viewer that
+//                                         fetches more than its messages (the image viewer's picture stream).
 import { TurtlesPanel } from './panels/turtles.js';
 import { DrivePanel } from './panels/drive.js';
 import { TwistPanel } from './panels/twist.js';
@@ -21,12 +27,15 @@ import { ParamsPanel } from './panels/params.js';
 import { NodesPanel } from './panels/nodes.js';
 import { CameraPanel } from './panels/camera.js';
 import { LogsPanel } from './panels/logs.js';
+import { LinkPanel } from './panels/link.js';
 import { ImageViewer } from './viewers/image.js';
 import { TurtlePoseViewer } from './viewers/pose.js';
 
 // In the order shown; the console's tabs in the order of the tutorial's terminal windows.
 export const PANELS = [
+  { name: 'link', title: 'Link health', place: 'bar', Panel: LinkPanel },
   { name: 'world', title: 'Turtle world', place: 'world', Panel: TurtlesPanel },
+  { name: 'camera', title: 'Camera', place: 'world', Panel: CameraPanel },
   { name: 'drive', title: 'Drive', place: 'world', Panel: DrivePanel },
   { name: 'twist', title: 'Publish a Twist', place: 'side', Panel: TwistPanel },
   { name: 'world-tools', title: 'World', place: 'side', Panel: WorldToolsPanel },
@@ -35,7 +44,6 @@ export const PANELS = [
   { name: 'services', title: 'Services', place: 'console', Panel: ServicesPanel },
   { name: 'params', title: 'Parameters', place: 'console', Panel: ParamsPanel },
   { name: 'nodes', title: 'Nodes', place: 'console', Panel: NodesPanel },
-  { name: 'camera', title: 'Camera', place: 'console', Panel: CameraPanel },
   { name: 'logs', title: 'Logs', place: 'console', Panel: LogsPanel },
 ];
 

@@ -234,24 +234,24 @@ def camera(ros, sim):
 @pytest.mark.parametrize("topic", ["/turtle_camera/image_raw", "/turtle_camera/image_raw/compressed"])
 def test_the_camera_panel_shows_the_demo_camera_live(open_page, camera, topic):
     page = open_page()
-    tab(page, "camera")
     select = Select(page.el("camera-topic"))
     wait_for(lambda: topic in options(page, "camera-topic"), 20, what=f"{topic} listed")
     select.select_by_value(topic)
-    wait_for(lambda: "fps" in text_of(page, ".camera-stats") and not text_of(page, ".camera-stats").startswith("0"),
+    stats = ".camera-panel .camera-stats"
+    wait_for(lambda: "fps" in text_of(page, stats) and not text_of(page, stats).startswith("0"),
              15, what="frames arriving")
-    fps = int(text_of(page, ".camera-stats").split(" fps")[0])
+    fps = int(text_of(page, stats).split(" fps")[0])
     assert 4 <= fps <= 12  # the demo camera publishes at 10 Hz
     # the picture: turtlesim's blue with turtle1 (green) in the middle
-    colours = page.js("""const c = document.querySelector('canvas.camera');
+    colours = page.js("""const c = document.querySelector('.camera-panel canvas.camera');
         const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
         let blue = 0, green = 0;
         for (let i = 0; i < d.length; i += 4) {
           if (d[i + 2] > 200 && d[i] < 120) blue++;
           if (d[i + 1] > 150 && d[i] < 120 && d[i + 2] < 160) green++;
         }
-        return [c.width, blue, green];""")
-    assert colours[0] == 320 and colours[1] > 50_000 and colours[2] > 50
+        return [c.width * c.height, blue, green];""")
+    assert colours[1] > 0.6 * colours[0] and colours[2] > 50
 
 
 def test_clicking_a_number_plots_it_live(open_page):

@@ -36,7 +36,9 @@ export function definitionText(typedefs, type = typedefs[0]?.type) {
 
 // A live message as nested <details>; leaves show `name: value`. onLeaf(path, element) lets a panel make
 // numeric leaves clickable (path: e.g. ['pose', 'position', 'x']). `open` keeps the branches a person opened.
-export function messageTree(value, { onLeaf, open = new Set(), path = [] } = {}) {
+// `leaves`, if given, gets each leaf's value element in the order of treeShape's texts, so that the next message
+// of the same shape can be shown by changing those texts alone.
+export function messageTree(value, { onLeaf, open = new Set(), path = [], leaves } = {}) {
   if (!isBranch(value)) {
     const leaf = document.createElement('span');
     leaf.textContent = leafText(value);
@@ -56,12 +58,13 @@ export function messageTree(value, { onLeaf, open = new Set(), path = [] } = {})
       details.addEventListener('toggle', () => (details.open ? open.add(id) : open.delete(id)));
       const summary = document.createElement('summary');
       summary.textContent = Array.isArray(child) ? `${key} [${child.length}]` : key;
-      details.append(summary, messageTree(child, { onLeaf, open, path: childPath }));
+      details.append(summary, messageTree(child, { onLeaf, open, path: childPath, leaves }));
       item.append(details);
     } else {
       item.innerHTML = '<span class="key"></span>: <span class="value"></span>';
       item.firstChild.textContent = key;
       item.lastChild.textContent = leafText(child);
+      leaves?.push(item.lastChild);
       if (onLeaf) onLeaf(childPath, item, child);
     }
     list.append(item);
@@ -73,6 +76,30 @@ export function messageTree(value, { onLeaf, open = new Set(), path = [] } = {})
     list.append(more);
   }
   return list;
+}
+
+// What messageTree would show of a message: its shape (keys, nesting, array lengths: the tree's elements) and the
+// texts of its leaves, in the order of messageTree's `leaves`.
+export function treeShape(value) {
+  const parts = [];
+  const texts = [];
+  const walk = node => {
+    const entries = Array.isArray(node) ? node.map((v, i) => [String(i), v]) : Object.entries(node);
+    const shown = Array.isArray(node) ? entries.slice(0, 64) : entries;
+    for (const [key, child] of shown) {
+      if (isBranch(child)) {
+        parts.push(Array.isArray(child) ? `${key}[${child.length}]{` : `${key}{`);
+        walk(child);
+        parts.push('}');
+      } else {
+        parts.push(key);
+        texts.push(leafText(child));
+      }
+    }
+  };
+  if (isBranch(value)) walk(value);
+  else texts.push(leafText(value));
+  return { shape: JSON.stringify(parts), texts };
 }
 
 // Binary arrays (a picture's data as CBOR gives them) are leaves, not branches of a million bytes.

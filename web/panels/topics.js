@@ -1,9 +1,13 @@
 // Topics (rostopic list / info / echo / hz / bw, rosmsg show): the list with types, publisher and subscriber
 // counts; an opened topic shows its info, its definition and its latest message as a live tree (pausable),
-// with its rate and bandwidth, and offers the viewers of its type (registry.js) beside the tree. Several can be
-// open; closing one unsubscribes.
+// with its rate and bandwidth and the age of its newest message, and offers the viewers of its type
+// (registry.js) beside the tree. Several can be open; closing one unsubscribes.
+//
+// A message is shown at the next animation frame after it arrives (the newest, if several came in between), and
+// only its changed values are written when its shape is the tree's.
 import { readAddress, keepInAddress } from '../address.js';
-import { definitionText, messageTree } from './messages.js';
+import { formatAge, formatBytes } from '../format.js';
+import { definitionText, messageTree, treeShape } from './messages.js';
 import { ListPanel, showName } from './panel.js';
 import { Plot } from './plot.js';
 
@@ -12,8 +16,9 @@ const WINDOW_S = 5;  // rate and bandwidth over the last seconds, as rostopic hz
 const FAST_HZ = 200;  // above this the bridge throttles what it sends this page (the rate shown is then a floor)
 const THROTTLE_MS = 50;
 const FAST_SAMPLES = 50;  // arrivals needed before a topic is judged fast (messages also arrive in bursts)
-const RENDER_MS = 150;
-const INFO_EVERY_S = 3;  // the tree is redrawn at most this often, whatever the topic's rate
+const TICK_MS = 250;  // the newest message's age is shown again this often
+const STATS_EVERY = 4;  // ticks between two showings of the rate and bandwidth
+const INFO_EVERY = 12;  // ticks between two askings of who publishes and subscribes
 const TOPIC_PARAM = 'topic';  // ?topic=/turtle1/pose&topic=/odom: the open topics, kept in the page's address
 const VIEW_PARAM = 'view';  // ?view=/turtle1/pose:turtle: the viewers shown in them
 
@@ -56,6 +61,7 @@ export class TopicsPanel extends ListPanel {
 
   show(visible) {
     this.visible = visible;
+    for (const topic of this.open.values()) topic.show(visible);
     super.show(visible);
   }
 
@@ -109,6 +115,7 @@ export class TopicsPanel extends ListPanel {
       },
     });
     this.open.set(name, topic);
+    topic.show(this.visible);
     this.wanted = this.wanted.filter(n => n !== name);
     this.openArea.prepend(topic.element);
     if (this.session) topic.attach(this.session);
@@ -134,8 +141,14 @@ class OpenTopic {
     this.openBranches = new Set();
     this.subscription = null;
     this.throttled = false;
+    this.throttle = null;  // the throttle_rate asked of the bridge (ms), if any
     this.session = null;
     this.viewer = null;  // {row, viewer}: the viewer shown
+    this.visible = false;  // its tab is shown
+    this.frame = null;  // the animation frame that will show the newest message
+    this.drawn = null;  // the message the tree shows
+    this.tree = null;  // { shape, leaves: the value elements }: what the tree shows, to change in place
+    this.newest = null;  // { arrived (ms), age at arrival (s, from its header.stamp) or null }
     this.element = document.createElement('article');
     this.element.className = 'open-topic';
     this.element.dataset.topic = name;
@@ -144,6 +157,7 @@ class OpenTopic {
         <div class="buttons"><button type="button" class="pause">Pause</button>
           <button type="button" class="close" aria-label="Close">Close</button></div></header>
       <p class="stats" aria-live="off">waiting for a message…</p>
+      <p class="age" aria-live="off"></p>
       <p class="info muted"></p>
       <details class="definition"><summary>Definition <small>(rosmsg show)</small></summary><pre></pre></details>
       <div class="viewer" hidden></div>
@@ -180,13 +194,19 @@ class OpenTopic {
       onClose();
     });
     this.ticks = 0;
-    this.statsTimer = setInterval(() => this.showStats(), 1000);
+    this.statsTimer = setInterval(() => this.tick(), TICK_MS);
   }
 
   attach(session) {
     this.session = session;
+    this.viewer?.viewer.attach?.(session);
     this.subscribe();
     this.showInfo();
+  }
+
+  show(visible) {
+    this.visible = visible;
+    if (visible) this.scheduleRender();
   }
 
   // Who publishes and subscribes changes (this page's own subscription appears a moment after opening).
@@ -214,7 +234,11 @@ class OpenTopic {
     const area = this.$('.viewer');
     area.replaceChildren();
     area.hidden = !row;
-    if (row) this.viewer = { row, viewer: new row.Viewer(area, { topic: this.name, type: this.type }) };
+    if (row) {
+      const onChange = () => this.session && this.subscribe();
+      this.viewer = { row, viewer: new row.Viewer(area, { topic: this.name, type: this.type, onChange }) };
+      if (this.session) this.viewer.viewer.attach?.(this.session);
+    }
     for (const button of this.element.querySelectorAll('button.view')) {
       button.setAttribute('aria-pressed', String(button.dataset.viewer === row?.name));
     }
@@ -223,37 +247,45 @@ class OpenTopic {
 
   subscribe() {
     this.subscription?.close();
+    const viewer = this.viewer?.viewer;
     const options = { ...(this.throttled ? { throttle_rate: THROTTLE_MS, queue_length: 1 } : {}),
-      ...this.viewer?.row.Viewer.subscription };
+      ...(viewer && 'subscription' in viewer ? viewer.subscription : this.viewer?.row.Viewer.subscription) };
+    if ((options.throttle_rate ?? null) !== this.throttle) this.arrivals = [];  // (another rate to measure)
+    this.throttle = options.throttle_rate ?? null;
     this.subscription = this.session.subscribe(this.name, this.type, message => this.receive(message), options);
   }
 
   detach() {
     this.subscription?.close();
     this.subscription = null;
+    this.viewer?.viewer.detach?.();
     this.session = null;
-    clearTimeout(this.renderTimer);
-    this.renderTimer = null;
   }
 
   receive(message) {
-    const now = performance.now() / 1000;
-    this.arrivals.push([now, sizeOf(message)]);
-    while (this.arrivals.length && this.arrivals[0][0] < now - WINDOW_S) this.arrivals.shift();
+    const now = performance.now();
+    this.arrivals.push([now / 1000, sizeOf(message)]);
+    while (this.arrivals.length && this.arrivals[0][0] < now / 1000 - WINDOW_S) this.arrivals.shift();
     if (this.latest === null) this.showInfo();  // subscribed by now: this page is among the subscribers
     this.latest = message;
+    const stamp = message.header?.stamp;
+    this.newest = { arrived: now, age: stamp ? this.session?.ageOf(stamp) ?? null : null };
     this.plot.push(this.name, message);
     if (!this.paused) this.viewer?.viewer.draw(message);
     if (!this.throttled && this.arrivals.length >= FAST_SAMPLES && this.hz() > FAST_HZ) {  // too fast to show
       this.throttled = true;
       this.subscribe();
     }
-    if (!this.paused && !this.renderTimer) {
-      this.renderTimer = setTimeout(() => {
-        this.renderTimer = null;
-        this.render();
-      }, RENDER_MS);
-    }
+    this.scheduleRender();
+  }
+
+  // The newest message is shown at the next animation frame (one per frame, and none while its tab is hidden).
+  scheduleRender() {
+    if (this.paused || !this.visible || this.frame !== null || this.latest === this.drawn) return;
+    this.frame = requestAnimationFrame(() => {
+      this.frame = null;
+      if (this.visible && this.element.isConnected) this.render();
+    });
   }
 
   hz() {
@@ -264,20 +296,40 @@ class OpenTopic {
 
   rateText() {
     if (this.arrivals.length < 2) return '';
-    return `${this.throttled ? '≥ ' : ''}${this.hz().toFixed(1)} Hz`;
+    return `${this.throttle ? '≥ ' : ''}${this.hz().toFixed(1)} Hz`;
   }
 
-  showStats() {
+  tick() {
     if (!this.element.isConnected) {
       clearInterval(this.statsTimer);
       return;
     }
-    if (++this.ticks % INFO_EVERY_S === 0) this.showInfo();
+    this.ticks++;
+    if (this.ticks % INFO_EVERY === 0) this.showInfo();
+    if (this.visible) this.showAge();
+    if (this.visible && this.ticks % STATS_EVERY === 0) this.showStats();
+  }
+
+  // How old the newest message is now: by its header.stamp (the bridge's clock, RosSession.ageOf) when it has
+  // one, else since it arrived.
+  showAge() {
+    const newest = this.newest;
+    if (!newest) return;
+    const since = (performance.now() - newest.arrived) / 1000;
+    const text = newest.age === null ? `newest message: ${formatAge(since)} since it arrived (it has no header.stamp)`
+      : `newest message: ${formatAge(newest.age + since)} old (by its header.stamp)`;
+    const element = this.$('.age');
+    if (element.textContent !== text) element.textContent = text;
+  }
+
+  showStats() {
     const a = this.arrivals;
     if (!a.length) return;
     const seconds = Math.max(performance.now() / 1000 - a[0][0], 1e-3);
     const bytes = a.reduce((sum, [, size]) => sum + size, 0);
-    const note = this.throttled ? ` (fast topic: the bridge sends this page one every ${THROTTLE_MS} ms)` : '';
+    const why = this.throttled ? 'fast topic: ' : this.viewer ? `for the ${this.viewer.row.title.toLowerCase()} ` +
+      'view: ' : '';
+    const note = this.throttle ? ` (${why}the bridge sends this page one every ${this.throttle} ms)` : '';
     this.$('.stats').textContent = `average rate: ${this.rateText() || '—'} · bandwidth: ` +
       `${formatBytes(bytes / seconds)}/s · ${a.length} messages in the last ${WINDOW_S} s${note}`;
   }
@@ -290,15 +342,29 @@ class OpenTopic {
 
   render() {
     if (this.latest === null || this.paused) return;
-    this.$('.message').replaceChildren(messageTree(this.latest, {
-      open: this.openBranches,
-      onLeaf: (path, item, value) => {
-        if (typeof value !== 'number') return;
-        item.classList.add('plottable');
-        item.title = 'Plot it';
-        item.dataset.path = JSON.stringify(path);
-      },
-    }));
+    const message = this.latest;
+    this.drawn = message;
+    const { shape, texts } = treeShape(message);
+    if (this.tree?.shape === shape) {  // the same fields: only the values that changed are written
+      texts.forEach((text, i) => {
+        const leaf = this.tree.leaves[i];
+        if (leaf.textContent !== text) leaf.textContent = text;
+      });
+    } else {
+      const leaves = [];
+      this.$('.message').replaceChildren(messageTree(message, {
+        open: this.openBranches,
+        leaves,
+        onLeaf: (path, item, value) => {
+          if (typeof value !== 'number') return;
+          item.classList.add('plottable');
+          item.title = 'Plot it';
+          item.dataset.path = JSON.stringify(path);
+        },
+      }));
+      this.tree = { shape, leaves };
+    }
+    if (!this.$('.age').textContent) this.showAge();  // (then every TICK_MS, not at every frame)
   }
 }
 
@@ -313,8 +379,3 @@ function sizeOf(message) {
   return text.length + binary;
 }
 
-function formatBytes(perSecond) {
-  if (perSecond >= 1e6) return `${(perSecond / 1e6).toFixed(2)} MB`;
-  if (perSecond >= 1e3) return `${(perSecond / 1e3).toFixed(2)} KB`;
-  return `${perSecond.toFixed(0)} B`;
-}

@@ -9,6 +9,7 @@ const DISCOVERY_MS = 2000;  // how often the set of turtles is refreshed
 export class TurtlesPanel extends Panel {
   constructor(root, page) {
     super(root, page);
+    root.classList.add('turtles');
     root.innerHTML = '<div class="stage"><canvas id="world" role="img" ' +
       'aria-label="Live view of the turtles and their trails"></canvas></div>';
     this.view = new WorldView(root.querySelector('canvas'));
