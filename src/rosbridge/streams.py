@@ -777,6 +777,21 @@ class _Handler(tornado.web.RequestHandler):
             self.refuse(error.status, error.text)
             return None
 
+    async def viewer_source(self):
+        """(request, topic, Source or None) for a new viewer, or None once refused (its rules, no room, bad)."""
+        checked = self.checked()
+        if checked is None:
+            return None
+        request, topic = checked
+        if not self.streams.has_room():
+            self.refuse(503, "too many camera stream viewers (max_clients)")
+            return None
+        try:
+            return request, topic, await self.source(request, topic)
+        except BadRequest as error:
+            self.refuse(error.status, error.text)
+            return None
+
     async def source(self, request, topic):
         """The request's Source (None: nobody publishes the topic yet); raises BadRequest. A place among the
         viewers is held meanwhile."""
@@ -795,18 +810,10 @@ class StreamHandler(_Handler):
     (type=ros_compressed)."""
 
     async def get(self):
-        checked = self.checked()
-        if checked is None:
+        found = await self.viewer_source()
+        if found is None:
             return
-        request, topic = checked
-        if not self.streams.has_room():
-            self.refuse(503, "too many camera stream viewers (max_clients)")
-            return
-        try:
-            source = await self.source(request, topic)
-        except BadRequest as error:
-            self.refuse(error.status, error.text)
-            return
+        request, topic, source = found
         viewer = StreamViewer(self.streams, request, topic, self.detach(), self.allowed_origin_headers())
         viewer.find(source)
 
@@ -815,18 +822,10 @@ class SnapshotHandler(_Handler):
     """GET /snapshot?topic=...: one JPEG of the topic's next frame."""
 
     async def get(self):
-        checked = self.checked()
-        if checked is None:
+        found = await self.viewer_source()
+        if found is None:
             return
-        request, topic = checked
-        if not self.streams.has_room():
-            self.refuse(503, "too many camera stream viewers (max_clients)")
-            return
-        try:
-            source = await self.source(request, topic)
-        except BadRequest as error:
-            self.refuse(error.status, error.text)
-            return
+        request, topic, source = found
         if source is not None and source.pass_mode == "any":
             source.pass_mode = "jpeg"  # (a snapshot is a JPEG)
         viewer = self._viewer = SnapshotViewer(self.streams, request, topic)
