@@ -28,6 +28,7 @@ import { NodesPanel } from './panels/nodes.js';
 import { CameraPanel } from './panels/camera.js';
 import { LogsPanel } from './panels/logs.js';
 import { LinkPanel } from './panels/link.js';
+import { BagsPanel } from './panels/bags.js';
 import { ImageViewer } from './viewers/image.js';
 import { TurtlePoseViewer } from './viewers/pose.js';
 
@@ -45,6 +46,7 @@ export const PANELS = [
   { name: 'params', title: 'Parameters', place: 'console', Panel: ParamsPanel },
   { name: 'nodes', title: 'Nodes', place: 'console', Panel: NodesPanel },
   { name: 'logs', title: 'Logs', place: 'console', Panel: LogsPanel },
+  { name: 'bags', title: 'Bags', place: 'console', Panel: BagsPanel },
 ];
 
 export const VIEWERS = [
