@@ -23,11 +23,12 @@ export class BagsPanel extends Panel {
           (<code>bash tools/demo</code> turns it on).</p>
       </div>
       <div class="bag-tools">
-        <fieldset class="bag-topics"><legend>Topics <span class="bag-chosen muted"></span></legend>
+        <div class="bag-topics" role="group" aria-labelledby="bag-topics-title">
+          <p id="bag-topics-title" class="bag-topics-title">Topics <span class="bag-chosen muted"></span></p>
           <input class="bag-filter" type="search" placeholder="Filter topics" aria-label="Filter topics"
             autocomplete="off" spellcheck="false">
           <div class="bag-topic-list"></div>
-        </fieldset>
+        </div>
         <div class="bag-record">
           <div class="row"><button type="button" class="bag-start primary">Record</button>
             <button type="button" class="bag-stop stop" hidden>Stop</button>
