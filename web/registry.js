@@ -29,6 +29,7 @@ import { CameraPanel } from './panels/camera.js';
 import { LogsPanel } from './panels/logs.js';
 import { LinkPanel } from './panels/link.js';
 import { BagsPanel } from './panels/bags.js';
+import { ReconfigurePanel } from './panels/reconfigure.js';
 import { ImageViewer } from './viewers/image.js';
 import { TurtlePoseViewer } from './viewers/pose.js';
 
@@ -47,6 +48,7 @@ export const PANELS = [
   { name: 'nodes', title: 'Nodes', place: 'console', Panel: NodesPanel },
   { name: 'logs', title: 'Logs', place: 'console', Panel: LogsPanel },
   { name: 'bags', title: 'Bags', place: 'console', Panel: BagsPanel },
+  { name: 'reconfigure', title: 'Reconfigure', place: 'console', Panel: ReconfigurePanel },
 ];
 
 export const VIEWERS = [
