@@ -126,3 +126,90 @@ def test_bags_screenshots(open_page, screen):
     page.js("document.querySelector('.console').scrollIntoView()")
     shot(page, f"tools-bags-{screen}")
     assert page.console_errors() == []
+
+
+# ---- dynamic_reconfigure ---------------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def reconfigurable(ros):
+    """test/nodes/reconfigure_node.py: dynamic_reconfigure's TestConfig served by /tools_reconfigure."""
+    proc = ros.spawn(["/usr/bin/python3", str(NODES / "reconfigure_node.py")], "reconfigure_node")
+    proc.wait_output("serving dynamic_reconfigure", 30)
+    yield "/tools_reconfigure"
+    proc.stop()
+
+
+def field(page, name):
+    return f'#tab-reconfigure .reconfigure-field[data-param="{name}"]'
+
+
+def type_into(page, selector, text):
+    """Types text into an input as a person does, then leaves it (its change event)."""
+    from selenium.webdriver.common.keys import Keys
+    element = page.driver.find_element(By.CSS_SELECTOR, selector)
+    element.clear()
+    element.send_keys(text, Keys.TAB)
+
+
+def open_reconfigure(page, node):
+    from selenium.webdriver.support.ui import Select
+    tab(page, "reconfigure")
+    wait_for(lambda: node in page.js("return [...document.querySelectorAll('#reconfigure-node option')]"
+                                     ".map(o => o.value)"), 20, what=f"{node} listed")
+    Select(page.el("reconfigure-node")).select_by_value(node)
+    wait_for(lambda: page.js(f"return document.querySelector('{field(page, 'int_')} input.reconfigure-number')?.value")
+             not in (None, ""), 20, what="the form with the node's values")
+
+
+def test_reconfigure_an_int_and_an_enum_and_see_the_nodes_answer(open_page, node, reconfigurable):
+    page = open_page()
+    open_reconfigure(page, reconfigurable)
+    assert "reconfigure=%2Ftools_reconfigure" in page.driver.current_url
+    # the description's groups and ranges
+    groups = page.js("return [...document.querySelectorAll('#tab-reconfigure .reconfigure-group')].map(g => g.dataset.group)")
+    assert {"Default", "Group_One", "GROUP2", "Group3", "Upper_Group_2"} <= set(groups)
+    assert "int -10 … 10" in text_of(page, f"{field(page, 'int_')} label")
+    assert "double 0 … ∞" in text_of(page, f"{field(page, 'double_no_max')} label")
+    assert page.driver.find_elements(By.CSS_SELECTOR, f"{field(page, 'int_')} input[type=range]")
+    type_into(page, f"{field(page, 'int_')} input.reconfigure-number", "7")
+    wait_for(lambda: node.get_param(f"{reconfigurable}/int_") == 7, 10, what="the node's int_ set to 7")
+    wait_for(lambda: "answered: int_ = 7" in text_of(page, "#tab-reconfigure .reconfigure-status"), 10)
+    options = page.js(f"return [...document.querySelectorAll('{field(page, 'int_enum_')} option')].map(o => o.text)")
+    assert options == ["Small (0)", "Medium (1)", "Large (2)", "ExtraLarge (3)"]
+    from selenium.webdriver.support.ui import Select
+    Select(page.driver.find_element(By.CSS_SELECTOR, f"{field(page, 'int_enum_')} select")).select_by_value("2")
+    wait_for(lambda: node.get_param(f"{reconfigurable}/int_enum_") == 2, 10, what="the enum set to Large")
+    page.driver.find_element(By.CSS_SELECTOR, f"{field(page, 'bool_')} input[type=checkbox]").click()
+    wait_for(lambda: node.get_param(f"{reconfigurable}/bool_") is True, 10, what="bool_ set")
+    type_into(page, f"{field(page, 'str_')} input", "from the page")
+    wait_for(lambda: node.get_param(f"{reconfigurable}/str_") == "from the page", 10, what="str_ set")
+    # a change made elsewhere (rqt, dynparam) reaches the form by parameter_updates
+    from dynamic_reconfigure.client import Client
+    Client(reconfigurable, timeout=10).update_configuration({"double_": 4.5})
+    wait_for(lambda: page.js(f"return document.querySelector('{field(page, 'double_')} input.reconfigure-number').value")
+             == "4.5", 10, what="the update shown")
+    page.js("document.querySelector('.console').scrollIntoView()")
+    shot(page, "tools-reconfigure-desktop")
+    assert page.console_errors() == []
+
+
+def test_an_out_of_range_value_is_clamped_by_the_node_and_said_inline(open_page, node, reconfigurable):
+    page = open_page()
+    open_reconfigure(page, reconfigurable)
+    number = f"{field(page, 'int_')} input.reconfigure-number"
+    type_into(page, number, "50")
+    wait_for(lambda: "set 10" in text_of(page, f"{field(page, 'int_')} .err"), 10, what="the clamp said")
+    assert "above the maximum 10" in text_of(page, f"{field(page, 'int_')} .err")
+    assert page.js(f"return document.querySelector('{number}').value") == "10"
+    assert node.get_param(f"{reconfigurable}/int_") == 10
+    type_into(page, number, "abc")  # not a number: flagged, nothing sent
+    assert "not a number" in text_of(page, f"{field(page, 'int_')} .err")
+    assert node.get_param(f"{reconfigurable}/int_") == 10
+
+
+def test_reconfigure_on_a_phone(open_page, reconfigurable):
+    page = open_page("phone")
+    open_reconfigure(page, reconfigurable)
+    page.js("document.querySelector('#tab-reconfigure').scrollIntoView()")
+    shot(page, "tools-reconfigure-phone")
+    assert page.console_errors() == []

@@ -140,7 +140,8 @@ export class ReconfigurePanel extends ListPanel {
     element.innerHTML = `<label for="${id}"><span class="name"></span> <span class="unit"></span></label>
       <div class="controls"></div><p class="err" hidden></p>`;
     element.querySelector('.name').textContent = name;
-    const rangeText = type === 'int' || type === 'double'
+    const whole = type === 'int' && min <= -(2 ** 31) && max >= 2 ** 31 - 1;  // a .cfg's "no range" for an int
+    const rangeText = (type === 'int' && !whole) || type === 'double'
       ? ` ${finite(min) ? min : '−∞'} … ${finite(max) ? max : '∞'}` : '';
     element.querySelector('.unit').textContent = `${type}${rangeText}`;
     element.title = [param.description, dflt !== undefined ? `default ${dflt}` : ''].filter(Boolean).join(' · ');
