@@ -267,6 +267,30 @@ export class RosSession {
     });
   }
 
+  // An actionlib client over the server's five topics (ROSLIB.ActionClient): serverName like '/fibonacci',
+  // actionName like 'actionlib/TestAction'. send(goal, { onStatus, onFeedback, onResult }) sends one goal and
+  // returns { id, cancel() }; close() unsubscribes and unadvertises.
+  actionClient(serverName, actionName) {
+    const client = new ROSLIB.ActionClient({ ros: this.ros, serverName, actionName });
+    let open = true;
+    const live = callback => value => open && !this.closed && callback(value);
+    return {
+      send: (goalMessage, { onStatus = () => {}, onFeedback = () => {}, onResult = () => {} } = {}) => {
+        const goal = new ROSLIB.Goal({ actionClient: client, goalMessage });
+        goal.on('status', live(onStatus));
+        goal.on('feedback', live(onFeedback));
+        goal.on('result', live(onResult));
+        goal.send();
+        return { id: goal.goalID, cancel: () => open && !this.closed && goal.cancel() };
+      },
+      close: () => {
+        if (!open) return;
+        open = false;
+        if (!this.closed) client.dispose();
+      },
+    };
+  }
+
   // A /rosapi service, e.g. rosapi('topics') or rosapi('node_details', { node: '/turtlesim' }).
   rosapi(name, args = {}) {
     return this.call(`/rosapi/${name}`, `rosapi/${name}`, args);
