@@ -30,6 +30,7 @@ import { LogsPanel } from './panels/logs.js';
 import { LinkPanel } from './panels/link.js';
 import { BagsPanel } from './panels/bags.js';
 import { ReconfigurePanel } from './panels/reconfigure.js';
+import { ActionsPanel } from './panels/actions.js';
 import { ImageViewer } from './viewers/image.js';
 import { TurtlePoseViewer } from './viewers/pose.js';
 
@@ -49,6 +50,7 @@ export const PANELS = [
   { name: 'logs', title: 'Logs', place: 'console', Panel: LogsPanel },
   { name: 'bags', title: 'Bags', place: 'console', Panel: BagsPanel },
   { name: 'reconfigure', title: 'Reconfigure', place: 'console', Panel: ReconfigurePanel },
+  { name: 'actions', title: 'Actions', place: 'console', Panel: ActionsPanel },
 ];
 
 export const VIEWERS = [
