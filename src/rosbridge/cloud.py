@@ -1,0 +1,136 @@
+"""sensor_msgs/PointCloud2 made small for a top-down view (pure: no rospy, no tornado): read from its serialized
+bytes (read_cloud), then decimate() keeps every k-th point, at most max_points, as little-endian float32 triples
+(x, y, third), the third being z, else intensity, else 0. Only the bytes of the kept points are touched, by
+strided slices (C speed: a 300k-point cloud to 20k points is a few ms); NaN points are passed on (the page skips
+them). The /cloud endpoint (cloud_pages.py) serves the result."""
+import math
+import struct
+import sys
+from array import array
+
+# sensor_msgs/PointField datatypes: (struct letter, size)
+DATATYPES = {1: ("b", 1), 2: ("B", 1), 3: ("h", 2), 4: ("H", 2), 5: ("i", 4), 6: ("I", 4), 7: ("f", 4), 8: ("d", 8)}
+FLOAT32, FLOAT64 = 7, 8
+
+
+class CloudError(ValueError):
+    """A cloud that cannot be read or has no x and y."""
+
+
+class Field:
+    __slots__ = ("name", "offset", "datatype", "count")
+
+    def __init__(self, name, offset, datatype, count=1):
+        self.name, self.offset, self.datatype, self.count = name, offset, datatype, count
+
+
+class Cloud:
+    """What decimate needs of a PointCloud2; data: its point bytes (a bytes-like object, not copied)."""
+    __slots__ = ("stamp", "frame_id", "height", "width", "fields", "is_bigendian", "point_step", "row_step", "data")
+
+    def __init__(self, height, width, fields, is_bigendian, point_step, row_step, data, stamp=0.0, frame_id=""):
+        self.height, self.width, self.fields = height, width, fields
+        self.is_bigendian, self.point_step, self.row_step, self.data = is_bigendian, point_step, row_step, data
+        self.stamp, self.frame_id = stamp, frame_id
+
+
+def read_cloud(data):
+    """A Cloud from a serialized sensor_msgs/PointCloud2 (ROS serialization, little-endian)."""
+    view, at = memoryview(data).cast("B"), 0
+
+    def take(fmt):
+        nonlocal at
+        size = struct.calcsize(fmt)
+        if at + size > len(view):
+            raise CloudError("the message is truncated")
+        values = struct.unpack_from(fmt, view, at)
+        at += size
+        return values
+
+    def block():
+        nonlocal at
+        (length,) = take("<I")
+        if at + length > len(view):
+            raise CloudError("the message is truncated")
+        part = view[at:at + length]
+        at += length
+        return part
+
+    _, secs, nsecs = take("<III")
+    frame_id = bytes(block()).decode("utf-8", "replace")
+    height, width = take("<II")
+    (count,) = take("<I")
+    fields = []
+    for _ in range(count):
+        name = bytes(block()).decode("utf-8", "replace")
+        offset, datatype, field_count = take("<IBI")
+        fields.append(Field(name, offset, datatype, field_count))
+    is_bigendian, point_step, row_step = take("<BII")
+    points = block()
+    return Cloud(height, width, fields, bool(is_bigendian), point_step, row_step, points, secs + nsecs * 1e-9,
+                 frame_id)
+
+
+def third_field(cloud):
+    """The name of the value sent third: "z", else "intensity", else "none"."""
+    names = {field.name for field in cloud.fields}
+    return "z" if "z" in names else "intensity" if "intensity" in names else "none"
+
+
+def decimate(cloud, max_points):
+    """(bytes of little-endian float32 triples, points kept, points in the cloud, third field's name): every k-th
+    point (k the smallest stride that keeps at most max_points), in the cloud's order. Raises CloudError."""
+    if max_points < 1:
+        raise CloudError("max_points must be at least 1")
+    by_name = {field.name: field for field in cloud.fields}
+    if "x" not in by_name or "y" not in by_name:
+        raise CloudError("the cloud has no x and y fields")
+    width, height, step = cloud.width, cloud.height, cloud.point_step
+    total = width * height
+    if total == 0:
+        return b"", 0, 0, third_field(cloud)
+    if step <= 0:
+        raise CloudError("point_step must be positive")
+    row_bytes = width * step
+    row_step = cloud.row_step or row_bytes
+    if row_step < row_bytes or len(cloud.data) < row_step * (height - 1) + row_bytes:
+        raise CloudError(f"the cloud's data ({len(cloud.data)} bytes) is shorter than its {height}x{width} points "
+                         f"of {step} bytes (row_step {row_step})")
+    data = cloud.data
+    if height > 1 and row_step != row_bytes:  # rows with padding: their points put end to end first
+        data = b"".join(bytes(cloud.data[r * row_step:r * row_step + row_bytes]) for r in range(height))
+    stride = max(1, math.ceil(total / max_points))
+    kept = len(range(0, total, stride))
+    third = third_field(cloud)
+    columns = [_column(data, by_name["x"], step, stride, kept, cloud.is_bigendian),
+               _column(data, by_name["y"], step, stride, kept, cloud.is_bigendian),
+               _column(data, by_name[third], step, stride, kept, cloud.is_bigendian) if third != "none"
+               else bytes(4 * kept)]
+    out = bytearray(12 * kept)
+    for i, column in enumerate(columns):
+        for b in range(4):
+            out[4 * i + b::12] = column[b::4]
+    return bytes(out), kept, total, third
+
+
+def _column(data, field, step, stride, kept, big_endian):
+    """One field's values of every stride-th point, as little-endian float32 bytes (4 * kept)."""
+    if field.datatype not in DATATYPES:
+        raise CloudError(f"field {field.name} has an unknown datatype {field.datatype}")
+    letter, size = DATATYPES[field.datatype]
+    if field.offset + size > step:
+        raise CloudError(f"field {field.name} lies outside its point ({field.offset} + {size} > {step})")
+    view = memoryview(data).cast("B")
+    every = step * stride
+    raw = bytearray(size * kept)
+    for b in range(size):  # byte b of each kept value
+        raw[b::size] = view[field.offset + b::every][:kept]
+    values = array(letter)
+    values.frombytes(bytes(raw))
+    if big_endian != (sys.byteorder == "big"):
+        values.byteswap()
+    if letter != "f":
+        values = array("f", values)
+    if sys.byteorder == "big":
+        values.byteswap()
+    return values.tobytes()
