@@ -33,6 +33,14 @@ import { ReconfigurePanel } from './panels/reconfigure.js';
 import { ActionsPanel } from './panels/actions.js';
 import { ImageViewer } from './viewers/image.js';
 import { TurtlePoseViewer } from './viewers/pose.js';
+import { LaserScanViewer } from './viewers/laser.js';
+import { TrailViewer } from './viewers/trail.js';
+import { OccupancyGridViewer } from './viewers/map.js';
+import { TfViewer } from './viewers/tf.js';
+import { NavSatFixViewer } from './viewers/navsat.js';
+import { DiagnosticsViewer } from './viewers/diagnostics.js';
+import { GaugesViewer } from './viewers/gauges.js';
+import { PointCloudViewer } from './viewers/cloud.js';
 
 // In the order shown; the console's tabs in the order of the tutorial's terminal windows.
 export const PANELS = [
@@ -56,6 +64,16 @@ export const PANELS = [
 export const VIEWERS = [
   { name: 'turtle', title: 'World', types: ['turtlesim/Pose'], Viewer: TurtlePoseViewer },
   { name: 'image', title: 'Picture', types: ['sensor_msgs/Image', 'sensor_msgs/CompressedImage'], Viewer: ImageViewer },
+  { name: 'laser', title: 'Laser', types: ['sensor_msgs/LaserScan'], Viewer: LaserScanViewer },
+  { name: 'trail', title: 'Trail', types: ['nav_msgs/Odometry', 'geometry_msgs/PoseStamped', 'nav_msgs/Path'],
+    Viewer: TrailViewer },
+  { name: 'map', title: 'Map', types: ['nav_msgs/OccupancyGrid'], Viewer: OccupancyGridViewer },
+  { name: 'tf', title: 'TF tree', types: ['tf2_msgs/TFMessage'], Viewer: TfViewer },
+  { name: 'navsat', title: 'GPS track', types: ['sensor_msgs/NavSatFix'], Viewer: NavSatFixViewer },
+  { name: 'diagnostics', title: 'Status table', types: ['diagnostic_msgs/DiagnosticArray'], Viewer: DiagnosticsViewer },
+  { name: 'gauges', title: 'Gauges', types: ['sensor_msgs/JointState', 'sensor_msgs/Imu', 'sensor_msgs/BatteryState',
+    'sensor_msgs/Range'], Viewer: GaugesViewer },
+  { name: 'cloud', title: 'Cloud', types: ['sensor_msgs/PointCloud2'], Viewer: PointCloudViewer },
 ];
 
 export function viewersFor(type) {

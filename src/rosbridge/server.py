@@ -20,6 +20,7 @@ from rosbridge.accepting import accept_connections
 from rosbridge.bag_pages import bag_routes
 from rosbridge.bags import Recorder
 from rosbridge.borrowed import handle_connection
+from rosbridge.cloud_pages import cloud_routes
 from rosbridge.globs import Globs, parse_globs
 from rosbridge.off_loop import EncodingThread
 from rosbridge.pages import PageFiles, missing_files
@@ -74,10 +75,11 @@ class Bridge:
 
 def routes(bridge, web_root, recorder=None):
     """The route table: "/" is the websocket (and the page), /bags the bag recorder (bag_pages.py), /stream,
-    /snapshot, /stream_viewer and /streams the camera streams (streams.py), other paths are files of web_root."""
+    /snapshot, /stream_viewer and /streams the camera streams (streams.py), /cloud the point clouds made small
+    (cloud_pages.py), other paths are files of web_root."""
     index = Path(web_root) / "index.html" if web_root else None
     table = [(r"/", BridgeSocket, {"bridge": bridge, "index_page": index if index and index.is_file() else None}),
-             *stream_routes(bridge), *bag_routes(bridge, recorder)]
+             *stream_routes(bridge), *bag_routes(bridge, recorder), *cloud_routes(bridge)]
     if web_root:
         table.append((r"/(.+)", PageFiles, {"path": str(web_root)}))
     return table
