@@ -213,3 +213,92 @@ def test_reconfigure_on_a_phone(open_page, reconfigurable):
     page.js("document.querySelector('#tab-reconfigure').scrollIntoView()")
     shot(page, "tools-reconfigure-phone")
     assert page.console_errors() == []
+
+
+# ---- actions ---------------------------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def fibonacci(ros):
+    """test/nodes/fibonacci_server.py: the action server /tools_fibonacci (actionlib/TestAction), 0.1 s a step."""
+    proc = ros.spawn(["/usr/bin/python3", str(NODES / "fibonacci_server.py")], "fibonacci_server")
+    proc.wait_output("serving /tools_fibonacci", 30)
+    yield "/tools_fibonacci"
+    proc.stop()
+
+
+def open_action(page, server):
+    from selenium.webdriver.support.ui import Select
+    tab(page, "actions")
+    wait_for(lambda: server in page.js("return [...document.querySelectorAll('#action-server option')]"
+                                       ".map(o => o.value)"), 20, what=f"{server} listed")
+    Select(page.el("action-server")).select_by_value(server)
+    wait_for(lambda: page.js("return document.querySelector('#tab-actions .action-info').dataset.alive"), 20,
+             what="the server's status")
+
+
+def goal_items(page):
+    return page.js("""return [...document.querySelectorAll('#tab-actions .action-goal')].map(g => ({
+        state: g.querySelector('.goal-state').textContent, feedback: g.querySelector('.goal-feedback').textContent,
+        result: g.querySelector('.goal-result').hidden ? null : g.querySelector('.goal-result').textContent,
+        text: g.querySelector('.goal-text').textContent}))""")
+
+
+def test_send_a_goal_see_feedback_and_result_and_cancel_another(open_page, fibonacci, listen):
+    from actionlib_msgs.msg import GoalID
+    cancels = listen(f"{fibonacci}/cancel", GoalID)
+    page = open_page()
+    open_action(page, fibonacci)
+    assert "action=%2Ftools_fibonacci" in page.driver.current_url
+    assert "actionlib/TestGoal" in text_of(page, "#tab-actions .action-form")
+    goal = "#tab-actions .action-form input[data-path=goal]"
+    field = page.driver.find_element(By.CSS_SELECTOR, goal)
+    field.clear()
+    field.send_keys("10")
+    page.driver.find_element(By.CSS_SELECTOR, "#tab-actions .action-go").click()
+    # live feedback while it runs (10 steps of 0.1 s), then the result: F(10) = 55
+    wait_for(lambda: goal_items(page) and goal_items(page)[0]["state"] == "active", 10, what="the goal active")
+    seen = set()
+    def fed():
+        item = goal_items(page)[0]
+        seen.add(item["feedback"])
+        return item["result"]
+    wait_for(fed, 15, what="the result")
+    assert len(seen) >= 3  # feedback changed while it ran
+    item = goal_items(page)[0]
+    assert item["state"] == "succeeded" and "55" in item["result"] and "Feedback (10)" in item["feedback"]
+    assert "F(10) = 55" in item["text"]
+    # another, cancelled while it runs
+    field.clear()
+    field.send_keys("40")
+    page.driver.find_element(By.CSS_SELECTOR, "#tab-actions .action-go").click()
+    wait_for(lambda: len(goal_items(page)) == 2 and "Feedback (" in goal_items(page)[0]["feedback"], 10,
+             what="the second goal's feedback")
+    cancel = page.driver.find_element(By.CSS_SELECTOR, "#tab-actions .action-goal .goal-cancel")
+    page.js("arguments[0].scrollIntoView({block: 'center'})", cancel)  # (not under the sticky world card)
+    cancel.click()
+    wait_for(lambda: goal_items(page)[0]["state"] == "preempted", 10, what="the goal cancelled")
+    assert [m.id for m in cancels.messages] == [page.js("return document.querySelector('#tab-actions .action-goal').dataset.goal")]
+    assert "cancelled at" in goal_items(page)[0]["text"]
+    assert goal_items(page)[1]["state"] == "succeeded"
+    page.js("document.querySelector('#tab-actions').scrollIntoView()")
+    shot(page, "tools-actions-desktop")
+    # a field that does not fit is flagged, nothing sent
+    field.clear()
+    field.send_keys("1.5")
+    page.driver.find_element(By.CSS_SELECTOR, "#tab-actions .action-go").click()
+    assert "fix the highlighted" in text_of(page, "#tab-actions .action-status")
+    assert len(goal_items(page)) == 2
+    assert page.console_errors() == []
+
+
+def test_actions_on_a_phone(open_page, fibonacci):
+    page = open_page("phone")
+    open_action(page, fibonacci)
+    field = page.driver.find_element(By.CSS_SELECTOR, "#tab-actions .action-form input[data-path=goal]")
+    field.clear()
+    field.send_keys("5")
+    page.driver.find_element(By.CSS_SELECTOR, "#tab-actions .action-go").click()
+    wait_for(lambda: goal_items(page) and goal_items(page)[0]["result"], 15, what="the result")
+    page.js("document.querySelector('#tab-actions').scrollIntoView()")
+    shot(page, "tools-actions-phone")
+    assert page.console_errors() == []
