@@ -302,3 +302,43 @@ def test_actions_on_a_phone(open_page, fibonacci):
     page.js("document.querySelector('#tab-actions').scrollIntoView()")
     shot(page, "tools-actions-phone")
     assert page.console_errors() == []
+
+
+# ---- the view in the address -----------------------------------------------------------------------------------
+
+def shown_tools(page):
+    """What the tools show: the tab, the bag topics ticked, the node and action server chosen and their forms."""
+    return page.js("""return {
+        tab: document.querySelector('.console [role=tab][aria-selected=true]').id,
+        bags: [...document.querySelectorAll('#tab-bags .bag-topic input:checked')].map(b => b.value),
+        node: document.getElementById('reconfigure-node').value,
+        form: Boolean(document.querySelector('#tab-reconfigure .reconfigure-field[data-param=int_] input.reconfigure-number')?.value),
+        server: document.getElementById('action-server').value,
+        goal: Boolean(document.querySelector('#tab-actions .action-form input[data-path=goal]')),
+    }""")
+
+
+def test_a_reload_and_a_copied_link_keep_the_open_tools(open_page, reconfigurable, fibonacci):
+    page = open_page()
+    tab(page, "bags")
+    click(page, '#tab-bags input[type=checkbox][value="/turtle1/pose"]')
+    click(page, '#tab-bags input[type=checkbox][value="/rosout"]')
+    open_action(page, fibonacci)
+    open_reconfigure(page, reconfigurable)
+    expected = {"tab": "tab-button-reconfigure", "bags": ["/rosout", "/turtle1/pose"], "node": reconfigurable,
+                "form": True, "server": fibonacci, "goal": True}
+    wait_for(lambda: shown_tools(page) == expected, 10, what="the view made")
+    link = page.driver.current_url
+    for key in ("tab=reconfigure", "bag=%2Frosout", "bag=%2Fturtle1%2Fpose", "reconfigure=%2Ftools_reconfigure",
+                "action=%2Ftools_fibonacci"):
+        assert key in link
+    page.driver.refresh()
+    page.wait_state("connected")
+    wait_for(lambda: shown_tools(page) == expected, 20, what="the view after a reload")
+    assert page.driver.current_url == link
+    # the link opened on another device (a phone, a fresh browser) shows the same view
+    phone = open_page("phone", url=link)
+    wait_for(lambda: shown_tools(phone) == expected, 20, what="the view from the link")
+    phone.js("document.querySelector('.console').scrollIntoView()")
+    shot(phone, "tools-link-phone")
+    assert page.console_errors() == [] and phone.console_errors() == []

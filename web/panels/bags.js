@@ -55,6 +55,7 @@ export class BagsPanel extends Panel {
     this.$('.blackbox-off').addEventListener('click', () => this.act('blackbox', { topics: [] }));
     this.$('.blackbox-save').addEventListener('click', () => this.act('blackbox/save', {}, 'Black box saved'));
     this.$('.bag-filter').addEventListener('input', () => this.renderTopics());
+    this.renderTopics();  // (the topics chosen, before the graph's are known)
     this.renderChosen();
   }
 
