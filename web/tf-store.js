@@ -80,11 +80,11 @@ export class TfStore {
     return (arrivals.length - 1) / Math.max((now - arrivals[0]) / 1000, 1e-3);
   }
 
-  // Every frame named, parents and roots included, sorted.
+  // Every frame named, parents and roots included, sorted (numbers in names by value).
   names() {
     const names = new Set(this.frames.keys());
     for (const frame of this.frames.values()) names.add(frame.parent);
-    return [...names].sort();
+    return [...names].sort((a, b) => a.localeCompare(b, 'en', { numeric: true }));  // (fast_2 before fast_10)
   }
 
   // The chain of frames from `name` up to its root: [name, parent, ..., root] (cycles cut).

@@ -25,7 +25,7 @@ def text_of(page, selector):
 
 def open_topic(page, topic):
     """Opens a topic from the Topics tab's list, as a person clicks its name."""
-    page.el("tab-button-topics").click()
+    page.js("document.getElementById('tab-button-topics').click()")  # (a click, wherever the page is scrolled)
     click = f"""const button = document.querySelector('#tab-topics tr[data-topic="{topic}"] button');
                 if (button) button.click();
                 return Boolean(button);"""
@@ -38,7 +38,7 @@ def open_viewer(page, topic, viewer):
     opened = f'.open-topic[data-topic="{topic}"]'
     button = f'{opened} button.view[data-viewer="{viewer}"]'
     wait_for(lambda: page.driver.find_elements(By.CSS_SELECTOR, button), 10, what=f"the {viewer} viewer offered")
-    page.driver.find_element(By.CSS_SELECTOR, button).click()
+    page.js("document.querySelector(arguments[0]).click()", button)
     return f"{opened} .viewer"
 
 
@@ -54,6 +54,13 @@ def pixels(page, canvas_selector, colour=None, tolerance=60):
           if (colour ? near(i, colour) : !near(i, background)) n++;
         }
         return n;""", canvas_selector, list(colour) if colour else None, list(BACKGROUND), tolerance)
+
+
+def shot(page, area, name):
+    """A screenshot of the page scrolled to the viewer, in test/artifacts/viewer-<name>.png (look at them)."""
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    page.js(f"document.querySelector('{area}').closest('.open-topic').scrollIntoView()")
+    page.driver.save_screenshot(str(ARTIFACTS / f"viewer-{name}.png"))
 
 
 def publishing(node, topic, msg_class, make, rate_hz, latch=False):
@@ -210,6 +217,7 @@ def test_the_tf_tree_lists_frames_with_parent_rate_age_and_the_transform_between
     text = text_of(page, f"{area} {shown}")
     assert "world ← test_b: translation (1.000, 2.500, 0.200)" in text and "roll 30.000°" in text \
         and "yaw 90.000°" in text
+    shot(page, area, "tf-56-frames")
     assert page.console_errors() == []
 
 
@@ -251,6 +259,7 @@ def test_odd_scans_nan_infinite_and_empty_ranges(open_page, node, publishers):
     wait_for(both, 15, what="full and empty scans drawn")
     wait_for(lambda: text_of(page, f"{area} .viewer-stats").startswith("1081 rays · 360 in range"), 10,
              what="only the finite third in range")
+    shot(page, area, "laser-odd")
     assert page.console_errors() == []
 
 
@@ -276,6 +285,7 @@ def test_odometry_trail_with_heading_and_speed(open_page, node, publishers):
     assert "frame odom" in text_of(page, f"{area} .viewer-stats")
     wait_for(lambda: pixels(page, f"{area} canvas", (63, 214, 140)) > 300, 10, what="the green trail")
     assert pixels(page, f"{area} canvas", (255, 194, 71)) > 30  # the heading arrow
+    shot(page, area, "odometry")
 
 
 def test_pose_stamped_speed_from_its_poses_and_a_path_drawn_whole(open_page, node, publishers):
@@ -308,6 +318,7 @@ def test_pose_stamped_speed_from_its_poses_and_a_path_drawn_whole(open_page, nod
     area = open_viewer(page, "/test/path", "trail")
     wait_for(lambda: "200 poses" in text_of(page, f"{area} .viewer-stats"), 15, what="the path")
     assert pixels(page, f"{area} canvas", (63, 214, 140)) > 300
+    shot(page, area, "path")
     area = open_viewer(page, "/test/empty_path", "trail")
     wait_for(lambda: "0 poses" in text_of(page, f"{area} .viewer-stats"), 15, what="the empty path")
     assert page.console_errors() == []
@@ -356,6 +367,7 @@ def test_the_map_with_the_turtle_placed_by_tf(open_page, node, demo_sensors, pub
         }}
         return [sx / n / c.width, sy / n / c.height];""")
     assert centre == pytest.approx([0.5, 0.5], abs=0.05)  # 5.54 m of the 11.1 m map
+    shot(page, area, "map")
 
 
 def test_a_4000x4000_map(open_page, node, publishers):
@@ -369,6 +381,7 @@ def test_a_4000x4000_map(open_page, node, publishers):
     canvas = f"{area} canvas"
     total = page.js(f"const c = document.querySelector('{canvas}'); return c.width * c.height")
     assert pixels(page, canvas, (255, 255, 255), 30) > 0.3 * total
+    shot(page, area, "map-4000")
     assert page.console_errors() == []
 
 
@@ -395,6 +408,7 @@ def test_navsat_fix_status_and_track_in_metres(open_page, node, publishers):
     north = float(stats.split("m E, ")[1].split(" m N")[0])
     assert north == pytest.approx(east / math.cos(math.radians(48.8566)), rel=0.05)  # 1e-5 deg each way
     assert pixels(page, f"{area} canvas", (38, 222, 235)) > 50
+    shot(page, area, "navsat")
 
 
 def test_diagnostics_table_worst_first(open_page, node, publishers):
@@ -422,6 +436,7 @@ def test_diagnostics_table_worst_first(open_page, node, publishers):
     assert text_of(page, f"{area} .diag-summary") == "4 statuses: 1 ERROR · 1 WARN · 2 OK"
     page.driver.find_element(By.CSS_SELECTOR, rows).click()
     wait_for(lambda: "voltage" in text_of(page, f"{area} .diag-values"), 5, what="the error's values")
+    shot(page, area, "diagnostics")
 
 
 def gauge_texts(page, area):
@@ -463,6 +478,8 @@ def test_gauges_for_joints_imu_battery_and_range(open_page, node, publishers):
                  what=f"the gauges of {topic}: {gauge_texts(page, area)}")
     assert page.js("""return document.querySelector('.open-topic[data-topic="/test/battery"] .gauge-bar')
         .style.width""") == "25%"
+    for topic in expected:
+        shot(page, f'.open-topic[data-topic="{topic}"] .viewer', "gauges-" + topic.split("/")[-1])
     assert page.console_errors() == []
 
 
@@ -539,6 +556,7 @@ def test_the_cloud_viewer_draws_the_decimated_cloud_from_above(open_page, cloud_
     assert "coloured by z" in text_of(page, f"{area} .viewer-stats")
     assert int(page.js(f"return document.querySelector('{area} canvas').dataset.points")) > 15000
     assert pixels(page, f"{area} canvas") > 5000
+    shot(page, area, "cloud")
     # the host's own subscription takes one cloud a second at most, by CBOR
     assert "one every 1000 ms" in text_of(page, '.open-topic[data-topic="/test/cloud"] .stats') or True
     assert page.console_errors() == []

@@ -122,6 +122,8 @@ export function drawScale(context, view, step = niceStep(60 * devicePixelRatio /
   const length = step * view.scale;
   const x0 = 10 * ratio;
   const y0 = view.height - 10 * ratio;
+  context.fillStyle = 'rgba(15, 20, 36, 0.75)';  // (readable on a white map too)
+  context.fillRect(x0 - 6 * ratio, y0 - 22 * ratio, length + 12 * ratio, 28 * ratio);
   context.strokeStyle = '#e8ecf8';
   context.lineWidth = 2 * ratio;
   context.beginPath();
