@@ -41,7 +41,9 @@ def click(page, selector):
                              selector), 20, what=f"{selector} to click")
 
 
-def shot(page, name):
+def shot(page, name, scroll=".console"):
+    """A screenshot of the page with `scroll` (the console) scrolled to the top of the screen."""
+    page.js("document.querySelector(arguments[0]).scrollIntoView()", scroll)
     ARTIFACTS.mkdir(parents=True, exist_ok=True)
     page.driver.save_screenshot(str(ARTIFACTS / f"{name}.png"))
 
@@ -62,7 +64,7 @@ def test_record_two_seconds_of_the_pose_and_download_the_bag(open_page):
     wait_for(lambda: "Recording" in text_of(page, "#tab-bags .bag-recording"), 10, what="the recording shown")
     wait_for(lambda: " 0 messages" not in text_of(page, "#tab-bags .bag-recording"), 10, what="messages counted")
     page.js("return new Promise(r => setTimeout(r, 2000))")
-    shot(page, "bags-recording-desktop")
+    shot(page, "tools-bags-recording-desktop", "#tab-bags")
     click(page, "#tab-bags .bag-stop")
     wait_for(lambda: "Last:" in text_of(page, "#tab-bags .bag-last"), 10, what="the last recording's line")
     last = text_of(page, "#tab-bags .bag-last")
@@ -93,7 +95,7 @@ def test_black_box_save_and_delete_with_confirm(open_page, bag_folder):
     saved = wait_for(lambda: [r for r in bag_rows(page) if r["name"] not in before and r["name"].startswith("blackbox")]
                      or None, 10, what="the black box's bag listed")[0]
     assert (bag_folder / saved["name"]).read_bytes().startswith(b"#ROSBAG V2.0")
-    shot(page, "bags-desktop")
+    shot(page, "tools-bags-blackbox-desktop", "#tab-bags")
     click(page, "#tab-bags .blackbox-off")
     # Delete asks first: Cancel keeps the bag, Delete removes it
     row = f'#tab-bags tr[data-bag="{saved["name"]}"]'
@@ -121,6 +123,7 @@ def test_a_recording_that_stops_by_itself_says_why(ros, open_page, tmp_path):
     proc, port = start_bridge(ros, node_name="rosbridge_smallbags", bag_folder=str(tmp_path), bag_max_bytes=3000)
     try:
         page = open_page(url=f"http://127.0.0.1:{port}/?tab=bags&bag=/turtle1/pose")
+        wait_for(lambda: "Folder:" in text_of(page, "#tab-bags .bag-used"), 10, what="the recorder's state")
         click(page, "#tab-bags .bag-start")  # 3000 bytes: about 2 s of poses
         wait_for(lambda: "reached its bound" in text_of(page, "#tab-bags .bag-last"), 15, what="why it stopped")
         assert "error" in page.js("return document.querySelector('#tab-bags .bag-last').className")
@@ -135,7 +138,6 @@ def test_bags_screenshots(open_page, screen):
     tab(page, "bags")
     click(page, '#tab-bags input[type=checkbox][value="/turtle1/pose"]')
     wait_for(lambda: text_of(page, "#tab-bags .bag-list tbody"), 10, what="the bags listed")
-    page.js("document.querySelector('.console').scrollIntoView()")
     shot(page, f"tools-bags-{screen}")
     assert page.console_errors() == []
 
@@ -200,7 +202,6 @@ def test_reconfigure_an_int_and_an_enum_and_see_the_nodes_answer(open_page, node
     Client(reconfigurable, timeout=10).update_configuration({"double_": 4.5})
     wait_for(lambda: page.js(f"return document.querySelector('{field(page, 'double_')} input.reconfigure-number').value")
              == "4.5", 10, what="the update shown")
-    page.js("document.querySelector('.console').scrollIntoView()")
     shot(page, "tools-reconfigure-desktop")
     assert page.console_errors() == []
 
@@ -222,8 +223,7 @@ def test_an_out_of_range_value_is_clamped_by_the_node_and_said_inline(open_page,
 def test_reconfigure_on_a_phone(open_page, reconfigurable):
     page = open_page("phone")
     open_reconfigure(page, reconfigurable)
-    page.js("document.querySelector('#tab-reconfigure').scrollIntoView()")
-    shot(page, "tools-reconfigure-phone")
+    shot(page, "tools-reconfigure-phone", "#tab-reconfigure")
     assert page.console_errors() == []
 
 
@@ -292,8 +292,7 @@ def test_send_a_goal_see_feedback_and_result_and_cancel_another(open_page, fibon
     assert [m.id for m in cancels.messages] == [page.js("return document.querySelector('#tab-actions .action-goal').dataset.goal")]
     assert "cancelled at" in goal_items(page)[0]["text"]
     assert goal_items(page)[1]["state"] == "succeeded"
-    page.js("document.querySelector('#tab-actions').scrollIntoView()")
-    shot(page, "tools-actions-desktop")
+    shot(page, "tools-actions-desktop", "#tab-actions")
     # a field that does not fit is flagged, nothing sent
     field.clear()
     field.send_keys("1.5")
@@ -311,8 +310,7 @@ def test_actions_on_a_phone(open_page, fibonacci):
     field.send_keys("5")
     page.driver.find_element(By.CSS_SELECTOR, "#tab-actions .action-go").click()
     wait_for(lambda: goal_items(page) and goal_items(page)[0]["result"], 15, what="the result")
-    page.js("document.querySelector('#tab-actions').scrollIntoView()")
-    shot(page, "tools-actions-phone")
+    shot(page, "tools-actions-phone", "#tab-actions")
     assert page.console_errors() == []
 
 
@@ -351,6 +349,5 @@ def test_a_reload_and_a_copied_link_keep_the_open_tools(open_page, reconfigurabl
     # the link opened on another device (a phone, a fresh browser) shows the same view
     phone = open_page("phone", url=link)
     wait_for(lambda: shown_tools(phone) == expected, 20, what="the view from the link")
-    phone.js("document.querySelector('.console').scrollIntoView()")
     shot(phone, "tools-link-phone")
     assert page.console_errors() == [] and phone.console_errors() == []

@@ -181,7 +181,7 @@ export class BagsPanel extends Panel {
       : '';
     lastLine.className = `bag-last ${last?.error ? 'error' : 'muted'}`;
     this.$('.blackbox-off').hidden = this.$('.blackbox-save').hidden = !blackbox;
-    this.$('.blackbox-keep').textContent = blackbox ? 'Black box: these topics' : 'Keep in the black box';
+    this.$('.blackbox-keep').textContent = blackbox ? 'Black box: the ticked topics instead' : 'Keep in the black box';
     this.$('.blackbox-state').textContent = blackbox
       ? `Black box (${blackbox.topics.join(', ')}): ${blackbox.messages} messages, ${size(blackbox.bytes)} ` +
         `of the last ${blackbox.seconds} s`
