@@ -52,7 +52,8 @@ export class ActionsPanel extends ListPanel {
   }
 
   render(servers) {
-    this.root.querySelector('.action-count').textContent = `(${servers.length})`;
+    this.root.querySelector('.action-count').textContent = servers.length ? `(${servers.length})`
+      : '(none now: an actionlib server is found by its five topics, e.g. /move_base/goal … /move_base/result)';
     const choices = servers.map(s => [s, s]);
     if (this.wanted && !servers.includes(this.wanted)) choices.push([this.wanted, `${this.wanted} (not running)`]);
     fillSelect(this.select, 'Choose an action server…', choices);

@@ -43,7 +43,9 @@ export class ReconfigurePanel extends ListPanel {
   }
 
   render(nodes) {
-    this.root.querySelector('.reconfigure-count').textContent = `(${nodes.length})`;
+    this.root.querySelector('.reconfigure-count').textContent = nodes.length ? `(${nodes.length})`
+      : '(none now: a node serves it with a dynamic_reconfigure Server; `rosrun dynamic_reconfigure dynparam list` ' +
+        'lists the same)';
     const choices = nodes.map(n => [n, n]);
     if (this.wanted && !nodes.includes(this.wanted)) choices.push([this.wanted, `${this.wanted} (not serving)`]);
     fillSelect(this.select, 'Choose a node…', choices);
