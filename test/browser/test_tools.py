@@ -218,6 +218,15 @@ def test_an_out_of_range_value_is_clamped_by_the_node_and_said_inline(open_page,
     type_into(page, number, "abc")  # not a number: flagged, nothing sent
     assert "not a number" in text_of(page, f"{field(page, 'int_')} .err")
     assert node.get_param(f"{reconfigurable}/int_") == 10
+    # an update from elsewhere leaves the field being typed in alone, and shows the others
+    text = page.driver.find_element(By.CSS_SELECTOR, f"{field(page, 'mstr_')} input")
+    text.clear()
+    text.send_keys("half typed")
+    from dynamic_reconfigure.client import Client
+    Client(reconfigurable, timeout=10).update_configuration({"mstr_": "from elsewhere", "double_": 1.25})
+    wait_for(lambda: page.js(f"return document.querySelector('{field(page, 'double_')} input.reconfigure-number').value")
+             == "1.25", 10, what="the update shown")
+    assert text.get_attribute("value") == "half typed"
 
 
 def test_reconfigure_on_a_phone(open_page, reconfigurable):

@@ -7,6 +7,7 @@ import { messageForm, messageTree } from './messages.js';
 import { ListPanel, fillSelect } from './panel.js';
 
 const ACTION_PARAM = 'action';
+const REFRESH_MS = 3000;
 const MAX_GOALS_SHOWN = 10;
 // actionlib_msgs/GoalStatus's codes
 const STATUS = ['pending', 'active', 'preempted', 'succeeded', 'aborted', 'rejected', 'preempting', 'recalling',
@@ -59,6 +60,13 @@ export class ActionsPanel extends ListPanel {
     fillSelect(this.select, 'Choose an action server…', choices);
     if (this.wanted) this.select.value = this.wanted;
     if (this.select.value !== (this.chosen?.server ?? '') || (this.chosen && !this.chosen.action)) this.choose();
+  }
+
+  // While shown, the list is asked for again every few seconds (a node started later appears).
+  show(visible) {
+    super.show(visible);
+    clearInterval(this.timer);
+    this.timer = visible ? setInterval(() => this.refresh(), REFRESH_MS) : null;
   }
 
   attach(session) {

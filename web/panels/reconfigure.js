@@ -10,6 +10,7 @@ import { ListPanel, fillSelect } from './panel.js';
 const NODE_PARAM = 'reconfigure';
 const SERVICE_TYPE = 'dynamic_reconfigure/Reconfigure';
 const LISTS = { bool: 'bools', int: 'ints', str: 'strs', double: 'doubles' };
+const REFRESH_MS = 3000;
 const SLIDER_SPAN = 1e9;  // a range wider than this (int32's full range: "no range" in a .cfg) has no slider
 
 export class ReconfigurePanel extends ListPanel {
@@ -51,6 +52,13 @@ export class ReconfigurePanel extends ListPanel {
     fillSelect(this.select, 'Choose a node…', choices);
     if (this.wanted) this.select.value = this.wanted;
     if (this.select.value !== this.openNode) this.open();
+  }
+
+  // While shown, the list is asked for again every few seconds (a node started later appears).
+  show(visible) {
+    super.show(visible);
+    clearInterval(this.timer);
+    this.timer = visible ? setInterval(() => this.refresh(), REFRESH_MS) : null;
   }
 
   attach(session) {
@@ -179,7 +187,10 @@ export class ReconfigurePanel extends ListPanel {
       Object.assign(input, { id, autocomplete: 'off', spellcheck: false });
       input.addEventListener('change', () => send(input.value));
       controls.append(input);
-      set = value => { input.value = value; };
+      // (not under the person typing, unless it answers what the field holds)
+      set = (value, sent) => {
+        if (document.activeElement !== input || input.value === sent) input.value = value;
+      };
     } else {
       const number = document.createElement('input');
       Object.assign(number, { id, inputMode: type === 'int' ? 'numeric' : 'decimal', autocomplete: 'off' });
@@ -201,8 +212,9 @@ export class ReconfigurePanel extends ListPanel {
         if (type === 'int' && !Number.isInteger(value)) return say('A whole number: nothing sent.');
         return send(value);
       });
-      set = value => {
-        number.value = value === null ? '' : String(value);
+      set = (value, sent) => {
+        const typed = Number(number.value.trim().replace(',', '.'));
+        if (document.activeElement !== number || typed === sent) number.value = value === null ? '' : String(value);
         if (slider && value !== null) slider.value = String(value);
       };
     }
@@ -222,6 +234,7 @@ export class ReconfigurePanel extends ListPanel {
       if (node !== this.openNode) return;
       this.showConfig(answer.config);
       const got = valuesOf(answer.config).get(name);
+      field.set(got, value);  // the answer to this field's own edit, where the person still is (Enter)
       if (got === value) say('', '');
       else say(`Asked ${value}; ${node} set ${got}${range ? ` (${range})` : ''}.`, 'warn');
       this.say(`${node} answered: ${name} = ${got}.`, 'ok');
@@ -230,6 +243,7 @@ export class ReconfigurePanel extends ListPanel {
     }
   }
 
+  // The node's configuration in the form; a text or number field being typed in is left as it is.
   showConfig(config) {
     for (const [name, value] of valuesOf(config)) this.fields.get(name)?.set(value);
   }
