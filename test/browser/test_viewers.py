@@ -221,6 +221,46 @@ def test_the_tf_tree_lists_frames_with_parent_rate_age_and_the_transform_between
     assert page.console_errors() == []
 
 
+# ---- smooth at the topics' real rates ------------------------------------------------------------------------------
+def test_a_fast_laser_and_fifty_tf_frames_at_100_hz_keep_the_page_smooth(open_page, node, publishers):
+    """A 1081-ray scan at 40 Hz and 50 TF frames at 100 Hz, both viewers shown: the page's animation frames per
+    second, and how many scans the laser viewer drew (at most one per animation frame: all 40 a second)."""
+    from sensor_msgs.msg import LaserScan
+    from tf2_msgs.msg import TFMessage
+
+    def scan(n):
+        message = LaserScan(angle_min=-2.35, angle_max=2.35, angle_increment=4.7 / 1081, range_min=0.1,
+                            range_max=30.0, ranges=[3 + math.sin(i / 30 + n / 10) for i in range(1081)])
+        message.header.stamp, message.header.frame_id = node.Time.now(), "fast_laser"
+        return message
+    publishers(node, "/fast/scan", LaserScan, scan, 40)
+    publishers(node, "/tf", TFMessage, lambda n: tf_message(
+        [("odom", f"moving_{i}", (math.cos(n / 100 + i), 0, 0), quaternion(yaw=n / 100)) for i in range(50)],
+        node.Time.now()), 100)
+    page = open_page()
+    laser = open_viewer(page, "/fast/scan", "laser")
+    tf = open_viewer(page, "/tf", "tf")
+    wait_for(lambda: "1081 rays" in text_of(page, f"{laser} .viewer-stats"), 15, what="scans drawn")
+    wait_for(lambda: "moving_49" in text_of(page, f"{tf} .tf-frames"), 15, what="the 50 frames listed")
+    measured = page.driver.execute_async_script("""const [done, canvas] = [arguments[1], document.querySelector(arguments[0])];
+        const [paints, received] = [Number(canvas.dataset.paints), Number(canvas.dataset.received)];
+        let frames = 0;
+        const started = performance.now();
+        const count = () => {
+          frames++;
+          if (performance.now() - started < 3000) requestAnimationFrame(count);
+          else done({ fps: frames / 3, scans: (Number(canvas.dataset.paints) - paints) / 3,
+                      arrived: (Number(canvas.dataset.received) - received) / 3 });
+        };
+        requestAnimationFrame(count);""", f"{laser} canvas")
+    print("page frames/s and scans drawn/s:", measured, text_of(page, '.open-topic[data-topic="/fast/scan"] .stats'))
+    # Alone on this 2-core machine: 57-60 frames/s, 34-38 scans/s drawn of 40 published. The bound leaves room for
+    # a machine busy with other tests; every scan that arrives is drawn (one per frame, none left behind).
+    assert measured["fps"] >= 40
+    assert measured["scans"] >= 0.9 * measured["arrived"] and measured["arrived"] >= 15
+    assert page.console_errors() == []
+
+
 # ---- laser --------------------------------------------------------------------------------------------------------
 def test_the_demo_laser_drawn_around_the_sensor_coloured_by_range(open_page, demo_sensors):
     page = open_page()
@@ -376,7 +416,7 @@ def test_a_4000x4000_map(open_page, node, publishers):
     publishers(node, "/test/big_map", OccupancyGrid, lambda n: big, 0.2, latch=True)
     page = open_page()
     area = open_viewer(page, "/test/big_map", "map")
-    wait_for(lambda: "4000×4000 cells" in text_of(page, f"{area} .viewer-stats"), 60, what="the big map drawn")
+    wait_for(lambda: "4000×4000 cells of 1 cm" in text_of(page, f"{area} .viewer-stats"), 60, what="the big map drawn")
     assert "no transform from big_map" in text_of(page, f"{area} .viewer-stats")
     canvas = f"{area} canvas"
     total = page.js(f"const c = document.querySelector('{canvas}'); return c.width * c.height")
@@ -400,12 +440,18 @@ def test_navsat_fix_status_and_track_in_metres(open_page, node, publishers):
     publishers(node, "/test/fix", NavSatFix, fix, 10)
     page = open_page()
     area = open_viewer(page, "/test/fix", "navsat")
-    wait_for(lambda: "without a fix" in text_of(page, f"{area} .viewer-stats"), 15, what="a track and a lost fix")
+    def track():  # (fixes, east m, north m, a fix lost) from "12 fixes · now 3.4 m E, 5 m N of the first · ..."
+        stats = text_of(page, f"{area} .viewer-stats")
+        if " fixes · now " not in stats:
+            return None
+        metres = {"km": 1000, "m": 1, "cm": 0.01, "mm": 0.001}
+        east, north = (float(part.split()[0]) * metres[part.split()[1]]
+                       for part in stats.split("now ")[1].split(" of the first")[0].split(", "))
+        return int(stats.split()[0]), east, north, "without a fix" in stats
+    wait_for(lambda: track() and track()[0] >= 5 and track()[3], 15, what="a track and a lost fix")
     wait_for(lambda: text_of(page, f"{area} .navsat-status").startswith("fix (GPS)"), 5, what="a fix")
     assert "±2 m" in text_of(page, f"{area} .navsat-status")
-    stats = text_of(page, f"{area} .viewer-stats")
-    east = float(stats.split("now ")[1].split(" m E")[0])
-    north = float(stats.split("m E, ")[1].split(" m N")[0])
+    _, east, north, _ = track()
     assert north == pytest.approx(east / math.cos(math.radians(48.8566)), rel=0.05)  # 1e-5 deg each way
     assert pixels(page, f"{area} canvas", (38, 222, 235)) > 50
     shot(page, area, "navsat")

@@ -4,6 +4,8 @@
 // animation frame after a message (the newest), only the values that changed.
 import { rpyOf } from '../tf-math.js';
 
+const FRAME_MS = 16;  // at most one message per animation frame (60 Hz): a 40 Hz topic is drawn at 40 Hz
+
 const BATTERY_STATUS = ['unknown', 'charging', 'discharging', 'not charging', 'full'];
 const BATTERY_HEALTH = ['unknown', 'good', 'overheat', 'dead', 'overvoltage', 'unspecified failure', 'cold',
   'watchdog timer expired', 'safety timer expired'];
@@ -11,7 +13,7 @@ const RADIATION = ['ultrasound', 'infrared'];
 const DEG = 180 / Math.PI;
 
 export class GaugesViewer {
-  static subscription = { throttle_rate: 33, queue_length: 1 };
+  static subscription = { throttle_rate: FRAME_MS, queue_length: 1 };
 
   constructor(element, { type }) {
     this.type = type;

@@ -4,8 +4,10 @@
 // Float32Array), at most one scan per animation frame; drawn only when a new one came.
 import { Plane, colourAt, drawColourKey, drawScale, formatMetres, niceStep, numbers } from './plane.js';
 
+const FRAME_MS = 16;  // at most one message per animation frame (60 Hz): a 40 Hz topic is drawn at 40 Hz
+
 export class LaserScanViewer {
-  static subscription = { compression: 'cbor', throttle_rate: 33, queue_length: 1 };
+  static subscription = { compression: 'cbor', throttle_rate: FRAME_MS, queue_length: 1 };
 
   constructor(element) {
     element.innerHTML = '<canvas class="plane" role="img" aria-label="The laser scan from above"></canvas>' +
@@ -14,11 +16,13 @@ export class LaserScanViewer {
     this.plane = new Plane(element.querySelector('canvas'), (context, width, height) => this.paint(context, width,
       height));
     this.scan = null;
+    this.received = 0;
     this.reach = 0;  // the radius shown (m): grows at once, shrinks slowly (no jumping scale)
   }
 
   draw(scan) {
     this.scan = scan;
+    this.plane.canvas.dataset.received = String(++this.received);  // (for whoever measures the page)
     this.plane.invalidate();
   }
 

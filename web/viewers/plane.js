@@ -11,6 +11,7 @@ export class Plane {
     this.paint = paint;
     this.aspect = aspect;
     this.frame = null;
+    this.paints = 0;
     this.closed = false;
     this.sizer = new ResizeObserver(entries => {
       const width = Math.max(1, Math.round(entries[0].contentRect.width * devicePixelRatio));
@@ -27,7 +28,10 @@ export class Plane {
     if (this.frame !== null || this.closed) return;
     this.frame = requestAnimationFrame(() => {
       this.frame = null;
-      if (!this.closed && this.canvas.isConnected) this.paint(this.context, this.canvas.width, this.canvas.height);
+      if (!this.closed && this.canvas.isConnected) {
+        this.paint(this.context, this.canvas.width, this.canvas.height);
+        this.canvas.dataset.paints = String(++this.paints);  // (for whoever measures the page)
+      }
     });
   }
 
@@ -86,7 +90,8 @@ export function niceStep(value) {
   return [1, 2, 5, 10].map(k => k * power).find(step => step >= value);
 }
 
-export function formatMetres(metres) {
+export function formatMetres(value) {
+  const metres = value * (1 + 1e-6);  // (a float32 0.01 is 0.0099999998: 1 cm, not 10 mm)
   if (metres >= 1000) return `${+(metres / 1000).toFixed(2)} km`;
   if (metres >= 1) return `${+metres.toFixed(2)} m`;
   if (metres >= 0.01) return `${+(metres * 100).toFixed(1)} cm`;

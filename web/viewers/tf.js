@@ -9,8 +9,8 @@ import { formatAge } from '../format.js';
 const REFRESH_MS = 250;  // the table is written again this often (ages change): not at the topic's 100 Hz
 
 export class TfViewer {
-  // The host's own subscription (its tree and rate): one message a second is plenty, the store has them all.
-  static subscription = { throttle_rate: 1000, queue_length: 1 };
+  // (No `subscription`: the store subscribes /tf unthrottled for the rates, and the bridge merges a client's
+  // subscriptions of one topic at the lowest throttle_rate, so asking less here would change nothing.)
 
   constructor(element) {
     element.innerHTML = `

@@ -5,12 +5,14 @@
 // when one came.
 import { Plane, View, boxOf, drawArrow, drawGrid, formatMetres, yawOf } from './plane.js';
 
+const FRAME_MS = 16;  // at most one message per animation frame (60 Hz): a 40 Hz topic is drawn at 40 Hz
+
 const MAX_POINTS = 20000;  // of a trail (the oldest forgotten)
 const MIN_STEP_M = 0.005;  // a pose closer than this to the previous one adds nothing to the trail
 const SPEED_WINDOW_S = 0.5;
 
 export class TrailViewer {
-  static subscription = { throttle_rate: 33, queue_length: 1 };
+  static subscription = { throttle_rate: FRAME_MS, queue_length: 1 };
 
   constructor(element, { type }) {
     this.type = type;
