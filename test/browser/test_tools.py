@@ -360,3 +360,20 @@ def test_a_reload_and_a_copied_link_keep_the_open_tools(open_page, reconfigurabl
     wait_for(lambda: shown_tools(phone) == expected, 20, what="the view from the link")
     shot(phone, "tools-link-phone")
     assert page.console_errors() == [] and phone.console_errors() == []
+
+
+def test_enum_edit_methods_are_read_as_python_literals_never_run(open_page):
+    """dynamic_reconfigure writes an enum's edit_method as a Python dict's repr; the page parses it."""
+    page = open_page()
+    parsed = page.driver.execute_async_script("""const done = arguments[arguments.length - 1];
+        import('/panels/reconfigure.js').then(({ enumOf, pythonLiteral }) => done({
+          ints: enumOf("{'enum': [{'name': 'Small', 'type': 'int', 'value': 0, 'description': 'A small constant'}, " +
+                       "{'name': 'Big', 'type': 'int', 'value': -3, 'srcline': 45}], 'enum_description': 'size'}"),
+          strs: enumOf("{'enum': [{'name': 'Quote', 'type': 'str', 'value': \\"it's\\", 'description': 'a \\\\'b\\\\''}]}"),
+          literal: pythonLiteral("(True, False, None, 1.5e3, -2, 'x', [], {}, inf)"),
+          none: [enumOf(''), enumOf("{'enum': []}"), enumOf('__import__("os")'), enumOf("{'a': 1")],
+        }), error => done(String(error)));""")
+    assert [(c["name"], c["value"]) for c in parsed["ints"]] == [("Small", 0), ("Big", -3)]
+    assert parsed["strs"][0]["value"] == "it's" and parsed["strs"][0]["description"] == "a 'b'"
+    assert parsed["literal"][:8] == [True, False, None, 1500, -2, "x", [], {}]
+    assert parsed["none"] == [None, None, None, None]
