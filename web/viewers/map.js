@@ -12,8 +12,8 @@ const AUTO = '';  // the robot frame chosen by itself
 const ROBOT_NAMES = ['base_footprint', 'base_link'];
 
 export class OccupancyGridViewer {
-  // Maps are big and change slowly: binary CBOR, the newest only, at most two a second.
-  static subscription = { compression: 'cbor', throttle_rate: 500, queue_length: 1 };
+  // Maps are big (a 4000x4000 one is 16 MB) and change slowly: binary CBOR, the newest only, one a second at most.
+  static subscription = { compression: 'cbor', throttle_rate: 1000, queue_length: 1 };
 
   constructor(element) {
     element.innerHTML = `<label class="row map-robot">Robot frame <select aria-label="Robot frame">
