@@ -48,6 +48,14 @@ def shot(page, name, scroll=".console"):
     page.driver.save_screenshot(str(ARTIFACTS / f"{name}.png"))
 
 
+def small_controls(page, panel):
+    """The shown controls of a tab smaller than a finger (44 px), unless a label of that size holds them."""
+    return page.js("""return [...document.querySelectorAll(`#tab-${arguments[0]} :is(button, input, select)`)]
+        .filter(e => e.getClientRects().length)
+        .filter(e => e.getBoundingClientRect().height < 44 && !(e.closest('label')?.getBoundingClientRect().height >= 44))
+        .map(e => e.outerHTML.slice(0, 80))""", panel)
+
+
 def bag_rows(page):
     return page.js("""return [...document.querySelectorAll('#tab-bags .bag-list tr[data-bag]')].map(r => ({
         name: r.dataset.bag, size: r.querySelector('.bag-size').textContent, href: r.querySelector('a').href}))""")
@@ -139,6 +147,8 @@ def test_bags_screenshots(open_page, screen):
     click(page, '#tab-bags input[type=checkbox][value="/turtle1/pose"]')
     wait_for(lambda: text_of(page, "#tab-bags .bag-list tbody"), 10, what="the bags listed")
     shot(page, f"tools-bags-{screen}")
+    if screen == "phone":
+        assert small_controls(page, "bags") == []
     assert page.console_errors() == []
 
 
@@ -233,6 +243,7 @@ def test_reconfigure_on_a_phone(open_page, reconfigurable):
     page = open_page("phone")
     open_reconfigure(page, reconfigurable)
     shot(page, "tools-reconfigure-phone", "#tab-reconfigure")
+    assert small_controls(page, "reconfigure") == []
     assert page.console_errors() == []
 
 
@@ -320,6 +331,7 @@ def test_actions_on_a_phone(open_page, fibonacci):
     page.driver.find_element(By.CSS_SELECTOR, "#tab-actions .action-go").click()
     wait_for(lambda: goal_items(page) and goal_items(page)[0]["result"], 15, what="the result")
     shot(page, "tools-actions-phone", "#tab-actions")
+    assert small_controls(page, "actions") == []
     assert page.console_errors() == []
 
 

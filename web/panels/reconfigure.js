@@ -177,11 +177,18 @@ export class ReconfigurePanel extends ListPanel {
       controls.append(select);
       set = value => { select.value = String(value); };
     } else if (type === 'bool') {
-      const box = document.createElement('input');
-      Object.assign(box, { id, type: 'checkbox' });
+      const check = document.createElement('label');  // (the box and its value: one touch target)
+      check.className = 'check';
+      check.innerHTML = '<input type="checkbox"> <span></span>';
+      const box = check.firstChild;
+      box.id = id;
+      const said = check.lastChild;
       box.addEventListener('change', () => send(box.checked));
-      controls.append(box);
-      set = value => { box.checked = Boolean(value); };
+      controls.append(check);
+      set = value => {
+        box.checked = Boolean(value);
+        said.textContent = box.checked ? 'true' : 'false';
+      };
     } else if (type === 'str') {
       const input = document.createElement('input');
       Object.assign(input, { id, autocomplete: 'off', spellcheck: false });
