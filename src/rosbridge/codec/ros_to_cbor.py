@@ -19,7 +19,7 @@ from genpy.rostime import _canon
 
 from rosbridge.codec.cbor import TYPED_ARRAY_TAGS, byte_string
 from rosbridge.codec.fields import BUILTIN_TYPES, STRUCT_CODES, TIME_PART_CODES, parse_slot_type
-from rosbridge.codec.ros_to_json import Reader, check_length
+from rosbridge.codec.ros_to_json import Generator, Reader, check_length
 from rosbridge.types import message_class
 
 _NS = 1_000_000_000
@@ -60,29 +60,15 @@ class _ValueReader(Reader):
         return f"def {name}(b, p):\n    {body}\n"
 
 
-class _Generator:
-    """Generates and compiles the readers of one message type and of every type nested in it."""
+class _Generator(Generator):
+    """CBOR value readers."""
 
     def __init__(self):
-        self.namespace = dict(_GLOBALS)
-        self._readers = {}  # (message class, top) -> name of its reader function
-        self._constants = 0
+        super().__init__(_GLOBALS)
 
-    def constant(self, value):
-        self._constants += 1
-        name = f"_c{self._constants}"
-        self.namespace[name] = value
-        return name
-
-    def reader(self, cls, top=False):
-        """The name of cls's reader (see ros_to_json's for `top`)."""
-        name = self._readers.get((cls, top))
-        if name is None:
-            name = self._readers[cls, top] = f"read_{len(self._readers)}"
-            reader = _ValueReader(self)
-            expression = self._message(reader, cls, top)
-            exec(reader.source(name, expression), self.namespace)
-        return name
+    def _source(self, name, cls, top):
+        reader = _ValueReader(self)
+        return reader.source(name, self._message(reader, cls, top))
 
     def _message(self, reader, cls, top):
         """Reads the fields of a cls (in line); -> the expression of its value, a dict display."""

@@ -228,12 +228,13 @@ class Reader:
         return f"def {name}(b, p, s):\n    {body}\n"
 
 
-class _Generator:
-    """Generates and compiles the readers of one message type and of every type nested in it."""
+class Generator:
+    """Generates and compiles the readers of one message type and of every type nested in it, into `namespace`
+    (the names the generated code uses). A subclass says what a reader is: _source(name, cls, top)."""
 
-    def __init__(self):
-        self.namespace = dict(_GLOBALS)
-        self._readers = {}  # message class -> name of its reader function
+    def __init__(self, namespace):
+        self.namespace = dict(namespace)
+        self._readers = {}  # (message class, top) -> name of its reader function
         self._constants = 0
 
     def constant(self, value):
@@ -248,10 +249,20 @@ class _Generator:
         name = self._readers.get((cls, top))
         if name is None:
             name = self._readers[cls, top] = f"read_{len(self._readers)}"
-            reader = Reader(self)
-            self._message(reader, cls, top)
-            exec(reader.source(name), self.namespace)
+            exec(self._source(name, cls, top), self.namespace)
         return name
+
+
+class _Generator(Generator):
+    """JSON text readers."""
+
+    def __init__(self):
+        super().__init__(_GLOBALS)
+
+    def _source(self, name, cls, top):
+        reader = Reader(self)
+        self._message(reader, cls, top)
+        return reader.source(name)
 
     def _message(self, reader, cls, top):
         reader.text("{")
