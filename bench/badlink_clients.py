@@ -4,7 +4,8 @@ link). One role per process:
   ws       a rosbridge websocket client (Tornado's) subscribed to the rover's small topic and camera:
              --style roslibjs  both topics as roslibjs 1.x subscribes by default: JSON, compression "none",
                                throttle_rate 0, queue_length 0
-             --style careful   the camera as CBOR with throttle_rate 66 and queue_length 1; the small topic as above
+             --style careful   the camera as CBOR with throttle_rate 66 and queue_length 1; the small topic as
+                               above; status ops from the level "warning" up (set_level)
            it records, for every message, when it arrived (wall time) and its stamp (the small topic's data, the
            camera's header.stamp), and the frame's size
   console  headless Chromium (Debian's, with Debian's chromedriver, through Selenium: run it with the test venv's
@@ -110,6 +111,8 @@ async def ws_client(a):
             statuses.append((now, f"op {kind}"))
 
     ws = await websocket_connect(a.url, max_message_size=64 << 20, on_message_callback=on_frame)
+    if a.style == "careful":  # (it wants to hear what its link cost it: the bridge tells that as warnings)
+        await ws.write_message(json.dumps({"op": "set_level", "level": "warning"}))
     for op in subscribe_ops(a):
         await ws.write_message(json.dumps(op))
     print("READY", flush=True)
