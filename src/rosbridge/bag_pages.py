@@ -18,20 +18,14 @@ import tornado.web
 
 from rosbridge.bags import bag_path
 from rosbridge.errors import ClientError
-from rosbridge.http_access import refusal
-from rosbridge.pages import SECURITY_HEADERS
+from rosbridge.http_access import EndpointHandler, refusal
 
 MAX_BODY = 64 * 1024
 
 
-class _BagHandler(tornado.web.RequestHandler):
+class _BagHandler(EndpointHandler):
     def initialize(self, bridge, recorder):
         self.bridge, self.recorder = bridge, recorder
-
-    def set_default_headers(self):
-        for name, value in SECURITY_HEADERS.items():
-            self.set_header(name, value)
-        self.set_header("Cache-Control", "no-store")
 
     def prepare(self):
         refused = refusal(self.bridge, self.request, "the bag recorder")
@@ -86,19 +80,13 @@ class BagAction(_BagHandler):
         self.finish(self.recorder.state())
 
 
-class BagFile(tornado.web.StaticFileHandler):
-    """A bag to download, or to delete."""
+class BagFile(_BagHandler, tornado.web.StaticFileHandler):
+    """A bag to download (StaticFileHandler: Range requests too; no ETag, a bag being recorded changes), or to
+    delete."""
 
     def initialize(self, bridge, recorder):
-        self.bridge, self.recorder = bridge, recorder
-        super().initialize(path=str(recorder.folder) if recorder else "/nonexistent")
-
-    set_default_headers = _BagHandler.set_default_headers
-    prepare = _BagHandler.prepare
-    answer_error = _BagHandler.answer_error
-
-    def compute_etag(self):
-        return None  # (a bag being recorded changes: no caching by hash)
+        super().initialize(bridge, recorder)
+        tornado.web.StaticFileHandler.initialize(self, path=str(recorder.folder) if recorder else "/nonexistent")
 
     async def get(self, name, include_body=True):
         try:

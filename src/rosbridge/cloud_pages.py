@@ -22,8 +22,7 @@ import tornado.web
 from rosbridge import globs as globs_module
 from rosbridge.cloud import CloudError, decimate, read_cloud
 from rosbridge.errors import ClientError
-from rosbridge.http_access import query_text, refusal
-from rosbridge.pages import SECURITY_HEADERS
+from rosbridge.http_access import EndpointHandler, query_text, refusal
 from rosbridge.streams import TopicTypes
 
 CLOUD = "sensor_msgs/PointCloud2"
@@ -113,28 +112,12 @@ class Clouds:
         return found
 
 
-class CloudHandler(tornado.web.RequestHandler):
+class CloudHandler(EndpointHandler):
     """GET /cloud: thin; Clouds, CloudTopic and cloud.py do the work."""
 
     def initialize(self, clouds):
         self.clouds = clouds
         self.waiting = None
-
-    def set_default_headers(self):
-        for name, value in SECURITY_HEADERS.items():
-            self.set_header(name, value)
-        self.set_header("Cache-Control", "no-store")
-
-    def compute_etag(self):
-        return None
-
-    def refuse(self, status, text):
-        self.clear()
-        self.set_status(status)
-        self.set_header("Content-Type", "text/plain; charset=UTF-8")
-        if status == 401:
-            self.set_header("WWW-Authenticate", 'rosauth realm="rosbridge"')
-        self.finish(text + "\n")
 
     async def get(self):
         clouds = self.clouds

@@ -3,8 +3,11 @@ the websocket. A request from a web page (an Origin header) must come from a pag
 `authenticate`, the rosauth fields (as the `auth` op has them) come as query parameters."""
 import time
 
+import tornado.web
+
 from rosbridge.auth import mac_is_valid
 from rosbridge.origins import origin_allowed
+from rosbridge.pages import SECURITY_HEADERS
 
 AUTH_FIELDS = ("mac", "client", "dest", "rand", "t", "level", "end")
 
@@ -47,3 +50,25 @@ def _auth_refusal(args, config):
     if not mac_is_valid(auth, config.auth_secret, time.time(), config.auth_time_delta):
         return "authentication failed (bad MAC, or t/end out of time)"
     return None
+
+
+class EndpointHandler(tornado.web.RequestHandler):
+    """What the endpoints' handlers share: the page's security headers, answers never cached (CACHE_CONTROL),
+    and refusals as plain text."""
+    CACHE_CONTROL = "no-store"
+
+    def set_default_headers(self):
+        for name, value in SECURITY_HEADERS.items():
+            self.set_header(name, value)
+        self.set_header("Cache-Control", self.CACHE_CONTROL)
+
+    def compute_etag(self):
+        return None  # (every answer is fresh: no hash of it)
+
+    def refuse(self, status, text):
+        self.clear()
+        self.set_status(status)
+        self.set_header("Content-Type", "text/plain; charset=UTF-8")
+        if status == 401:
+            self.set_header("WWW-Authenticate", 'rosauth realm="rosbridge"')
+        self.finish(text + "\n")

@@ -39,7 +39,6 @@ from rosbridge import globs as globs_module
 from rosbridge import http_access, jpeg
 from rosbridge.off_loop import EncodingThread
 from rosbridge.errors import ClientError, log_bug
-from rosbridge.pages import SECURITY_HEADERS
 from rosbridge.unsent import limit_unsent
 
 BOUNDARY = "boundarydonotcross"  # web_video_server's
@@ -740,25 +739,11 @@ class Streams:
 
 
 # ---- handlers ----------------------------------------------------------------------------------------------------
-class _Handler(tornado.web.RequestHandler):
+class _Handler(http_access.EndpointHandler):
+    CACHE_CONTROL = NO_CACHE  # (web_video_server's)
+
     def initialize(self, streams):
         self.streams = streams
-
-    def set_default_headers(self):
-        for name, value in SECURITY_HEADERS.items():
-            self.set_header(name, value)
-        self.set_header("Cache-Control", NO_CACHE)
-
-    def compute_etag(self):
-        return None  # (every answer is fresh: no hash of it)
-
-    def refuse(self, status, text):
-        self.clear()
-        self.set_status(status)
-        self.set_header("Content-Type", "text/plain; charset=UTF-8")
-        if status == 401:
-            self.set_header("WWW-Authenticate", 'rosauth realm="rosbridge"')
-        self.finish(text + "\n")
 
     def allowed_origin_headers(self):
         origin = self.request.headers.get("Origin")
