@@ -357,22 +357,28 @@ class DriverLeases:
     connection only looks open). A client that drives (Backend.drives) holds a lease that anything it sends
     renews; silent for half of `timeout`, it is pinged (a live client answers at once); silent for `timeout`,
     its velocity topics get one zero message each (Backend.stop_driving) until it drives again. A client that
-    leaves is stopped by the backend at once (RosBackend's stop_drivers_leaving). Checked every timeout / 4."""
+    leaves is stopped by the backend at once (RosBackend's stop_drivers_leaving). Checked every timeout / 4, and
+    at the moment a silent driver's lease ends."""
 
     def __init__(self, bridge, timeout):
         self.bridge, self.timeout = bridge, timeout
-        self._checker = tornado.ioloop.PeriodicCallback(self._check, timeout / 4 * 1000)
+        self._loop = tornado.ioloop.IOLoop.current()
 
     def start(self):
-        self._checker.start()
+        self._check()
 
     def _check(self):
         now, backend = time.monotonic(), self.bridge.backend
+        wait = self.timeout / 4
         for client in self.bridge.clients:
             if not backend.drives(client.session):
                 continue
             silent = client.silent_for(now)
             if silent >= self.timeout:
                 backend.stop_driving(client.session)
-            elif silent >= self.timeout / 2:
+                continue
+            if silent >= self.timeout / 2:
                 client.ping()
+            if silent > 0:
+                wait = min(wait, self.timeout - silent)
+        self._loop.call_later(wait, self._check)

@@ -78,7 +78,7 @@ def test_a_silent_driver_is_stopped_within_the_timeout_and_drives_again_when_hea
         silent_from = time.monotonic()
         wait_for(lambda: recorder.zeros_after(silent_from), 5, what="a zero TwistStamped")
         stopped_after = recorder.zeros_after(silent_from)[0] - silent_from
-        assert TIMEOUT * 0.5 <= stopped_after <= TIMEOUT + 0.5, stopped_after
+        assert TIMEOUT * 0.5 <= stopped_after <= TIMEOUT + 0.1, stopped_after  # (checked when its lease ends)
         zero = [msg for t, msg in recorder.got if t >= silent_from][0]
         assert zero.header.stamp.to_sec() > 0  # stamped like any message a client publishes
         time.sleep(TIMEOUT * 2)
