@@ -39,7 +39,11 @@ DRIVER_CUTS = ("kill", "cut")  # how a driver goes away: its process killed, its
 PICTURES = ("camera-like", "busy")
 SERVERS = ("bridge", "plain", "reference")
 REFERENCE_TAG = "0.11.17"
-REFERENCE_WS = Path.home() / ".cache" / "turtlesim" / f"rosbridge-{REFERENCE_TAG}-ws"
+REFERENCE_WS = Path.home() / ".cache" / "turtlesim" / f"rosbridge-{REFERENCE_TAG}-venv-ws"
+# Its Python needs bson, autobahn and twisted: in a venv of its own (over Debian's ROS), pinned, so that nothing
+# of it lands in the system's Python (Debian's python3-twisted shadows the test venv's zope.interface).
+REFERENCE_VENV = Path.home() / ".cache" / "turtlesim" / "reference-venv"
+REFERENCE_PIP = ("pymongo==4.10.1", "autobahn==24.4.2", "twisted==24.11.0")
 REFERENCE_GIT = "https://github.com/RobotWebTools/rosbridge_suite"
 ROSAUTH_GIT = "https://github.com/GT-RAIL/rosauth"
 SMALL, CAMERA = "/rover/stamp", "/rover/camera"
@@ -357,14 +361,16 @@ def build_reference(suite_src, rosauth_src, log):
     """rosbridge_suite 0.11.17 (rosbridge_library, rosbridge_server, rosapi, rosbridge_msgs) and rosauth's
     service definition, built with catkin_make in REFERENCE_WS (once; about 15 s). rosauth's C++ node is left
     out (it needs roscpp and OpenSSL's headers; rosbridge_server only imports its service type). Returns None,
-    or why it could not be built. Its Python needs Debian's python3-bson, python3-autobahn, python3-twisted."""
+    or why it could not be built. Its Python is REFERENCE_VENV's (made here once)."""
     if (REFERENCE_WS / "devel" / "setup.bash").exists():
         return None
-    missing = [m for m in ("bson", "autobahn", "twisted") if subprocess.run(
-        [PY, "-c", f"import {m}"], capture_output=True).returncode]
-    if missing:
-        return (f"Python modules {', '.join(missing)} missing (`apt-get install python3-bson python3-autobahn "
-                "python3-twisted`)")
+    python = REFERENCE_VENV / "bin" / "python"
+    if not python.exists() or subprocess.run([str(python), "-c", "import bson, autobahn, twisted"],
+                                             capture_output=True).returncode:
+        made = subprocess.run(f"{PY} -m venv --system-site-packages {REFERENCE_VENV} && {python} -m pip install -q "
+                              + " ".join(REFERENCE_PIP), shell=True, capture_output=True, text=True)
+        if made.returncode:
+            return f"its venv could not be made: {made.stderr[-300:]}"
     work = Path(tempfile.mkdtemp(prefix="badlink-reference-"))
     try:
         for url, src, name in ((REFERENCE_GIT, suite_src, "rosbridge_suite"), (ROSAUTH_GIT, rosauth_src, "rosauth")):
@@ -393,7 +399,7 @@ def build_reference(suite_src, rosauth_src, log):
         cmake.write_text(text.split("include_directories(")[0])
         env = {k: v for k, v in os.environ.items() if k not in ("CMAKE_PREFIX_PATH", "ROS_PACKAGE_PATH", "PYTHONPATH")}
         with open(log, "w") as out:
-            res = subprocess.run(["catkin_make", "-C", str(REFERENCE_WS), f"-DPYTHON_EXECUTABLE={PY}", "-DCATKIN_ENABLE_TESTING=OFF"],
+            res = subprocess.run(["catkin_make", "-C", str(REFERENCE_WS), f"-DPYTHON_EXECUTABLE={python}", "-DCATKIN_ENABLE_TESTING=OFF"],
                                  cwd=REFERENCE_WS, env=env, stdout=out, stderr=subprocess.STDOUT)
         if res.returncode:
             shutil.rmtree(REFERENCE_WS / "devel", ignore_errors=True)
