@@ -90,3 +90,46 @@ def test_cbor_with_fragment_size_is_one_whole_binary_frame(bridge, node):
     assert isinstance(frame, bytes)
     message = cbor2.loads(frame)
     assert message["op"] == "publish" and message["msg"]["data"] == "x" * 100_000
+
+
+small_bound_bridge = bridge_fixture("small_bound_bridge", max_queue=30)
+
+
+def test_a_client_behind_loses_whole_fragmented_messages_only_and_is_told(small_bound_bridge, node):
+    """Messages of 10 fragments each for a client that does not read: what the bridge leaves out (the older
+    messages of a topic that is behind, or the oldest beyond the client's bound) are whole messages: every
+    fragmented message that arrives is complete, and the client is told."""
+    from std_msgs.msg import String
+    from bridge_client import RawWebSocket
+    pub = node.Publisher("/big/parts", String, queue_size=1000)
+    client = RawWebSocket(small_bound_bridge, recv_buffer=4096)
+    try:
+        client.send_text(json.dumps({"op": "set_level", "level": "warning"}))
+        client.send_text(json.dumps({"op": "subscribe", "topic": "/big/parts", "type": "std_msgs/String",
+                                     "fragment_size": 10_000, "queue_length": 1000}))
+        wait_for(lambda: pub.get_num_connections(), 20, what="the bridge to subscribe")
+        for n in range(100):  # ~100 kB each, 10 fragments: far more than the client's socket and its 30 frames
+            pub.publish(String(f"{n:03d}" + "x" * 95_000))
+        time.sleep(2)
+        parts, statuses, done = {}, [], set()
+        client.sock.settimeout(5)
+        while "099" not in done:
+            _, payload = client.recv_frame()
+            frame = json.loads(payload)
+            if frame["op"] == "status":
+                statuses.append(frame)
+                continue
+            assert frame["op"] == "fragment"
+            pieces = parts.setdefault(frame["id"], {})
+            pieces[frame["num"]] = frame["data"]
+            if len(pieces) == frame["total"]:
+                message = json.loads("".join(pieces[n] for n in range(frame["total"])))
+                done.add(message["msg"]["data"][:3])
+                del parts[frame["id"]]
+    finally:
+        client.close()
+        pub.unregister()
+    assert not parts, f"{len(parts)} message(s) cut: only whole messages may be dropped"
+    assert 0 < len(done) < 100
+    told = [s for s in statuses if s["msg"].startswith(("skipped ", "dropped ")) and "/big/parts" in s["msg"]]
+    assert told, statuses
