@@ -51,7 +51,7 @@ SETTINGS = (
     Setting("blackbox_max_bytes", int, 64_000_000, "bytes the black box keeps at most", ours=True),
     Setting("use_compression", bool, False, "websocket permessage-deflate"),
     Setting("websocket_ping_interval", float, 0.0, "seconds between keep-alive pings; 0 = none"),
-    Setting("websocket_ping_timeout", float, 30.0, "seconds without a pong before the connection is closed"),
+    Setting("websocket_ping_timeout", float, 30.0, "seconds without a pong before the connection is closed (and a camera stream whose frame has not left)"),
     Setting("topics_glob", str, "", 'topics clients may use, e.g. `"[/turtle1/*, /rosout]"`; empty = all'),
     Setting("services_glob", str, "", "services clients may call or provide; empty = all"),
     Setting("params_glob", str, "", "parameters clients may read or write; empty = all"),

@@ -53,7 +53,6 @@ TYPES_MAX_AGE = 0.5  # seconds the master's topic types answer for
 LOOKUP_TIMEOUT = 5.0
 MAX_KEYS_PER_JOB = 8  # variants one encoding job makes; more wait for the next job
 MAX_DISCARDED = 64 * 1024  # bytes a viewer may send after its request before its stream is closed
-STALLED = 30.0  # seconds a frame may take to leave before its viewer is dropped (a dead link sends no FIN)
 PASS = "pass"  # the key of a CompressedImage sent as it is
 NO_CACHE = "no-cache, no-store, must-revalidate, pre-check=0, post-check=0, max-age=0"
 
@@ -675,12 +674,14 @@ class Streams:
         self.pending = 0  # requests holding a place while their topic is looked up
         self.encoder = Encoder(self.loop)
         self.types = TopicTypes(bridge.backend)
-        tornado.ioloop.PeriodicCallback(self._drop_stalled, STALLED / 6 * 1000).start()
+        # a viewer whose frame has not left for websocket_ping_timeout is gone (a dead link sends no FIN)
+        self.stalled = bridge.settings.websocket_ping_timeout
+        tornado.ioloop.PeriodicCallback(self._drop_stalled, self.stalled / 6 * 1000).start()
 
     def _drop_stalled(self):
         now = time.monotonic()
         for viewer in list(self.viewers):
-            if viewer.writing_since is not None and now - viewer.writing_since > STALLED:
+            if viewer.writing_since is not None and now - viewer.writing_since > self.stalled:
                 viewer.end()
 
     # ---- access

@@ -19,6 +19,7 @@ from harness import ProcStat, make_workdir, start_bridge, wait_for
 
 BOUNDARY = b"--boundarydonotcross"
 GLOB = "[/streams_test/*]"
+STALLED = 12.0  # the module bridge's websocket_ping_timeout: how long a frame may take to leave (default 30 s)
 
 
 # ---- publishing -------------------------------------------------------------------------------------------------
@@ -163,7 +164,7 @@ def jpeg_size(body):
 # ---- fixtures ---------------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def bridge_proc(ros):
-    proc, port = start_bridge(ros, node_name="streams_bridge", topics_glob=GLOB)
+    proc, port = start_bridge(ros, node_name="streams_bridge", topics_glob=GLOB, websocket_ping_timeout=STALLED)
     yield proc, port
     proc.stop()
 
@@ -502,19 +503,15 @@ def test_adaptive_keeps_the_frame_rate_on_a_narrow_link(bridge, node):
 
 @pytest.mark.slow
 def test_a_viewer_that_stops_reading_is_dropped(bridge, camera):
-    """A link that died without a FIN: the frame being written never leaves; after 30 s the viewer is dropped."""
+    """A link that died without a FIN: the frame being written never leaves; after websocket_ping_timeout the
+    viewer is dropped."""
     wait_streaming(bridge, "/streams_test/cam")
     stream = Http(bridge, "/stream?topic=/streams_test/cam", rcvbuf=4096)
-    time.sleep(streams_stalled() + 6)
+    time.sleep(STALLED * 1.5)
     with pytest.raises((EOFError, ConnectionError)):
         while True:  # what was sent, then the end
             stream.fill()
     stream.close()
-
-
-def streams_stalled():
-    from rosbridge.streams import STALLED
-    return STALLED
 
 
 # ---- the list, the viewer page, bad requests ----------------------------------------------------------------------
