@@ -49,10 +49,8 @@ class FrameQueue:
 
 
 SMALL_MESSAGE = 1 << 16  # bytes: a message smaller than this goes before the big ones that have not started yet
-# While the socket is backed up, a topic keeps its newest big message only, and small ones for FRESH_HORIZON seconds
-# and TOPIC_BACKLOG_BYTES at most: a burst of a fast topic that the client reads a moment later is not skipped.
-FRESH_HORIZON = 0.5
-TOPIC_BACKLOG_BYTES = 1 << 20
+TOPIC_BACKLOG_BYTES = 16 * 1024  # what one topic may have waiting while the socket is backed up (but its newest)...
+FRESH_HORIZON = 0.5  # ...and for how long (s): older messages of a topic that has a newer one waiting are skipped
 
 
 class _Unit:
@@ -72,9 +70,9 @@ class Outbox:
       and between the fragments of a big one (rosbridge fragments are ops of their own): two lanes, small
       first; a topic's small message that follows a big one of the same topic waits in the big lane behind it,
       so that a topic's messages never change order.
-    - While the socket is backed up, each topic keeps what is fresh: its newest big message (a camera keeps one
-      picture), and of its small ones the last FRESH_HORIZON seconds, at most TOPIC_BACKLOG_BYTES; the newest is
-      always kept. Messages without a topic (key None:
+    - While the socket is backed up, each topic keeps what is fresh: of its waiting messages, the older ones are
+      skipped once they are more than TOPIC_BACKLOG_BYTES or older than FRESH_HORIZON, the newest always kept
+      (a camera keeps one picture; a small topic the last half second). Messages without a topic (key None:
       service responses, status) are never skipped.
     - Bounds for everything: max_frames and max_bytes. Beyond them the oldest whole messages are dropped; a
       message larger than the whole bound is refused. Skipped, dropped and refused are counted by topic for the
@@ -118,7 +116,7 @@ class Outbox:
             self._bound(unit)
 
     def _freshen(self, key, waiting, now):
-        while len(waiting) > 1 and (waiting[0].big or self._key_bytes[key] > TOPIC_BACKLOG_BYTES
+        while len(waiting) > 1 and (self._key_bytes[key] > TOPIC_BACKLOG_BYTES
                                     or now - waiting[0].queued_at > FRESH_HORIZON):
             self._remove(waiting.popleft())
             self.skipped[key] += 1

