@@ -189,17 +189,21 @@ def make_workdir(prefix):
     return Path(tempfile.mkdtemp(prefix=prefix))
 
 
-def start_bridge(ros, node_name="rosbridge_websocket", timeout=30.0, **settings):
+def start_bridge(ros, node_name="rosbridge_websocket", timeout=30.0, max_fds=None, **settings):
     """Runs the bridge node (`rosrun turtlesim rosbridge_websocket`, its settings set as private parameters,
     as the launch file sets them: text) on a free port of 127.0.0.1 (settings may override, e.g.
     authenticate="true"); returns (Proc, port) once the server listens. Give each bridge that runs at the same
-    time its own node_name. The launch file itself is run by launch_bridge."""
+    time its own node_name. max_fds: run it under `ulimit -n max_fds`. The launch file itself is run by
+    launch_bridge."""
     master = ros.master()
     if master.hasParam(f"/{node_name}"):  # (what an earlier bridge of this name was given)
         master.deleteParam(f"/{node_name}")
     for name, value in {"port": 0, "address": "127.0.0.1", **settings}.items():
         master.setParam(f"/{node_name}/{name}", str(value))
-    proc = ros.spawn(["rosrun", "turtlesim", "rosbridge_websocket", f"__name:={node_name}"], node_name)
+    command = ["rosrun", "turtlesim", "rosbridge_websocket", f"__name:={node_name}"]
+    if max_fds is not None:
+        command = ["bash", "-c", f'ulimit -n {int(max_fds)} && exec "$@"', "bash", *command]
+    proc = ros.spawn(command, node_name)
     return proc, _listening_port(ros, proc, node_name, timeout)
 
 

@@ -57,10 +57,7 @@ def test_a_hostile_client_does_not_hurt_a_well_behaved_one(ros, turtlesim, abuse
 def test_idle_connections_beyond_the_descriptor_limit_neither_spin_nor_lock_clients_out(ros, turtlesim):
     """Under `ulimit -n 256`, 400 idle TCP connections: the bridge stops accepting for a while instead of failing
     accept() in a loop (little CPU, a few log lines), closes the idle ones, and then takes new clients again."""
-    proc = ros.spawn(["bash", "-c", "ulimit -n 256 && exec roslaunch turtlesim rosbridge_websocket.launch "
-                      "port:=0 address:=127.0.0.1 node_name:=isolation_fds"], "isolation_fds")
-    port = wait_for(lambda: ros.master().hasParam("/isolation_fds/actual_port")
-                    and ros.master().getParam("/isolation_fds/actual_port"), 30, what="the bridge")
+    proc, port = start_bridge(ros, "isolation_fds", max_fds=256)
     stat = ProcStat(node_pid(ros, "/isolation_fds"))
     idle = []
     for _ in range(400):
