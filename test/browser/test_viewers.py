@@ -2,9 +2,7 @@
 Chromium against real publishers: the demo's laser and TF nodes, and rospy publishers in this process for the rest,
 odd messages included (NaN and infinite ranges, empty arrays, a 4000x4000 map, 50 TF frames at 100 Hz, a 300k-point
 cloud). What a person sees is asserted: pixels of the canvas, rows of a table, numbers."""
-import io
 import math
-import threading
 import urllib.request
 from array import array
 
@@ -13,6 +11,7 @@ from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import Select
 
 from harness import ARTIFACTS, wait_for
+from sensor_messages import Publishing, big_cloud, moving_frames, quaternion, tf_message, wide_scan
 
 BACKGROUND = (15, 20, 36)
 
@@ -63,25 +62,6 @@ def shot(page, area, name):
     page.driver.save_screenshot(str(ARTIFACTS / f"viewer-{name}.png"))
 
 
-def publishing(node, topic, msg_class, make, rate_hz, latch=False):
-    """Publishes make(n) on topic at rate_hz from a thread; returns stop()."""
-    publisher = node.Publisher(topic, msg_class, queue_size=10, latch=latch)
-    stopped = threading.Event()
-
-    def run():
-        n = 0
-        while not stopped.is_set():
-            publisher.publish(make(n))
-            n += 1
-            stopped.wait(1.0 / rate_hz)
-    threading.Thread(target=run, daemon=True).start()
-
-    def stop():
-        stopped.set()
-        publisher.unregister()
-    return stop
-
-
 @pytest.fixture(scope="module")
 def demo_sensors(ros, sim):
     """The demo's turtle_tf and turtle_laser, as tools/demo starts them."""
@@ -94,20 +74,14 @@ def demo_sensors(ros, sim):
 
 @pytest.fixture
 def publishers():
-    """publish(node, topic, class, make, rate) as publishing(); all stopped after the test."""
-    stops = []
+    """publish(node, topic, class, make, rate, latch=False): a sensor_messages.Publishing, stopped after the test."""
+    publishing = []
 
     def publish(*args, **kwargs):
-        stops.append(publishing(*args, **kwargs))
+        publishing.append(Publishing(*args, **kwargs))
     yield publish
-    for stop in stops:
-        stop()
-
-
-def quaternion(roll=0.0, pitch=0.0, yaw=0.0):
-    cr, sr, cp, sp, cy, sy = (f(a / 2) for a in (roll, pitch, yaw) for f in (math.cos, math.sin))
-    return (sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy,
-            cr * cp * cy + sr * sp * sy)
+    for each in publishing:
+        each.stop()
 
 
 def q_multiply(a, b):
@@ -121,22 +95,6 @@ def q_rotate(q, v):
     x, y, z, w = q
     p = q_multiply(q_multiply(q, (*v, 0.0)), (-x, -y, -z, w))
     return p[:3]
-
-
-def tf_message(transforms, stamp):
-    """tf2_msgs/TFMessage of [(parent, child, (tx, ty, tz), (qx, qy, qz, qw))]."""
-    from geometry_msgs.msg import TransformStamped
-    from tf2_msgs.msg import TFMessage
-    message = TFMessage()
-    for parent, child, t, q in transforms:
-        stamped = TransformStamped()
-        stamped.header.stamp, stamped.header.frame_id, stamped.child_frame_id = stamp, parent, child
-        (stamped.transform.translation.x, stamped.transform.translation.y,
-         stamped.transform.translation.z) = t
-        r = stamped.transform.rotation
-        r.x, r.y, r.z, r.w = q
-        message.transforms.append(stamped)
-    return message
 
 
 # ---- TF -----------------------------------------------------------------------------------------------------------
@@ -177,9 +135,7 @@ def test_the_tf_tree_lists_frames_with_parent_rate_age_and_the_transform_between
     static = [("world", "test_a", (1.0, 2.0, 0.0), quaternion(yaw=math.pi / 2)),
               ("test_a", "test_b", (0.5, 0.0, 0.2), quaternion(roll=math.pi / 6))]
     publishers(node, "/tf_static", TFMessage, lambda n: tf_message(static, node.Time.now()), 1, latch=True)
-    publishers(node, "/tf", TFMessage, lambda n: tf_message(
-        [("world", f"fast_{i}", (math.cos(n / 100 + i), math.sin(n / 100 + i), 0), quaternion(yaw=n / 100))
-         for i in range(50)], node.Time.now()), 100)
+    publishers(node, "/tf", TFMessage, lambda n: moving_frames(n, node.Time.now(), "world", "fast_"), 100)
     page = open_page()
     area = open_viewer(page, "/tf", "tf")
 
@@ -227,16 +183,8 @@ def test_a_fast_laser_and_fifty_tf_frames_at_100_hz_keep_the_page_smooth(open_pa
     second, and how many scans the laser viewer drew (at most one per animation frame: all 40 a second)."""
     from sensor_msgs.msg import LaserScan
     from tf2_msgs.msg import TFMessage
-
-    def scan(n):
-        message = LaserScan(angle_min=-2.35, angle_max=2.35, angle_increment=4.7 / 1081, range_min=0.1,
-                            range_max=30.0, ranges=[3 + math.sin(i / 30 + n / 10) for i in range(1081)])
-        message.header.stamp, message.header.frame_id = node.Time.now(), "fast_laser"
-        return message
-    publishers(node, "/fast/scan", LaserScan, scan, 40)
-    publishers(node, "/tf", TFMessage, lambda n: tf_message(
-        [("odom", f"moving_{i}", (math.cos(n / 100 + i), 0, 0), quaternion(yaw=n / 100)) for i in range(50)],
-        node.Time.now()), 100)
+    publishers(node, "/fast/scan", LaserScan, lambda n: wide_scan(n, node.Time.now()), 40)
+    publishers(node, "/tf", TFMessage, lambda n: moving_frames(n, node.Time.now()), 100)
     page = open_page()
     laser = open_viewer(page, "/fast/scan", "laser")
     tf = open_viewer(page, "/tf", "tf")
@@ -536,27 +484,13 @@ def test_gauges_for_joints_imu_battery_and_range(open_page, node, publishers):
 
 
 # ---- point clouds -------------------------------------------------------------------------------------------------
-def big_cloud(n=300_000):
-    """A disc of n points in x, y (radius 10 m), z rising with the angle, intensity beside it."""
-    from sensor_msgs.msg import PointCloud2, PointField
-    values = array("f")
-    for i in range(n):
-        angle, radius = i * 2.399963, 10 * math.sqrt(i / n)
-        values.extend((radius * math.cos(angle), radius * math.sin(angle), (i % 100) / 50, 1.0))
-    message = PointCloud2(height=1, width=n, point_step=16, row_step=16 * n, is_dense=True, data=values.tobytes(),
-                          fields=[PointField(name=k, offset=o, datatype=PointField.FLOAT32, count=1)
-                                  for k, o in (("x", 0), ("y", 4), ("z", 8), ("intensity", 12))])
-    message.header.frame_id = "lidar"
-    return message
-
-
 @pytest.fixture(scope="module")
 def cloud_topic(node):
     from sensor_msgs.msg import PointCloud2
     cloud = big_cloud()
-    stop = publishing(node, "/test/cloud", PointCloud2, lambda n: cloud, 2)
+    publishing = Publishing(node, "/test/cloud", PointCloud2, lambda n: cloud, 2)
     yield "/test/cloud"
-    stop()
+    publishing.stop()
 
 
 def get(url, timeout=20):
