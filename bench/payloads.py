@@ -41,6 +41,7 @@ TYPES = {
     "float": "std_msgs/Float64",
     "string": "std_msgs/String",
     "image": "sensor_msgs/Image",
+    "cloud": "sensor_msgs/PointCloud2",  # (ROS side only: the bridge sends clouds decimated, by HTTP)
 }
 
 
@@ -91,6 +92,9 @@ def ros_msg(kind, seq=0):
         from std_msgs.msg import Header
         return Image(header=Header(seq=seq, frame_id="camera"), height=IMAGE_H, width=IMAGE_W, encoding="rgb8",
                      is_bigendian=0, step=IMAGE_W * 3, data=_cached("image", _image_bytes))
+    if kind == "cloud":  # (test/sensor_messages.py: the cloud the viewer's tests draw; on PYTHONPATH in the suite)
+        from sensor_messages import big_cloud
+        return _cached("cloud", big_cloud)
     raise ValueError(f"unknown payload kind {kind!r}")
 
 
@@ -108,7 +112,7 @@ def seq_of(kind, msg):
         return int(msg.linear.x)
     if kind == "float":
         return int(msg.data)
-    if kind == "image":
+    if kind in ("image", "cloud"):
         return int(msg.header.seq)
     return 0
 

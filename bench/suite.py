@@ -20,6 +20,7 @@ import harness  # noqa: E402  (the tests' process tools: private roscore, proces
 sys.path.insert(0, str(REPO / "test" / "integration"))
 import hostile  # noqa: E402  (the isolation tests' hostile clients and their victim)
 
+import payloads  # noqa: E402
 import stats  # noqa: E402
 
 PY = "/usr/bin/python3"
@@ -31,7 +32,8 @@ class Run:
     def __init__(self, workdir):
         self.workdir = Path(workdir)
         self.ros = harness.RosMaster(self.workdir).start()
-        self.ros.env["PYTHONPATH"] = f"{BENCH}:{self.ros.env.get('PYTHONPATH', '')}"
+        # (test/ for the messages the tests publish too: test/sensor_messages.py)
+        self.ros.env["PYTHONPATH"] = f"{BENCH}:{REPO / 'test'}:{self.ros.env.get('PYTHONPATH', '')}"
         self.topics = 0
         self.spawned = 0
 
@@ -479,6 +481,73 @@ def section_large(run, table, rounds, count):
                   "µs", "rospy subscriber node", paced["sub_us"])
 
 
+CLOUD_HZ, CLOUD_COUNT = 5, 100  # a 300k-point lidar at 5 Hz, for 20 s (5 ms a cloud: 50 CPU ticks of 10 ms)
+
+
+def cloud_out(run, url, server, topic):
+    """A 300k-point sensor_msgs/PointCloud2 (4.8 MB) from a rospy publisher at 5 Hz -> a server's /cloud at url ->
+    one client asking as the page's Cloud viewer does (20,000 points; the next once it has read the last): clouds
+    delivered, the server's CPU per cloud delivered, bytes per cloud on the wire."""
+    fetch = run.role("cloud_roles.py", "fetch", "--url", url, "--topic", topic, "--count", CLOUD_COUNT)
+    run.ready(fetch)
+    pub = run.role("ros_roles.py", "pub", "--topic", topic, "--kind", "cloud", "--count", CLOUD_COUNT,
+                   "--rate", CLOUD_HZ)
+    run.ready(pub, timeout=60)  # (once the server subscribed: at the client's first request for the bridge)
+    cpu = Cpu(server)
+    run.go(pub)
+    got = run.result(fetch)
+    if got["problems"]:
+        raise RuntimeError(f"/cloud answered {got['problems']}")
+    figures = {"delivered": got["unique"] / CLOUD_COUNT, "server_us": cpu.us_per(got["unique"]),
+               "wire_bytes": got["bytes"] / got["received"] if got["received"] else None}
+    run.stop(fetch, pub)
+    return figures
+
+
+def decimation_ms(reps=20):
+    """CPU ms of rosbridge.cloud's read_cloud + decimate of the bench's cloud to 20,000 points, in this process."""
+    import io
+
+    from rosbridge.cloud import decimate, read_cloud
+    buffer = io.BytesIO()
+    payloads.ros_msg("cloud").serialize(buffer)
+    raw = buffer.getvalue()
+    started = time.process_time()
+    for _ in range(reps):
+        decimate(read_cloud(raw), 20000)
+    return (time.process_time() - started) * 1e3 / reps
+
+
+def section_cloud(run, table, rounds):
+    """The bridge's /cloud (the Cloud viewer's source) against the least such an endpoint does, in the same run:
+    bench/cloud_roles.py's serve (one bare TCPROS connection read into a buffer per message, the same decimation,
+    a bare Tornado HTTP server); and, for information, a rospy node that only receives the clouds."""
+    plain, ceiling, bridged = [], [], []
+    for _ in range(rounds):
+        plain.append(rospy_pubsub(run, "cloud", CLOUD_COUNT, rate=CLOUD_HZ))
+        topic, port = run.topic("cloud"), harness.free_port()
+        server = run.role("cloud_roles.py", "serve", "--topic", topic, "--port", port)
+        run.ready(server)
+        ceiling.append(cloud_out(run, f"http://127.0.0.1:{port}/", harness.ProcStat(server.pid), topic))
+        run.stop(server)
+        bridge, url, stat = run.bridge()
+        bridged.append(cloud_out(run, url.replace("ws://", "http://") + "/", stat, run.topic("cloud")))
+        run.stop(bridge)
+    plain, ceiling, bridged = map(medians, (plain, ceiling, bridged))
+    decimation = decimation_ms()
+    label = f"300k-point PointCloud2 at {CLOUD_HZ} Hz, ROS -> /cloud -> a client asking as the Cloud viewer does"
+    ceiling_name = "bare TCPROS read + the same decimation + bare Tornado HTTP"
+    table.row(f"{label}: clouds delivered", bridged["delivered"], "%", ceiling_name, ceiling["delivered"])
+    table.row("point cloud: bridge CPU per delivered (decimated) cloud", bridged["server_us"] / 1e3, "ms",
+              ceiling_name, ceiling["server_us"] / 1e3)
+    table.row("point cloud: bridge CPU per delivered cloud, vs a rospy node only receiving the clouds",
+              bridged["server_us"] / 1e3, "ms", "rospy subscriber (PointCloud2)", plain["sub_us"] / 1e3)
+    table.row("point cloud: of the ceiling's CPU, the decimation alone (read_cloud + decimate, no I/O)", decimation,
+              "ms", ceiling_name, ceiling["server_us"] / 1e3)
+    table.row("point cloud: bytes on the wire per cloud (20,000 points asked)", bridged["wire_bytes"], "B",
+              "the ceiling's", ceiling["wire_bytes"])
+
+
 def section_isolation(run, table):
     """One hostile client at a time (test/integration/hostile.py) against a well-behaved one: the victim's
     largest gap in turtlesim's 62.5 Hz pose, its slowest /rosapi/get_time, the bridge's memory growth."""
@@ -500,19 +569,21 @@ def section_isolation(run, table):
         run.stop(turtle)
 
 
-def other_bench(run, script, title, code_block=False, python=PY):
-    """Runs another part's benchmark (bench/<script>, same roscore environment) and returns its table."""
+def other_bench(run, script, title, code_block=False, python=PY, args=()):
+    """Runs another part's benchmark (bench/<script> with args, same roscore environment) and returns its table."""
     path = BENCH / script
     if not path.exists():
         return f"### {title}\n\n(bench/{script} is not there yet)"
-    res = subprocess.run([python, str(path)], env=run.ros.env, capture_output=True, text=True, timeout=300)
+    res = subprocess.run([python, str(path), *map(str, args)], env=run.ros.env, capture_output=True, text=True,
+                         timeout=300)
     if res.returncode != 0:
         return f"### {title}\n\n(bench/{script} failed, exit {res.returncode}:\n\n```\n{res.stderr[-1500:]}\n```)"
     out = res.stdout.strip()
     return f"### {title}\n\n" + (f"```\n{out}\n```" if code_block else out)
 
 
-SECTIONS = ("throughput", "rates", "latency", "fanout", "large", "isolation", "turtlesim", "convert", "page")
+SECTIONS = ("throughput", "rates", "latency", "fanout", "large", "cloud", "isolation", "turtlesim", "convert",
+            "page")
 
 
 def main():
@@ -538,12 +609,14 @@ def main():
                     "isolation": lambda: section_isolation(run, table),
                     "fanout": lambda: section_fanout(run, table, a.rounds, a.fanout),
                     "large": lambda: section_large(run, table, a.rounds, 120),
+                    "cloud": lambda: section_cloud(run, table, a.rounds),
                     "turtlesim": lambda: other_bench(run, "turtlesim_bench.py",
                                                      "turtlesim_node (bench/turtlesim_bench.py)"),
                     "convert": lambda: other_bench(run, "convert_bench.py",
                                                    "ROS <-> JSON conversion (bench/convert_bench.py)", code_block=True),
                     "page": lambda: other_bench(run, "page_bench.py", "The page in Chromium (bench/page_bench.py)",
-                                                python=str(REPO / ".build" / "venv" / "bin" / "python"))}
+                                                python=str(REPO / ".build" / "venv" / "bin" / "python"),
+                                                args=["--screenshot", run.workdir / "page-robot-console.png"])}
         for name in a.only:
             t = time.monotonic()
             extra = sections[name]()
