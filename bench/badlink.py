@@ -12,13 +12,11 @@ Run it with `bash bench/run --only badlink [options]` (or `/usr/bin/python3 benc
 veth included) at the end, even on failure. With every case (no --links/--clients/--pictures/--servers given,
 no --no-readme) it rewrites its section of bench/README.template.md and bench/README.md."""
 import argparse
-import hashlib
 import json
 import os
 import re
 import shutil
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
@@ -30,6 +28,9 @@ REPO = BENCH.parent
 sys.path.insert(0, str(REPO / "test"))
 import harness  # noqa: E402  (private roscore, process groups, logs, /proc readings)
 
+import peers  # noqa: E402
+import reporting  # noqa: E402
+
 PY = "/usr/bin/python3"
 VENV_PY = str(REPO / ".build" / "venv" / "bin" / "python")  # (Selenium)
 TBF = "burst 32kbit latency 50ms"
@@ -38,14 +39,6 @@ CLIENTS = ("roslibjs", "careful", "console", "driver")
 DRIVER_CUTS = ("kill", "cut")  # how a driver goes away: its process killed, its link cut
 PICTURES = ("camera-like", "busy")
 SERVERS = ("bridge", "plain", "reference")
-REFERENCE_TAG = "0.11.17"
-REFERENCE_WS = Path.home() / ".cache" / "turtlesim" / f"rosbridge-{REFERENCE_TAG}-venv-ws"
-# Its Python needs bson, autobahn and twisted: in a venv of its own (over Debian's ROS), pinned, so that nothing
-# of it lands in the system's Python (Debian's python3-twisted shadows the test venv's zope.interface).
-REFERENCE_VENV = Path.home() / ".cache" / "turtlesim" / "reference-venv"
-REFERENCE_PIP = ("pymongo==4.10.1", "autobahn==24.4.2", "twisted==24.11.0")
-REFERENCE_GIT = "https://github.com/RobotWebTools/rosbridge_suite"
-ROSAUTH_GIT = "https://github.com/GT-RAIL/rosauth"
 SMALL, CAMERA = "/rover/stamp", "/rover/camera"
 CAMERA_HZ, SMALL_HZ = 15, 50
 GRACE = 1.0  # s after the window: a small message stamped in the window counts as delivered if it came by then
@@ -207,14 +200,11 @@ class Bench:
             port = harness.wait_for(port, 60, what=param)
             stat = harness.ProcStat(harness.node_pid(self.ros, "/badlink_before"))
             return proc, stat, f"ws://{addr}:{port}/", f"http://{addr}:{port}/"
-        port = harness.free_port()
         if kind == "reference":  # its own launch file, from its own workspace; it serves no page
-            proc = self.spawn(["bash", "-c", f"source {REFERENCE_WS}/devel/setup.bash && exec roslaunch "
-                               f"rosbridge_server rosbridge_websocket.launch port:={port} address:={addr}"],
-                              "reference")
-            harness.wait_for(lambda: _listening(addr, port, proc), 60, what="rosbridge_server 0.11.17 listening")
-            stat = harness.ProcStat(harness.node_pid(self.ros, "/rosbridge_websocket"))
-            return proc, stat, f"ws://{addr}:{port}/", None
+            self.spawned += 1
+            proc, stat, url = peers.start_reference(self.ros, self.a, addr, f"{self.spawned:02d}-reference")
+            return proc, stat, url, None
+        port = harness.free_port()
         proc = self.spawn([PY, BENCH / "plain_server.py", "--address", addr, "--port", port], "plain")
         self.wait_line(proc, r"^READY", 30)
         return proc, harness.ProcStat(proc.pid), f"ws://{addr}:{port}/ws", f"http://{addr}:{port}/"
@@ -237,7 +227,7 @@ class Bench:
         print(f"badlink: {name}", file=sys.stderr, flush=True)
         self.show(picture)
         self.link.shape(mbit)
-        code = code_state() if server == "bridge" else None
+        code = reporting.code_state() if server == "bridge" else None
         srv, stat, ws_url, page_url = self.server(server)
         client = None
         try:
@@ -284,7 +274,7 @@ class Bench:
         print(f"badlink: {name}", file=sys.stderr, flush=True)
         self.show(self.picture or "camera-like")
         self.link.shape(mbit)
-        code = code_state() if server == "bridge" else None
+        code = reporting.code_state() if server == "bridge" else None
         srv, stat, ws_url, _ = self.server(server)
         client = None
         try:
@@ -331,7 +321,7 @@ class Bench:
                            f"{self.link.client_addr}:{port}"], "sink", inside=True)
         try:
             self.wait_line(sink, r"^READY", 30)
-            conn = harness.wait_for(lambda: _connect(self.link.client_addr, port), 10, what="the sink")
+            conn = harness.wait_for(lambda: peers.connect(self.link.client_addr, port), 10, what="the sink")
             block, end = b"\0" * 65536, time.monotonic() + seconds
             while time.monotonic() < end:
                 conn.sendall(block)
@@ -346,67 +336,6 @@ class Bench:
             self.ros.stop()
         finally:
             self.link.down()
-
-
-def _listening(host, port, proc):
-    if not proc.alive():
-        raise RuntimeError(f"the server ended:\n{proc.output()[-3000:]}")
-    conn = _connect(host, port)
-    if conn:
-        conn.close()
-    return conn is not None
-
-
-def build_reference(suite_src, rosauth_src, log):
-    """rosbridge_suite 0.11.17 (rosbridge_library, rosbridge_server, rosapi, rosbridge_msgs) and rosauth's
-    service definition, built with catkin_make in REFERENCE_WS (once; about 15 s). rosauth's C++ node is left
-    out (it needs roscpp and OpenSSL's headers; rosbridge_server only imports its service type). Returns None,
-    or why it could not be built. Its Python is REFERENCE_VENV's (made here once)."""
-    if (REFERENCE_WS / "devel" / "setup.bash").exists():
-        return None
-    python = REFERENCE_VENV / "bin" / "python"
-    if not python.exists() or subprocess.run([str(python), "-c", "import bson, autobahn, twisted"],
-                                             capture_output=True).returncode:
-        made = subprocess.run(f"{PY} -m venv --system-site-packages {REFERENCE_VENV} && {python} -m pip install -q "
-                              + " ".join(REFERENCE_PIP), shell=True, capture_output=True, text=True)
-        if made.returncode:
-            return f"its venv could not be made: {made.stderr[-300:]}"
-    work = Path(tempfile.mkdtemp(prefix="badlink-reference-"))
-    try:
-        for url, src, name in ((REFERENCE_GIT, suite_src, "rosbridge_suite"), (ROSAUTH_GIT, rosauth_src, "rosauth")):
-            if not src:
-                src = work / name
-                res = subprocess.run(["git", "clone", "-q", url, str(src)], capture_output=True, text=True)
-                if res.returncode:
-                    return f"could not clone {url}: {res.stderr.strip()[:200]}"
-            if name == "rosbridge_suite":
-                suite_src = src
-            else:
-                rosauth_src = src
-        shutil.rmtree(REFERENCE_WS, ignore_errors=True)
-        (REFERENCE_WS / "src" / "rosauth").mkdir(parents=True)
-        archive = subprocess.run(["git", "-C", str(suite_src), "archive", REFERENCE_TAG, "rosbridge_library",
-                                  "rosbridge_server", "rosapi", "rosbridge_msgs"], capture_output=True)
-        if archive.returncode:
-            return f"no tag {REFERENCE_TAG} in {suite_src}: {archive.stderr.decode()[:200]}"
-        subprocess.run(["tar", "x", "-C", str(REFERENCE_WS / "src")], input=archive.stdout, check=True)
-        archive = subprocess.run(["git", "-C", str(rosauth_src), "archive", "HEAD"], capture_output=True, check=True)
-        subprocess.run(["tar", "x", "-C", str(REFERENCE_WS / "src" / "rosauth")], input=archive.stdout, check=True)
-        cmake = REFERENCE_WS / "src" / "rosauth" / "CMakeLists.txt"
-        text = cmake.read_text().replace("COMPONENTS roscpp message_generation", "COMPONENTS message_generation")
-        text = text.replace("find_package(OpenSSL REQUIRED)", "")
-        text = text.replace("CATKIN_DEPENDS roscpp message_runtime", "CATKIN_DEPENDS message_runtime")
-        cmake.write_text(text.split("include_directories(")[0])
-        env = {k: v for k, v in os.environ.items() if k not in ("CMAKE_PREFIX_PATH", "ROS_PACKAGE_PATH", "PYTHONPATH")}
-        with open(log, "w") as out:
-            res = subprocess.run(["catkin_make", "-C", str(REFERENCE_WS), f"-DPYTHON_EXECUTABLE={python}", "-DCATKIN_ENABLE_TESTING=OFF"],
-                                 cwd=REFERENCE_WS, env=env, stdout=out, stderr=subprocess.STDOUT)
-        if res.returncode:
-            shutil.rmtree(REFERENCE_WS / "devel", ignore_errors=True)
-            return f"catkin_make failed (log: {log})"
-        return None
-    finally:
-        shutil.rmtree(work, ignore_errors=True)
 
 
 def before_workspace(commit, log):
@@ -432,13 +361,6 @@ def before_workspace(commit, log):
         shutil.rmtree(ws / "devel", ignore_errors=True)
         raise SystemExit(f"badlink: the bridge of {commit} did not build (log: {log})")
     return ws, full
-
-
-def _connect(host, port):
-    try:
-        return socket.create_connection((host, port), 1)
-    except OSError:
-        return None
 
 
 def pct(values, q):
@@ -507,7 +429,7 @@ def fmt(value, unit):
 
 
 PHONE = False  # (--phone: the console cases ran on a phone's screen)
-EXTRA = {"reference": f"rosbridge_server {REFERENCE_TAG}"}  # more servers measured: their columns' titles
+EXTRA = {"reference": peers.REFERENCE_NAME}  # more servers measured: their columns' titles
 
 
 class Table:
@@ -665,20 +587,6 @@ def notes(results):
     return "\n".join(lines)
 
 
-def write_readme(text):
-    for name in ("README.template.md", "README.md"):
-        path = BENCH / name
-        old = path.read_text()
-        if MARKERS[0] in old:
-            head, rest = old.split(MARKERS[0], 1)
-            tail = rest.split(MARKERS[1], 1)[1]
-            new = f"{head}{MARKERS[0]}\n{text}\n{MARKERS[1]}{tail}"
-        else:
-            raise SystemExit(f"{path} has no {MARKERS[0]} ... {MARKERS[1]} section")
-        path.write_text(new)
-        print(f"wrote {path}", file=sys.stderr)
-
-
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--links", type=int, nargs="+", default=list(LINKS), help="Mbit/s")
@@ -691,10 +599,7 @@ def main():
     p.add_argument("--warmup", type=float, default=5.0)
     p.add_argument("--before", metavar="COMMIT",
                    help="also measure the bridge (and its page) of this commit, built from git in ~/.cache/turtlesim")
-    p.add_argument("--reference-src", default=os.environ.get("ROSBRIDGE_SUITE_SRC"),
-                   help="a clone of rosbridge_suite (default: $ROSBRIDGE_SUITE_SRC, else cloned from GitHub)")
-    p.add_argument("--rosauth-src", default=os.environ.get("ROSAUTH_SRC"),
-                   help="a clone of rosauth (default: $ROSAUTH_SRC, else cloned from GitHub)")
+    peers.add_arguments(p)
     p.add_argument("--phone", action="store_true", help="the console on a phone's screen (390x844), not a desktop's")
     p.add_argument("--no-readme", action="store_true")
     p.add_argument("--render", metavar="DIR", help="print (and with --readme, write) the text of an earlier run "
@@ -712,7 +617,7 @@ def main():
                       run["footer"])
         print(text)
         if a.readme:
-            write_readme(text)
+            reporting.write_section(MARKERS, text)
         return
     reason = netns_unavailable()
     if reason:
@@ -725,10 +630,10 @@ def main():
     workdir = Path(tempfile.mkdtemp(prefix="badlink-"))
     remarks = []
     if "reference" in a.servers:
-        why = build_reference(a.reference_src, a.rosauth_src, workdir / "reference-build.log")
+        why = peers.reference_missing(a)
         if why:
             a.servers.remove("reference")
-            remarks.append(f"rosbridge_server {REFERENCE_TAG} not measured: {why}.")
+            remarks.append(f"{peers.REFERENCE_NAME} not measured: {why}.")
             print(f"badlink: {remarks[-1]}", file=sys.stderr)
     before_ws = None
     if a.before:
@@ -778,7 +683,7 @@ def main():
         bench.close()
     sizes = {picture: bench.sizes[picture] for picture in PICTURES if picture in bench.sizes}
     elapsed = time.monotonic() - started
-    footer = (f"Measured {time.strftime('%Y-%m-%d %H:%M')} at {git_head()} on {os.cpu_count()} CPUs, "
+    footer = (f"Measured {time.strftime('%Y-%m-%d %H:%M')} at {reporting.git_head()} on {os.cpu_count()} CPUs, "
               f"{a.seconds:.0f} s per case after {a.warmup:.0f} s of warm-up; took {elapsed:.0f} s; load average "
               f"{load_before:.1f} before, {os.getloadavg()[0]:.1f} after (the machine's other work shares its 2 "
               f"cores with the rover, the servers, the clients and Chromium). Logs, screenshots and raw records: "
@@ -789,21 +694,7 @@ def main():
     text = render(results, capacity, sizes, remarks, footer)
     print(text)
     if full and not a.no_readme:
-        write_readme(text)
-
-
-def code_state():
-    """The bridge's and the page's code as a case found it: HEAD, and a digest of any uncommitted change to src/
-    or web/ (others may commit while a run goes on)."""
-    head = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
-    diff = subprocess.run(["git", "-C", str(REPO), "diff", "HEAD", "--", "src", "web"], capture_output=True)
-    untracked = subprocess.run(["git", "-C", str(REPO), "ls-files", "--others", "--exclude-standard", "src", "web"],
-                               capture_output=True, text=True).stdout.split()
-    digest = hashlib.sha1(diff.stdout)
-    for name in sorted(untracked):
-        digest.update((REPO / name).read_bytes() if (REPO / name).is_file() else b"")
-    changed = diff.stdout or untracked
-    return head.stdout.strip() + (f"+{digest.hexdigest()[:6]}" if changed else "")
+        reporting.write_section(MARKERS, text)
 
 
 def render(results, capacity, sizes, remarks, footer):
@@ -816,18 +707,6 @@ def render(results, capacity, sizes, remarks, footer):
         "Per case (server CPU as a share of one core; the server side's tbf queue, sampled every 0.5 s; for the "
         "bridge, the code it ran: HEAD and a digest of uncommitted changes in src/ and web/):\n\n" + notes(results),
         footer])
-
-
-def git_head():
-    """The commit measured, and whether the bridge's or the page's files differed from it (others' work)."""
-    head = subprocess.run(["git", "-C", str(REPO), "log", "-1", "--format=%h %s"], capture_output=True, text=True)
-    if head.returncode:
-        return "an unknown commit"
-    dirty = subprocess.run(["git", "-C", str(REPO), "status", "--porcelain", "--", "src", "web"],
-                           capture_output=True, text=True).stdout.split("\n")
-    dirty = [line[3:] for line in dirty if line.strip()]
-    return f"commit `{head.stdout.strip()[:70]}`" + (
-        f" with uncommitted changes in {', '.join(dirty[:8])}{' ...' if len(dirty) > 8 else ''}" if dirty else "")
 
 
 if __name__ == "__main__":
