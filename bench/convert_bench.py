@@ -17,12 +17,9 @@ the last; what it still holds after the last (all medians over --rounds runs). N
 import argparse
 import ctypes
 import gc
-import io
 import itertools
 import json
-import math
 import os
-import random
 import statistics
 import subprocess
 import sys
@@ -30,11 +27,9 @@ import time
 import timeit
 import types
 
-import genpy
-import genpy.dynamic
 import geometry_msgs.msg
+import nav_msgs.msg
 import sensor_msgs.msg
-import std_msgs.msg
 
 from rosbridge.codec.json_values import dumps, from_json, to_json
 from rosbridge.codec.cbor import cbor_parts, to_cbor_value
@@ -43,6 +38,8 @@ from rosbridge.frames import Utf8Text, cbor_frame
 from rosbridge.codec.json_to_ros import packer
 from rosbridge.codec.ros_to_cbor import cbor_value
 from rosbridge.codec.ros_to_json import SPLICE_MARK, json_parts, json_text
+
+from nav_messages import deserialized, laser_scan, occupancy_grid, point_cloud, serialized
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 TOPIC = "/bench"
@@ -54,18 +51,6 @@ def best_microseconds(function, repeats=5):
     return min(timer.repeat(repeats, number)) / number * 1e6
 
 
-def laser_scan():
-    """A 1081-ray scan, as a rover's lidar at 40 Hz: ranges with NaN (no return) and inf (out of range)."""
-    rng = random.Random(2)
-    scan = sensor_msgs.msg.LaserScan(angle_min=-2.35619, angle_max=2.35619, angle_increment=0.004363323,
-                                     range_min=0.05, range_max=30.0)
-    scan.header.frame_id = "laser"
-    scan.ranges = [rng.choice([math.nan, math.inf]) if rng.random() < 0.05 else rng.uniform(0.1, 30)
-                   for _ in range(1081)]
-    scan.intensities = [float(rng.randrange(256)) for _ in range(1081)]
-    return scan
-
-
 def samples():
     twist = geometry_msgs.msg.Twist()
     twist.linear.x, twist.angular.z = 1.5, -0.25
@@ -75,18 +60,6 @@ def samples():
     return {"geometry_msgs/Twist": twist, "sensor_msgs/LaserScan 1081 rays": deserialized(sensor_msgs.msg.LaserScan,
                                                                                         serialized(laser_scan())),
             "sensor_msgs/Image 640x480 rgb8": image}
-
-
-def serialized(msg):
-    buffer = io.BytesIO()
-    msg.serialize(buffer)
-    return buffer.getvalue()
-
-
-def deserialized(cls, data):
-    msg = cls()
-    msg.deserialize(data)
-    return msg
 
 
 def micro_table():
@@ -116,51 +89,8 @@ def micro_table():
 # ---------------------------------------------------------------------------------------------------------
 # Big messages
 
-def occupancy_grid_class():
-    try:
-        import nav_msgs.msg
-        return nav_msgs.msg.OccupancyGrid
-    except ImportError:  # (ros-nav-msgs missing: the same layout, generated here)
-        definition = ("std_msgs/Header header\nnav_msgs/MapMetaData info\nint8[] data\n" + "=" * 80 +
-                      f"\nMSG: std_msgs/Header\n{std_msgs.msg.Header._full_text}\n" + "=" * 80 +
-                      "\nMSG: nav_msgs/MapMetaData\ntime map_load_time\nfloat32 resolution\nuint32 width\n"
-                      "uint32 height\ngeometry_msgs/Pose origin\n" + "=" * 80 +
-                      f"\nMSG: geometry_msgs/Pose\n{geometry_msgs.msg.Pose._full_text}\n")
-        return genpy.dynamic.generate_dynamic("nav_msgs/OccupancyGrid", definition)["nav_msgs/OccupancyGrid"]
-
-
-def occupancy_grid(side=4000):
-    """A side x side map as SLAM makes one: unknown (-1) around the explored part, free (0) inside it, walls and
-    obstacles (100) and some cells in between; its serialized bytes."""
-    rng = random.Random(0)
-    cells = bytearray(b"\xff") * (side * side)
-    for y in range(side // 8, side - side // 8):
-        cells[y * side + side // 8:y * side + side - side // 8] = bytes(side - side // 4)
-    for _ in range(side * 5):
-        at = rng.randrange(side * side - 8)
-        cells[at:at + 8] = bytes([rng.choice([100, 100, 100, 50, 99, 1])]) * 8
-    cls = occupancy_grid_class()
-    grid = cls()
-    grid.header.frame_id = "map"
-    grid.info.resolution, grid.info.width, grid.info.height = 0.05, side, side
-    grid.info.origin.orientation.w = 1.0
-    empty = serialized(grid)  # (data, the last field, empty: its length 0 at the end)
-    return cls, empty[:-4] + len(cells).to_bytes(4, "little") + bytes(cells)
-
-
-def point_cloud(points=300_000):
-    """An organised-less cloud of x, y, z, intensity (float32 each: 16 bytes a point), as a lidar driver sends."""
-    cloud = sensor_msgs.msg.PointCloud2(height=1, width=points, is_bigendian=False, point_step=16,
-                                        row_step=16 * points, is_dense=True)
-    cloud.header.frame_id = "lidar"
-    cloud.fields = [sensor_msgs.msg.PointField(name=name, offset=4 * i, datatype=7, count=1)
-                    for i, name in enumerate(("x", "y", "z", "intensity"))]
-    cloud.data = random.Random(1).randbytes(16 * points)
-    return sensor_msgs.msg.PointCloud2, serialized(cloud)
-
-
-BIG = {"nav_msgs/OccupancyGrid 4000x4000": occupancy_grid,
-       "sensor_msgs/PointCloud2 300k points": point_cloud}
+BIG = {"nav_msgs/OccupancyGrid 4000x4000": lambda: (nav_msgs.msg.OccupancyGrid, serialized(occupancy_grid())),
+       "sensor_msgs/PointCloud2 300k points": lambda: (sensor_msgs.msg.PointCloud2, serialized(point_cloud()))}
 
 
 def module_at(revision, path, name):
@@ -230,7 +160,8 @@ def one_road(name, road, encoding, reps, before):
     """In a process of its own: reps encodings of the big message `name`, a cloud and a scan between two; prints
     JSON: [[cpu s, peak kB above idle, kB held after], ...], the frame's size."""
     cls, data = BIG[name]()
-    others = [point_cloud(), (sensor_msgs.msg.LaserScan, serialized(laser_scan()))]
+    others = [BIG["sensor_msgs/PointCloud2 300k points"](),
+              (sensor_msgs.msg.LaserScan, serialized(laser_scan()))]
     encode = encoder(road, encoding, before)
     encode(cls, serialized(cls()))  # (readers generated, modules imported: not counted)
     for other_cls, other in others:
