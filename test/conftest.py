@@ -21,3 +21,14 @@ def node(ros):
     import rospy
     rospy.init_node("pytest", anonymous=True, disable_signals=True)
     return rospy
+
+
+@pytest.fixture
+def laser_settings(node):
+    """A dynamic_reconfigure client of the demo laser /turtle_laser (started by the test module, e.g. with rosrun);
+    its settings are set back to their defaults (cfg/Laser.cfg's) after the test."""
+    from dynamic_reconfigure.client import Client
+    from turtlesim.cfg import LaserConfig
+    client = Client("/turtle_laser", timeout=30)
+    yield client
+    client.update_configuration(LaserConfig.defaults)
