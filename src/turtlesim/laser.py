@@ -6,6 +6,7 @@ import math
 from turtlesim.sim import HEIGHT, WIDTH
 
 TURTLE_RADIUS = 0.45  # m: about the turtle picture's half width
+RANGE_MIN = 0.05  # m: nearer than this a laser reads nothing
 
 
 def scan(pose, others, rays, range_max, angle_min=-math.pi):
@@ -19,6 +20,22 @@ def scan(pose, others, rays, range_max, angle_min=-math.pi):
         hit = min(_to_walls(x, y, dx, dy), *(_to_disc(x, y, dx, dy, ox, oy) for ox, oy in others), math.inf)
         ranges.append(hit if hit <= range_max else math.inf)
     return ranges
+
+
+def add_noise(ranges, sigma, range_max, gauss):
+    """Each finite range plus Gaussian noise of standard deviation sigma (m) drawn by gauss(mu, sigma) (e.g.
+    random.Random().gauss), kept within [RANGE_MIN, range_max] as a real laser's readings are; inf stays inf."""
+    if sigma <= 0:
+        return list(ranges)
+    return [r if math.isinf(r) else min(range_max, max(RANGE_MIN, r + gauss(0.0, sigma))) for r in ranges]
+
+
+def finite_settings(requested, previous):
+    """The settings to run with, and the names of those refused: dynamic_reconfigure's Server clamps each value to
+    its range, but NaN compares false with both ends and passes; a value that is not a finite number keeps its
+    previous one."""
+    refused = [name for name, value in requested.items() if not math.isfinite(value)]
+    return {**requested, **{name: previous[name] for name in refused}}, refused
 
 
 def _to_walls(x, y, dx, dy):

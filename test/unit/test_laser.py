@@ -1,9 +1,11 @@
 """The demo laser's ranges: walls and other turtles, in LaserScan's ray order."""
 import math
+import random
+import statistics
 
 import pytest
 
-from turtlesim.laser import TURTLE_RADIUS, scan
+from turtlesim.laser import RANGE_MIN, TURTLE_RADIUS, add_noise, finite_settings, scan
 from turtlesim.sim import HEIGHT, WIDTH
 
 
@@ -37,3 +39,21 @@ def test_beyond_range_max_is_inf_and_a_turtle_it_stands_on_is_not_seen():
     ranges = scan((1.0, 1.0, 0.0), [(1.1, 1.0)], 4, 5.0)
     assert ray(ranges, 0.0) == math.inf  # the east wall is 10 m away
     assert ray(ranges, -math.pi) == pytest.approx(1.0)
+
+
+def test_noise_moves_finite_ranges_within_the_lasers_limits_and_leaves_inf():
+    ranges = [0.06, 3.0, 11.99, math.inf]
+    assert add_noise(ranges, 0.0, 12.0, lambda mu, sigma: 1 / 0) == ranges  # no noise: nothing drawn
+    assert add_noise(ranges, 0.1, 12.0, lambda mu, sigma: 0.05) == pytest.approx([0.11, 3.05, 12.0, math.inf])
+    assert add_noise(ranges, 0.1, 12.0, lambda mu, sigma: -0.05) == pytest.approx([RANGE_MIN, 2.95, 11.94, math.inf])
+    spread = add_noise([5.0] * 2000, 0.2, 12.0, random.Random(1).gauss)
+    assert statistics.mean(spread) == pytest.approx(5.0, abs=0.02)
+    assert statistics.stdev(spread) == pytest.approx(0.2, rel=0.1)
+
+
+def test_a_setting_that_is_not_a_finite_number_keeps_its_previous_value():
+    previous = {"rate": 10.0, "rays": 360, "range_max": 12.0, "noise": 0.0}
+    settings, refused = finite_settings({"rate": math.nan, "rays": 90, "range_max": math.inf, "noise": 0.1}, previous)
+    assert settings == {"rate": 10.0, "rays": 90, "range_max": 12.0, "noise": 0.1}
+    assert refused == ["rate", "range_max"]
+    assert finite_settings(previous, previous) == (previous, [])
