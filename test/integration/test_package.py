@@ -49,6 +49,12 @@ def test_installed_messages_nodes_launch_file_and_page(ros, install_space):
     show = subprocess.run(installed(ros, install_space, "rosmsg show turtlesim/Pose"), capture_output=True,
                           text=True, timeout=60)
     assert "float32 linear_velocity" in show.stdout, show.stdout + show.stderr
+    # the demo nodes' generated types: the action's messages and the laser's dynamic_reconfigure module
+    for command, expected in (("rosmsg show turtlesim/RotateAbsoluteGoal", "float32 theta"),
+                              ("python3 -c 'from turtlesim.cfg import LaserConfig; print(LaserConfig.max)'",
+                               "'rays': 1440")):
+        shown = subprocess.run(installed(ros, install_space, command), capture_output=True, text=True, timeout=60)
+        assert expected in shown.stdout, shown.stdout + shown.stderr
 
     run_sim_and_bridge(ros, install_space, "installed")
 
@@ -81,7 +87,7 @@ def run_sim_and_bridge(ros, space, name):
 DEFINITIONS = {
     "msg": ["geometry_msgs/Twist", "geometry_msgs/Vector3", "std_msgs/String", "std_msgs/Int32",
             "rosgraph_msgs/Log", "turtlesim/Pose", "turtlesim/Color", "sensor_msgs/Image",
-            "sensor_msgs/CompressedImage", "visualization_msgs/Marker"],
+            "sensor_msgs/CompressedImage", "visualization_msgs/Marker", "turtlesim/RotateAbsoluteActionGoal"],
     "srv": ["std_srvs/Empty", "std_srvs/SetBool", "std_srvs/Trigger", "turtlesim/Spawn"],
 }
 
