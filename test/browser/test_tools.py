@@ -175,13 +175,14 @@ def type_into(page, selector, text):
     element.send_keys(text, Keys.TAB)
 
 
-def open_reconfigure(page, node):
+def open_reconfigure(page, node, param="int_"):
+    """Chooses node in the Reconfigure tab and waits for its form, with param's value shown."""
     from selenium.webdriver.support.ui import Select
     tab(page, "reconfigure")
     wait_for(lambda: node in page.js("return [...document.querySelectorAll('#reconfigure-node option')]"
                                      ".map(o => o.value)"), 20, what=f"{node} listed")
     Select(page.el("reconfigure-node")).select_by_value(node)
-    wait_for(lambda: page.js(f"return document.querySelector('{field(page, 'int_')} input.reconfigure-number')?.value")
+    wait_for(lambda: page.js(f"return document.querySelector('{field(page, param)} input.reconfigure-number')?.value")
              not in (None, ""), 20, what="the form with the node's values")
 
 
@@ -332,6 +333,103 @@ def test_actions_on_a_phone(open_page, fibonacci):
     wait_for(lambda: goal_items(page) and goal_items(page)[0]["result"], 15, what="the result")
     shot(page, "tools-actions-phone", "#tab-actions")
     assert small_controls(page, "actions") == []
+    assert page.console_errors() == []
+
+
+# ---- the demo's own nodes (tools/demo): the laser's settings and the turtle's rotate action -------------------
+
+@pytest.fixture(scope="module")
+def demo_nodes(ros, sim):
+    """The demo's turtle_laser (its settings served by dynamic_reconfigure) and turtle_actions (each turtle's
+    rotate_absolute), as tools/demo starts them."""
+    procs = [ros.spawn(["rosrun", "turtlesim", name], name) for name in ("turtle_laser", "turtle_actions")]
+    wait_for(lambda: {"/turtle1/scan", "/turtle1/rotate_absolute/status"} <= set(dict(ros.master().getTopicTypes())),
+             30, what="the demo's laser and action server")
+    yield
+    for proc in procs:
+        proc.stop()
+
+
+LASER_VIEW = "topic=/turtle1/scan&view=/turtle1/scan:laser"  # the laser viewer open in the Topics tab
+RAYS_SHOWN = '.open-topic[data-topic="/turtle1/scan"] .viewer .viewer-stats'
+
+
+@pytest.mark.parametrize("screen", ["desktop", "phone"])
+def test_the_demo_lasers_rays_changed_in_the_reconfigure_tab_show_in_the_laser_viewer(open_page, bridge_url, node,
+                                                                                       demo_nodes, laser_settings,
+                                                                                       screen):
+    page = open_page(screen, url=f"{bridge_url}?{LASER_VIEW}")
+    wait_for(lambda: "360 rays" in text_of(page, RAYS_SHOWN), 20, what="the laser drawn with its 360 rays")
+    open_reconfigure(page, "/turtle_laser", "rays")
+    assert "int 3 … 1440" in text_of(page, f"{field(page, 'rays')} label")
+    assert "double 0.5 … 40" in text_of(page, f"{field(page, 'rate')} label")
+    rays = f"{field(page, 'rays')} input.reconfigure-number"
+    asked = {"desktop": "90", "phone": "45"}[screen]
+    type_into(page, rays, asked)
+    wait_for(lambda: f"answered: rays = {asked}" in text_of(page, "#tab-reconfigure .reconfigure-status"), 10,
+             what="the node's answer")
+    assert node.get_param("/turtle_laser/rays") == int(asked)
+    type_into(page, rays, "5000")  # beyond the range: the node runs its maximum, and the form says so
+    wait_for(lambda: "set 1440" in text_of(page, f"{field(page, 'rays')} .err"), 10, what="the clamp said")
+    assert "above the maximum 1440" in text_of(page, f"{field(page, 'rays')} .err")
+    shot(page, f"tools-demo-laser-reconfigure-{screen}", f"{field(page, 'rays')}" if screen == "phone" else ".console")
+    if screen == "phone":
+        assert small_controls(page, "reconfigure") == []
+    type_into(page, rays, asked)
+    tab(page, "topics")
+    wait_for(lambda: f"{asked} rays" in text_of(page, RAYS_SHOWN), 10, what=f"the laser drawn with {asked} rays")
+    page.js("document.querySelector(arguments[0]).closest('.open-topic').scrollIntoView()", RAYS_SHOWN)
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    page.driver.save_screenshot(str(ARTIFACTS / f"tools-demo-laser-viewer-{screen}.png"))
+    assert page.console_errors() == []
+
+
+def turtle_heading(node):
+    from turtlesim.msg import Pose
+    return node.wait_for_message("/turtle1/pose", Pose, timeout=10).theta
+
+
+def send_goal(page, theta):
+    field = page.driver.find_element(By.CSS_SELECTOR, "#tab-actions .action-form input[data-path=theta]")
+    field.clear()
+    field.send_keys(f"{theta:.2f}")
+    page.driver.find_element(By.CSS_SELECTOR, "#tab-actions .action-go").click()
+
+
+@pytest.mark.parametrize("screen", ["desktop", "phone"])
+def test_rotate_the_turtle_from_the_actions_tab_with_live_feedback(open_page, node, demo_nodes, screen):
+    from turtlesim.rotate import TOLERANCE, normalized
+    page = open_page(screen)
+    open_action(page, "/turtle1/rotate_absolute")
+    assert "turtlesim/RotateAbsoluteGoal" in text_of(page, "#tab-actions .action-form")
+    goal = round(normalized(turtle_heading(node) + 2.0), 2)  # about 2.5 s counter-clockwise
+    send_goal(page, goal)
+    wait_for(lambda: goal_items(page) and goal_items(page)[0]["state"] == "active", 10, what="the goal active")
+    seen = []
+    def fed():
+        item = goal_items(page)[0]
+        seen.append(item["feedback"])
+        return item["result"]
+    wait_for(fed, 15, interval=0.2, what="the result")
+    assert len({text for text in seen if "remaining" in text}) >= 4  # the remaining angle, live, as it turned
+    item = goal_items(page)[0]
+    assert item["state"] == "succeeded" and "delta" in item["result"] and "reached" in item["text"]
+    assert abs(normalized(goal - turtle_heading(node))) < TOLERANCE + 0.01
+    if screen == "desktop":  # another goal, cancelled on its way: the turtle stops
+        send_goal(page, normalized(goal + 3.0))
+        wait_for(lambda: len(goal_items(page)) == 2 and "Feedback (" in goal_items(page)[0]["feedback"], 10,
+                 what="the second goal's feedback")
+        cancel = page.driver.find_element(By.CSS_SELECTOR, "#tab-actions .action-goal .goal-cancel")
+        page.js("arguments[0].scrollIntoView({block: 'center'})", cancel)  # (not under the sticky world card)
+        cancel.click()
+        wait_for(lambda: goal_items(page)[0]["state"] == "preempted", 10, what="the goal cancelled")
+        assert "cancelled at" in goal_items(page)[0]["text"]
+        stopped = turtle_heading(node)
+        page.js("return new Promise(r => setTimeout(r, 500))")
+        assert turtle_heading(node) == stopped
+    shot(page, f"tools-demo-rotate-{screen}", "#tab-actions")
+    if screen == "phone":
+        assert small_controls(page, "actions") == []
     assert page.console_errors() == []
 
 
