@@ -276,6 +276,36 @@ def goal_items(page):
         text: g.querySelector('.goal-text').textContent}))""")
 
 
+def send_goal(page, path, value):
+    """Types value into the goal form's field at `path` and clicks Send goal."""
+    field = page.driver.find_element(By.CSS_SELECTOR, f"#tab-actions .action-form input[data-path={path}]")
+    field.clear()
+    field.send_keys(value)
+    page.driver.find_element(By.CSS_SELECTOR, "#tab-actions .action-go").click()
+
+
+def feedback_until_result(page):
+    """The newest goal's feedback, as shown, each time it is looked at until its result is shown."""
+    seen = []
+
+    def fed():
+        item = goal_items(page)[0]
+        seen.append(item["feedback"])
+        return item["result"]
+    wait_for(fed, 15, what="the result")
+    return seen
+
+
+def cancel_the_newest_of_two_goals(page):
+    """Once the newest of two goals shows feedback, clicks its Cancel; waits until it is preempted."""
+    wait_for(lambda: len(goal_items(page)) == 2 and "Feedback (" in goal_items(page)[0]["feedback"], 10,
+             what="the second goal's feedback")
+    cancel = page.driver.find_element(By.CSS_SELECTOR, "#tab-actions .action-goal .goal-cancel")
+    page.js("arguments[0].scrollIntoView({block: 'center'})", cancel)  # (not under the sticky world card)
+    cancel.click()
+    wait_for(lambda: goal_items(page)[0]["state"] == "preempted", 10, what="the goal cancelled")
+
+
 def test_send_a_goal_see_feedback_and_result_and_cancel_another(open_page, fibonacci, listen):
     from actionlib_msgs.msg import GoalID
     cancels = listen(f"{fibonacci}/cancel", GoalID)
@@ -283,41 +313,22 @@ def test_send_a_goal_see_feedback_and_result_and_cancel_another(open_page, fibon
     open_action(page, fibonacci)
     assert "action=%2Ftools_fibonacci" in page.driver.current_url
     assert "actionlib/TestGoal" in text_of(page, "#tab-actions .action-form")
-    goal = "#tab-actions .action-form input[data-path=goal]"
-    field = page.driver.find_element(By.CSS_SELECTOR, goal)
-    field.clear()
-    field.send_keys("10")
-    page.driver.find_element(By.CSS_SELECTOR, "#tab-actions .action-go").click()
+    send_goal(page, "goal", "10")
     # live feedback while it runs (10 steps of 0.1 s), then the result: F(10) = 55
     wait_for(lambda: goal_items(page) and goal_items(page)[0]["state"] == "active", 10, what="the goal active")
-    seen = set()
-    def fed():
-        item = goal_items(page)[0]
-        seen.add(item["feedback"])
-        return item["result"]
-    wait_for(fed, 15, what="the result")
-    assert len(seen) >= 3  # feedback changed while it ran
+    assert len(set(feedback_until_result(page))) >= 3  # feedback changed while it ran
     item = goal_items(page)[0]
     assert item["state"] == "succeeded" and "55" in item["result"] and "Feedback (10)" in item["feedback"]
     assert "F(10) = 55" in item["text"]
     # another, cancelled while it runs
-    field.clear()
-    field.send_keys("40")
-    page.driver.find_element(By.CSS_SELECTOR, "#tab-actions .action-go").click()
-    wait_for(lambda: len(goal_items(page)) == 2 and "Feedback (" in goal_items(page)[0]["feedback"], 10,
-             what="the second goal's feedback")
-    cancel = page.driver.find_element(By.CSS_SELECTOR, "#tab-actions .action-goal .goal-cancel")
-    page.js("arguments[0].scrollIntoView({block: 'center'})", cancel)  # (not under the sticky world card)
-    cancel.click()
-    wait_for(lambda: goal_items(page)[0]["state"] == "preempted", 10, what="the goal cancelled")
+    send_goal(page, "goal", "40")
+    cancel_the_newest_of_two_goals(page)
     assert [m.id for m in cancels.messages] == [page.js("return document.querySelector('#tab-actions .action-goal').dataset.goal")]
     assert "cancelled at" in goal_items(page)[0]["text"]
     assert goal_items(page)[1]["state"] == "succeeded"
     shot(page, "tools-actions-desktop", "#tab-actions")
     # a field that does not fit is flagged, nothing sent
-    field.clear()
-    field.send_keys("1.5")
-    page.driver.find_element(By.CSS_SELECTOR, "#tab-actions .action-go").click()
+    send_goal(page, "goal", "1.5")
     assert "fix the highlighted" in text_of(page, "#tab-actions .action-status")
     assert len(goal_items(page)) == 2
     assert page.console_errors() == []
@@ -326,10 +337,7 @@ def test_send_a_goal_see_feedback_and_result_and_cancel_another(open_page, fibon
 def test_actions_on_a_phone(open_page, fibonacci):
     page = open_page("phone")
     open_action(page, fibonacci)
-    field = page.driver.find_element(By.CSS_SELECTOR, "#tab-actions .action-form input[data-path=goal]")
-    field.clear()
-    field.send_keys("5")
-    page.driver.find_element(By.CSS_SELECTOR, "#tab-actions .action-go").click()
+    send_goal(page, "goal", "5")
     wait_for(lambda: goal_items(page) and goal_items(page)[0]["result"], 15, what="the result")
     shot(page, "tools-actions-phone", "#tab-actions")
     assert small_controls(page, "actions") == []
@@ -389,13 +397,6 @@ def turtle_heading(node):
     return node.wait_for_message("/turtle1/pose", Pose, timeout=10).theta
 
 
-def send_goal(page, theta):
-    field = page.driver.find_element(By.CSS_SELECTOR, "#tab-actions .action-form input[data-path=theta]")
-    field.clear()
-    field.send_keys(f"{theta:.2f}")
-    page.driver.find_element(By.CSS_SELECTOR, "#tab-actions .action-go").click()
-
-
 @pytest.mark.parametrize("screen", ["desktop", "phone"])
 def test_rotate_the_turtle_from_the_actions_tab_with_live_feedback(open_page, node, demo_nodes, screen):
     from turtlesim.rotate import TOLERANCE, normalized
@@ -403,26 +404,16 @@ def test_rotate_the_turtle_from_the_actions_tab_with_live_feedback(open_page, no
     open_action(page, "/turtle1/rotate_absolute")
     assert "turtlesim/RotateAbsoluteGoal" in text_of(page, "#tab-actions .action-form")
     goal = round(normalized(turtle_heading(node) + 2.0), 2)  # about 2.5 s counter-clockwise
-    send_goal(page, goal)
+    send_goal(page, "theta", f"{goal:.2f}")
     wait_for(lambda: goal_items(page) and goal_items(page)[0]["state"] == "active", 10, what="the goal active")
-    seen = []
-    def fed():
-        item = goal_items(page)[0]
-        seen.append(item["feedback"])
-        return item["result"]
-    wait_for(fed, 15, interval=0.2, what="the result")
+    seen = feedback_until_result(page)
     assert len({text for text in seen if "remaining" in text}) >= 4  # the remaining angle, live, as it turned
     item = goal_items(page)[0]
     assert item["state"] == "succeeded" and "delta" in item["result"] and "reached" in item["text"]
     assert abs(normalized(goal - turtle_heading(node))) < TOLERANCE + 0.01
     if screen == "desktop":  # another goal, cancelled on its way: the turtle stops
-        send_goal(page, normalized(goal + 3.0))
-        wait_for(lambda: len(goal_items(page)) == 2 and "Feedback (" in goal_items(page)[0]["feedback"], 10,
-                 what="the second goal's feedback")
-        cancel = page.driver.find_element(By.CSS_SELECTOR, "#tab-actions .action-goal .goal-cancel")
-        page.js("arguments[0].scrollIntoView({block: 'center'})", cancel)  # (not under the sticky world card)
-        cancel.click()
-        wait_for(lambda: goal_items(page)[0]["state"] == "preempted", 10, what="the goal cancelled")
+        send_goal(page, "theta", f"{normalized(goal + 3.0):.2f}")
+        cancel_the_newest_of_two_goals(page)
         assert "cancelled at" in goal_items(page)[0]["text"]
         stopped = turtle_heading(node)
         page.js("return new Promise(r => setTimeout(r, 500))")
