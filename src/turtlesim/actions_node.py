@@ -3,7 +3,8 @@
 it: the goal `theta` (rad) is the heading to reach; the turtle turns in place the shorter way (rotate.py), by
 publishing /<turtle>/cmd_vel while watching /<turtle>/pose; feedback `remaining` (rad) comes with every pose, the
 result `delta` is ROS 2's (the starting heading minus the final one). Something for the console's Actions tab with
-turtlesim alone; turtlesim_node itself keeps the reference noetic interface, which has no actions.
+turtlesim alone; turtlesim_node itself keeps the reference noetic interface, which has no actions. (No action type
+Debian ships fits: actionlib's own test actions carry int32s; ROS 2's has the fields a turtle wants, and its name.)
 
 A goal ends succeeded within rotate.TOLERANCE of its heading; preempted on a cancel or a newer goal (actionlib's
 SimpleActionServer); aborted, with the reason in its status text, when theta is not a finite number, when another

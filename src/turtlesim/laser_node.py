@@ -4,10 +4,13 @@ frame <turtle>/laser that turtle_tf places: something for the console's LaserSca
 
 Its settings (~rate, ~rays, ~range_max, ~noise) are served by dynamic_reconfigure (rqt_reconfigure, dynparam, the
 console's Reconfigure tab) and apply from the next scan, which comes at once. Their description is cfg/Laser.cfg,
-from which catkin generates the module turtlesim.cfg.LaserConfig at build time with Debian's own generator
-(generate_dynamic_reconfigure_options, from libdynamic-reconfigure-config-init-mutex-dev), as any ROS package does:
-the ranges and defaults are written once, in the .cfg, and no hand-written copy of generated code can drift from
-the generator. (Generating it at run time instead would need the same package's templates, and a writable place.)
+from which catkin generates the module turtlesim.cfg.LaserConfig at build time, as any ROS package does, with
+Debian's own pieces: the macro generate_dynamic_reconfigure_options and its templates (in
+libdynamic-reconfigure-config-init-mutex-dev, Debian 12 and 13) run the .cfg with python3-dynamic-reconfigure's
+parameter generator. The ranges and defaults are written once, in the .cfg, and no hand-written copy of generated
+code can drift from the generator; the module is installed with the package (catkin_make install). Generating it
+at run time instead would need those same templates, a writable place and the generator's command-line calling
+convention, for nothing gained.
 The Server reads the private parameters at start (`_rays:=90` works), clamps every value to its range and keeps the
 parameters in step; the callback also refuses what the clamp lets through (NaN)."""
 import math

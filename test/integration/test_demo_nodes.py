@@ -86,6 +86,17 @@ def test_the_lasers_settings_change_what_it_publishes_and_out_of_range_values_ar
     assert latest(node, "/turtle1/scan", LaserScan, lambda m: len(m.ranges) == 180).scan_time == pytest.approx(1 / 40)
 
 
+def test_the_lasers_start_up_parameters_are_read_and_clamped_too(demo, node, ros):
+    from dynamic_reconfigure.client import Client
+    proc = ros.spawn(["rosrun", "turtlesim", "turtle_laser", "__name:=laser_params", "_rays:=99999", "_rate:=2.5"],
+                     "laser_params")
+    try:
+        settings = Client("/laser_params", timeout=30).get_configuration(timeout=10)
+        assert (settings["rays"], settings["rate"], settings["range_max"]) == (1440, 2.5, 12.0)
+    finally:
+        proc.stop()
+
+
 def scans_in_a_second(node):
     from sensor_msgs.msg import LaserScan
     stamps = []
