@@ -1,6 +1,7 @@
 """What waits for a socket. Outbox: a websocket client's (protocol.Session), whole messages, small before big, each
 topic kept fresh while the client's socket is backed up. FrameQueue: a ROS subscriber's of a topic the bridge
-publishes (ros_side/links.py), bounded, the oldest dropped."""
+publishes (ros_side/links.py), bounded, the oldest dropped. LinkMeter: how fast a websocket client's socket
+drains, which says whether its big messages go deflated (websocket.py)."""
 import collections
 
 
@@ -196,3 +197,50 @@ class Outbox:
         self._by_key.clear()
         self._key_bytes.clear()
         self._dead = self.frames = self.bytes = 0
+
+
+# Deflating what a slow link carries (websocket.ClientConnection, for a client that offered permessage-deflate):
+# a message of DEFLATE_MIN_BYTES or more goes compressed when the client's link drains slower than
+# SLOW_LINK_BYTES_PER_SECOND. Why that rate: zlib's level 1 takes a camera's 1.2 MB of JSON (base64) to about half
+# at 80-100 MB/s on this project's 2-core machine (12-15 ms, once for every slow client, off the loop). At 8 MB/s
+# (64 Mbit/s: Wi-Fi, a phone) that half is 75 ms less on the link per frame, five times what deflating costs; at
+# faster links the saving shrinks towards the cost, and a wired or loopback client (tens to hundreds of MB/s)
+# gets the bytes as they are, at no CPU.
+DEFLATE_MIN_BYTES = SMALL_MESSAGE
+SLOW_LINK_BYTES_PER_SECOND = 8_000_000
+MEASURED_BYTES = 256 * 1024  # what the waits must have carried before a link is judged (one camera frame does)
+DRAIN_MEMORY = 0.75  # the weight of the earlier waits against each new one: a link that changes shows in a few
+
+
+class LinkMeter:
+    """How fast one client's socket takes what is written to it, from the writes that had to wait for it (a write
+    the socket takes at once says nothing of the link; the kernel holds little unsent, unsent.py, so one that
+    waits drains at the link's pace). Bytes over the seconds until drained, each summed with a decay: a big write
+    counts by its size, a reader's pause by its length. A write on loopback waits too (for the reader to take a
+    megabyte), but drains at hundreds of MB/s. Pure: the server says what waited and how long."""
+    __slots__ = ("bytes", "seconds")
+
+    def __init__(self):
+        self.bytes = self.seconds = 0.0
+
+    def waited(self, size, seconds):
+        """A write of `size` bytes waited `seconds` until the socket had taken it all."""
+        self.bytes = self.bytes * DRAIN_MEMORY + size
+        self.seconds = self.seconds * DRAIN_MEMORY + seconds
+
+    @property
+    def rate(self):
+        """Bytes per second, or None before a write waited."""
+        return self.bytes / self.seconds if self.seconds > 0 else None
+
+    @property
+    def slow(self):
+        """Measured (from MEASURED_BYTES at least) below SLOW_LINK_BYTES_PER_SECOND."""
+        return self.bytes >= MEASURED_BYTES and self.bytes < SLOW_LINK_BYTES_PER_SECOND * self.seconds
+
+
+def sends_deflated(size, every_message, link):
+    """Whether a message of `size` bytes goes deflated to a client that negotiated permessage-deflate: every one
+    with use_compression (every_message), else one of DEFLATE_MIN_BYTES or more while its link (a LinkMeter) is
+    slow."""
+    return every_message or size >= DEFLATE_MIN_BYTES and link.slow

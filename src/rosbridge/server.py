@@ -41,6 +41,8 @@ class Bridge:
     def __init__(self, backend, config, settings, allowed_origins=None):
         self.backend, self.config, self.settings = backend, config, settings
         self.encoder = EncodingThread(tornado.ioloop.IOLoop.current())  # big messages are encoded off the loop
+        # big messages deflated for the clients whose link is slow (websocket.py): a thread apart from the encoder's
+        self.deflater = EncodingThread(tornado.ioloop.IOLoop.current(), name="rosbridge-deflate")
         self.allowed_origins = allowed_origins  # None: same host only (and clients that send no Origin)
         self.clients = set()
         self._logged = {}

@@ -49,7 +49,12 @@ SETTINGS = (
             "bytes the bag folder may hold: a recording stops there", ours=True),
     Setting("blackbox_seconds", float, 60.0, "seconds the black box keeps, in memory", ours=True),
     Setting("blackbox_max_bytes", int, 64_000_000, "bytes the black box keeps at most", ours=True),
-    Setting("use_compression", bool, False, "websocket permessage-deflate"),
+    Setting("use_compression", bool, False, "websocket permessage-deflate, for every message"),
+    Setting("compress_slow_links", bool, True,
+            "websocket permessage-deflate for a client that offers it (browsers, roslibjs in Node) while its link "
+            "is measured slow (under 8 MB/s): its messages of 64 kB and more (a camera frame, a map) go deflated, "
+            "made once for every such client; false = only with `use_compression`. See \"Fresh on a slow link\"",
+            ours=True),
     Setting("websocket_ping_interval", float, 0.0, "seconds between keep-alive pings; 0 = none"),
     Setting("websocket_ping_timeout", float, 30.0, "seconds without a pong before the connection is closed (and a camera stream whose frame has not left)"),
     Setting("topics_glob", str, "", 'topics clients may use, e.g. `"[/turtle1/*, /rosout]"`; empty = all'),

@@ -1,7 +1,14 @@
 """The websocket clients on the event loop. BridgeSocket answers the opening handshake (or serves the page on
 a plain GET); then a ClientConnection owns the connection's stream (Tornado's IOStream, through its public
 API) and moves bytes between it and two pure objects: websocket_frames.FrameReader (what the client sent,
-frame by frame) and the client's protocol Session. All of it runs on the loop's thread."""
+frame by frame) and the client's protocol Session.
+
+Threads: all of it runs on the loop's thread, but for deflating a big message for the clients whose link is slow
+(frames.deflated_payload), which runs on the bridge's deflate thread (off_loop.EncodingThread, `bridge.deflater`,
+apart from the encoder so that a map's encoding never holds a slow client's next frame): the thread only reads
+the frame's bytes and returns new ones; the loop keeps them on the frame and resumes each client waiting for
+them (its next frames wait meanwhile, and it counts as backed up)."""
+import functools
 import time
 
 import tornado.ioloop
@@ -13,8 +20,9 @@ from rosbridge import websocket_frames as ws
 from rosbridge.budget import ClientBudget
 from rosbridge.codec import BIG_BYTES
 from rosbridge.errors import log_bug
-from rosbridge.frames import SplicedFrame, Utf8Text
+from rosbridge.frames import SplicedFrame, Utf8Text, deflated_payload
 from rosbridge.origins import origin_allowed
+from rosbridge.outgoing import DEFLATE_MIN_BYTES, LinkMeter, sends_deflated
 from rosbridge.pages import SECURITY_HEADERS
 from rosbridge.unsent import limit_unsent
 
@@ -52,14 +60,14 @@ class BridgeSocket(tornado.web.RequestHandler):
                 self.set_header("Sec-WebSocket-Version", "13")
             self.finish(text)
             return
-        extensions, deflate = None, None
-        if self.bridge.settings.use_compression:
-            extensions, deflate = ws.negotiate_deflate(headers.get("Sec-WebSocket-Extensions", ""))
+        extensions, window_bits = None, None
+        if self.bridge.settings.use_compression or self.bridge.settings.compress_slow_links:
+            extensions, window_bits = ws.negotiate_deflate(headers.get("Sec-WebSocket-Extensions", ""))
         answer = ["HTTP/1.1 101 Switching Protocols", "Upgrade: websocket", "Connection: Upgrade",
                   "Sec-WebSocket-Accept: " + ws.accept_key(headers["Sec-WebSocket-Key"])]
         if extensions:
             answer.append("Sec-WebSocket-Extensions: " + extensions)
-        connection = ClientConnection(self.bridge, self.detach(), self.request.remote_ip, deflate)
+        connection = ClientConnection(self.bridge, self.detach(), self.request.remote_ip, window_bits)
         connection.start(("\r\n".join(answer) + "\r\n\r\n").encode())
 
     def head(self):
@@ -94,14 +102,20 @@ class ClientConnection:
 
     Writing: the Session's queued frames go to the stream while it takes them; once the stream is backed up (the
     kernel holds at most unsent.UNSENT_LIMIT unsent), the rest stays in the Session's Outbox, which keeps each
-    topic fresh meanwhile, until the stream has drained."""
+    topic fresh meanwhile, until the stream has drained.
 
-    def __init__(self, bridge, stream, peer, deflate):
-        self.bridge, self._stream, self._deflate = bridge, stream, deflate
+    Deflating, with a client that offered permessage-deflate (window_bits: the largest window negotiated, else
+    None): every message with use_compression; else, with compress_slow_links, the messages of DEFLATE_MIN_BYTES
+    or more while its link is measured slow (outgoing.LinkMeter, from the writes that waited for the drain). Those
+    are deflated once for every such client (frames.deflated_payload), on the deflate thread; a small one (only
+    with use_compression) on the loop. RSV1 marks each compressed frame; the others go as they are."""
+
+    def __init__(self, bridge, stream, peer, window_bits):
+        self.bridge, self._stream, self._window_bits = bridge, stream, window_bits
         settings = bridge.settings
         self._loop = tornado.ioloop.IOLoop.current()
         max_frame = 4 * settings.max_message_size or 1 << 30  # bigger ones are refused by the Session, politely
-        self._reader = ws.FrameReader(max_frame, deflate=deflate is not None, unmask=borrowed.websocket_mask)
+        self._reader = ws.FrameReader(max_frame, deflate=window_bits is not None, unmask=borrowed.websocket_mask)
         self.budget = ClientBudget(settings.max_frames_per_second, settings.max_bytes_per_second, time.monotonic)
         self.session = protocol.Session(bridge.backend, bridge.config, time.time, self._loop.call_later,
                                         self._wake, self._close_after_sending, name=peer,
@@ -112,6 +126,10 @@ class ClientConnection:
         self._close_reason = None  # the Session asked to close once its queue is sent
         self._drop_timer = None
         self._awaiting_drain = False  # written data the socket has not taken yet
+        self._write_waited = None  # (when, bytes) of the write the socket has not taken all of yet
+        self._link = LinkMeter()
+        self._deflating = False  # the frame taken last is being deflated off the loop...
+        self._ready = None  # ...and once it is, (it, its payload): it goes first
         self._control_unsent = 0  # bytes of pongs written since the socket last drained
         self._pinger, self._ping_sent = None, None
         self._last_heard = time.monotonic()  # when a read last brought something
@@ -213,38 +231,35 @@ class ClientConnection:
         self._wake()
 
     def _flush(self):
-        """Writes the Session's queued frames until the stream is backed up; _drained goes on from there."""
-        if self._awaiting_drain:
+        """Writes the Session's queued frames until the stream is backed up; _drained goes on from there (and
+        _deflated, after a frame that had to be deflated off the loop)."""
+        if self._awaiting_drain or self._deflating:
             return
-        session, stream = self.session, self._stream
+        stream = self._stream
         one_at_a_time = bool(self.bridge.settings.delay_between_messages)
         while not self._closing and not stream.closed():
-            frames, size = [], 0
+            batch, size = [], 0
             while size < WRITE_BATCH_BYTES:
-                frame = session.take_frame()
+                frame, payload = self._take()
                 if frame is None:
                     break
-                if isinstance(frame, str):
-                    try:
-                        frame = Utf8Text(frame.encode())
-                    except UnicodeEncodeError:  # a bug (dumps escapes what UTF-8 lacks): skip it, go on
-                        log_bug("encoding an outgoing frame")
-                        continue
-                frames.append(frame)
-                size += len(frame)
+                batch.append((frame, payload))
+                size += len(frame if payload is None else payload)
                 if one_at_a_time:
                     break
-            if frames:
+            if batch:
                 try:
-                    written = self._write(frames)
+                    written = self._write(batch)
                 except tornado.iostream.StreamClosedError:  # (the close callback cleans up)
                     return
                 if stream.writing():
-                    self._awaiting_drain = True
-                    session.backed_up(True)
+                    self._awaiting_drain, self._write_waited = True, (time.monotonic(), size)
+                    self._backed_up()
                     written.add_done_callback(self._drained)
                     return
                 self._control_unsent = 0
+            if self._deflating:  # (_deflated goes on)
+                return
             if frame is None:  # the queue is empty: the next frame queued wakes us again
                 if self._close_reason is not None:
                     self.close(ws.POLICY, self._close_reason)
@@ -253,26 +268,73 @@ class ClientConnection:
                 self._loop.call_later(self.bridge.settings.delay_between_messages, self._flush)
                 return
 
+    def _take(self):
+        """The next frame to write and its deflated payload (None: it goes as it is), or (None, None): the
+        Session's queue is empty, or the frame just taken is being deflated off the loop (_deflating)."""
+        if self._ready is not None:
+            ready, self._ready = self._ready, None
+            return ready
+        while True:
+            frame = self.session.take_frame()
+            if frame is None:
+                return None, None
+            if isinstance(frame, str):
+                try:
+                    frame = Utf8Text(frame.encode())
+                except UnicodeEncodeError:  # a bug (dumps escapes what UTF-8 lacks): skip it, go on
+                    log_bug("encoding an outgoing frame")
+                    continue
+            break
+        if self._window_bits is None or not sends_deflated(len(frame), self.bridge.settings.use_compression,
+                                                            self._link):
+            return frame, None
+        if len(frame) < DEFLATE_MIN_BYTES:  # (use_compression: made here, in well under a millisecond)
+            return frame, deflated_payload(frame, self._window_bits)
+        payload = deflated_payload(frame, self._window_bits, self.bridge.deflater.run,
+                                   functools.partial(self._deflated, frame))
+        if payload is not None:  # (made already, for another client)
+            return frame, payload
+        self._deflating = True
+        self._backed_up()
+        return None, None
+
+    def _deflated(self, frame, payload):
+        """A frame taken is deflated (payload None: that failed, and was logged; it goes as it is)."""
+        self._deflating = False
+        if self._stream.closed():
+            return
+        self._ready = (frame, payload)
+        self._backed_up()
+        self._flush()
+
+    def _backed_up(self):
+        """Tells the Session whether the client's frames wait (each topic then keeps only what is fresh)."""
+        self.session.backed_up(self._awaiting_drain or self._deflating)
+
     def _drained(self, written):
         self._awaiting_drain = False
-        self.session.backed_up(False)
+        if self._write_waited is not None:
+            started, size = self._write_waited
+            self._write_waited = None
+            self._link.waited(size, time.monotonic() - started)
+        self._backed_up()
         self._control_unsent = 0
         if not written.cancelled() and written.exception() is None:
             self._flush()
 
-    def _write(self, frames):
-        """Writes frames to the stream; returns the future of the last write. Small ones are joined into one
-        write; a big payload or part (an image) goes by reference, not copied: the same bytes for every client.
-        With permessage-deflate, each frame is compressed for this client."""
+    def _write(self, batch):
+        """Writes (frame, deflated payload or None) to the stream; returns the future of the last write. Small ones
+        are joined into one write; a big payload or part (an image) goes by reference, not copied: the same bytes
+        for every client."""
         stream, joined = self._stream, []
-        for frame in frames:
+        for frame, payload in batch:
             opcode = ws.TEXT if _is_text(frame) else ws.BINARY
-            if self._deflate is not None:
-                payload = self._deflate.compress(bytes(frame))
-                joined += (ws.frame_header(len(payload), opcode, compressed=True), payload)
-                continue
-            parts = frame.parts if isinstance(frame, SplicedFrame) else (frame,)
-            joined.append(ws.frame_header(len(frame), opcode))
+            if payload is not None:
+                parts = (payload,)
+                joined.append(ws.frame_header(len(payload), opcode, compressed=True))
+            else:
+                parts = frame.parts if isinstance(frame, SplicedFrame) else (frame,)
+                joined.append(ws.frame_header(len(frame), opcode))
             for part in parts:
                 if len(part) < BIG_BYTES:
                     joined.append(part)
@@ -295,7 +357,7 @@ class ClientConnection:
             self._control_unsent = 0
         elif not self._awaiting_drain:
             self._awaiting_drain = True
-            self.session.backed_up(True)
+            self._backed_up()
             written.add_done_callback(self._drained)
 
     # ---- keeping alive, closing ------------------------------------------------------------------

@@ -1,7 +1,10 @@
 """RFC 6455 websockets, server side, without I/O (as h11 is for HTTP, or tcpros.FrameReader for TCPROS): the
 opening handshake's answer, a FrameReader that turns what a client sent into its messages and control frames,
-and the bytes of the server's own frames; permessage-deflate (RFC 7692) both ways. Pure: no tornado, no
-sockets; the shell (websocket.py) moves the bytes.
+and the bytes of the server's own frames; permessage-deflate (RFC 7692) both ways, each message on its own: the
+answer asks the client to keep no context between its messages (client_no_context_takeover) and we keep none
+(server_no_context_takeover), so that nothing of zlib's lives per client between messages (a thousand idle clients
+hold no compressor or inflater), and a message deflated once is the same bytes for every client. Pure: no tornado,
+no sockets; the shell (websocket.py) moves the bytes and chooses which messages go deflated.
 
 A client's frames come out one event per frame, so that whoever reads can weigh every frame a client sends
 (budget.py), the parts of a fragmented message and the control frames included."""
@@ -22,7 +25,11 @@ _GUID = b"258EAFA5-E914-47DA-95CA-C5AB0DC85B11"
 _LENGTH_16, _LENGTH_64, _CODE = struct.Struct("!H"), struct.Struct("!Q"), struct.Struct("!H")
 _DEFLATE_TAIL = b"\x00\x00\xff\xff"  # what a sync flush ends with, left off on the wire (RFC 7692 7.2.1)
 PART_COST = 64  # what a frame of a fragmented message counts beyond its bytes: empty parts are not free
-SERVER_WINDOW_BITS = 12  # our compressor's window: 4 KB of history, about 30 KB of memory per client
+# zlib's fastest level: a camera's base64 goes to about half at 80-100 MB/s (level 6: a few percent smaller, 4-8
+# times slower), and zlib lets go of Python's lock meanwhile
+DEFLATE_LEVEL = 1
+_WINDOW_BITS = range(9, 16)  # the windows zlib writes raw deflate with (RFC 7692 allows 8 to 15)
+CONTEXT_BYTES = 1 << 15  # the largest window: how far back a client's compressed message may point
 
 
 class ProtocolError(Exception):
@@ -55,9 +62,10 @@ def handshake_error(headers):
 
 
 def negotiate_deflate(offers):
-    """The answer to a client's Sec-WebSocket-Extensions header: (our Sec-WebSocket-Extensions value, the
-    Deflate to write with), or (None, None) if no permessage-deflate offer can be taken. We never keep our own
-    context between messages (server_no_context_takeover: no history held per client between messages)."""
+    """The answer to a client's Sec-WebSocket-Extensions header: (our Sec-WebSocket-Extensions value, the largest
+    window, in bits, our messages may use), or (None, None) if no permessage-deflate offer can be taken. Neither
+    side keeps context between messages: server_no_context_takeover always, and client_no_context_takeover
+    whether offered or not (RFC 7692 7.1.1.2 lets the server add it), so each message is inflated on its own."""
     for offer in offers.split(","):
         name, *params = [part.strip() for part in offer.split(";")]
         if name != "permessage-deflate":
@@ -70,27 +78,31 @@ def negotiate_deflate(offers):
                                            "server_max_window_bits", "client_max_window_bits"):
                 ok = False
             asked[key] = value
-        bits = asked.get("server_max_window_bits", "15") or "x"
-        if not ok or not bits.isdigit() or not 9 <= int(bits) <= 15:
-            continue  # (zlib writes raw deflate with windows of 9 to 15 bits only)
-        answer = ["permessage-deflate", "server_no_context_takeover"]
+        server_bits, client_bits = asked.get("server_max_window_bits", "15"), asked.get("client_max_window_bits")
+        if not ok or not (server_bits.isdigit() and int(server_bits) in _WINDOW_BITS) or client_bits and not (
+                client_bits.isdigit() and 8 <= int(client_bits) <= 15):
+            continue  # (zlib writes raw deflate with windows of 9 to 15 bits only; we inflate any window)
+        answer = ["permessage-deflate", "server_no_context_takeover", "client_no_context_takeover"]
         if "server_max_window_bits" in asked:
-            answer.append(f"server_max_window_bits={bits}")
-        if "client_no_context_takeover" in asked:
-            answer.append("client_no_context_takeover")
-        return "; ".join(answer), Deflate(min(int(bits), SERVER_WINDOW_BITS))
+            answer.append(f"server_max_window_bits={server_bits}")
+        return "; ".join(answer), int(server_bits)
     return None, None
 
 
-class Deflate:
-    """Compresses the server's messages (each on its own: no context kept between them)."""
+def message_window_bits(size, max_window_bits):
+    """The window to deflate a message of `size` bytes with: the smallest that holds all of it, up to
+    max_window_bits (a small message costs little memory, and deflates the same)."""
+    return min(max_window_bits, max(_WINDOW_BITS[0], (size - 1).bit_length()))
 
-    def __init__(self, window_bits=SERVER_WINDOW_BITS):
-        self._compressor = zlib.compressobj(6, zlib.DEFLATED, -max(window_bits, 9), 5)
 
-    def compress(self, payload):
-        data = self._compressor.compress(payload) + self._compressor.flush(zlib.Z_FULL_FLUSH)
-        return data[:-4] if data.endswith(_DEFLATE_TAIL) else data + b"\x00"  # (an empty block: RFC 7692 7.2.3.6)
+def deflate_message(parts, bits):
+    """The payload of one permessage-deflate message holding `parts` (bytes-likes, one after another), compressed
+    on its own with a compressor made for it and dropped after (no context kept: RFC 7692 7.2.1), with a window
+    of `bits` (message_window_bits)."""
+    compressor = zlib.compressobj(DEFLATE_LEVEL, zlib.DEFLATED, -bits)
+    data = [compressor.compress(part) for part in parts]
+    data.append(compressor.flush(zlib.Z_SYNC_FLUSH)[:-len(_DEFLATE_TAIL)])  # (a sync flush ends with the tail)
+    return b"".join(data)
 
 
 def frame_header(length, opcode, compressed=False):
@@ -135,8 +147,9 @@ class FrameReader:
     a message over max_size bytes (TOO_BIG, before its payload is read); the reader is done after that.
 
     What it holds: at most one incomplete frame (max_size bytes) and the bytes given to it beyond that, which
-    the shell keeps small by reading only when next_event() has said None; and one message being put together
-    (max_size bytes, each of its frames counted PART_COST more)."""
+    the shell keeps small by reading only when next_event() has said None; one message being put together
+    (max_size bytes, each of its frames counted PART_COST more); with deflate, no zlib object between messages,
+    and the end of what the client's compressed messages held, 2 * CONTEXT_BYTES at most (see _inflate)."""
 
     def __init__(self, max_size, deflate=False, unmask=xor_mask):
         self.max_size, self._unmask = max_size, unmask
@@ -146,7 +159,8 @@ class FrameReader:
         self._parts_weight = 0  # what those frames count against max_size: their bytes, and PART_COST each
         self._opcode = None  # the opcode of that message
         self._compressed = False  # whether it is compressed
-        self._inflater = zlib.decompressobj(-15) if deflate else None
+        self._deflate = deflate  # permessage-deflate negotiated: each compressed message inflated on its own
+        self._inflated = bytearray()  # the end of what the client's compressed messages held, for _inflate
 
     @property
     def buffered(self):
@@ -166,7 +180,7 @@ class FrameReader:
             return None
         first, second = buf[start], buf[start + 1]
         opcode, length, head = first & 0x0F, second & 0x7F, 2
-        if first & _RESERVED and not (first & _RESERVED == _RSV1 and self._inflater is not None and opcode in
+        if first & _RESERVED and not (first & _RESERVED == _RSV1 and self._deflate and opcode in
                                       (TEXT, BINARY)):
             raise ProtocolError(PROTOCOL_ERROR, "reserved bits set without an extension that uses them")
         if not second & _MASKED:
@@ -233,15 +247,31 @@ class FrameReader:
         return BINARY, payload, size
 
     def _inflate(self, payload):
-        inflater = self._inflater
+        """A compressed message unpacked by an inflater of its own, dropped after it: the client keeps no context
+        between its messages either (client_no_context_takeover, in our answer). Some clients keep it anyway
+        (Tornado 6.2's parser drops the answer's parameters that have no value): a message that points back
+        before its start is unpacked again from the end of what the client's earlier compressed messages held,
+        kept here as bytes (a client's requests are small; 2 * CONTEXT_BYTES at most)."""
         try:
-            data = inflater.decompress(payload + _DEFLATE_TAIL, self.max_size + 1)
+            data = self._unpack(payload)
         except zlib.error as error:
-            raise ProtocolError(INVALID_DATA, f"compressed message cannot be unpacked ({error})") from None
+            if not self._inflated:
+                raise ProtocolError(INVALID_DATA, f"compressed message cannot be unpacked ({error})") from None
+            try:
+                data = self._unpack(payload, bytes(self._inflated[-CONTEXT_BYTES:]))
+            except zlib.error as error:
+                raise ProtocolError(INVALID_DATA, f"compressed message cannot be unpacked ({error})") from None
+        inflated = self._inflated
+        inflated += data[-CONTEXT_BYTES:]
+        if len(inflated) > 2 * CONTEXT_BYTES:  # (trimmed once per CONTEXT_BYTES taken: a byte copied per byte)
+            del inflated[:-CONTEXT_BYTES]
+        return data
+
+    def _unpack(self, payload, context=b""):
+        inflater = zlib.decompressobj(-15, zdict=context) if context else zlib.decompressobj(-15)
+        data = inflater.decompress(payload + _DEFLATE_TAIL, self.max_size + 1)
         if len(data) > self.max_size or inflater.unconsumed_tail:
             raise ProtocolError(TOO_BIG, "message too big (unpacked)")
-        if inflater.eof:  # the client ended its stream (a final block, RFC 7692 7.2.3.4): its next one is new
-            self._inflater = zlib.decompressobj(-15)
         return data
 
     def _control(self, opcode, payload):

@@ -7,6 +7,7 @@ import os
 import socket
 import struct
 import time
+import zlib
 
 import cbor2
 from tornado.httpclient import HTTPRequest
@@ -106,26 +107,31 @@ def ping(client):
 class RawWebSocket:
     """A websocket client written on a bare socket, so a test can stop reading or stop mid-frame."""
 
-    def __init__(self, port, recv_buffer=None, early=b""):
-        """early: bytes sent in the same write as the handshake's request (frames a client sends at once)."""
+    def __init__(self, port, recv_buffer=None, early=b"", extensions=None):
+        """early: bytes sent in the same write as the handshake's request (frames a client sends at once);
+        extensions: the Sec-WebSocket-Extensions it offers (the server's answer is then self.extensions)."""
         self.sock = socket.create_connection(("127.0.0.1", port), timeout=10)
         if recv_buffer:
             self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, recv_buffer)
         key = base64.b64encode(os.urandom(16)).decode()
+        offer = f"Sec-WebSocket-Extensions: {extensions}\r\n" if extensions else ""
         self.sock.sendall((f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n"
-                           f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n\r\n")
-                          .encode() + early)
+                           f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n"
+                           f"{offer}\r\n").encode() + early)
         reply = b""
         while b"\r\n\r\n" not in reply:
             chunk = self.sock.recv(1)  # byte by byte: nothing after the handshake is consumed
             assert chunk, "server closed during the handshake"
             reply += chunk
         assert reply.startswith(b"HTTP/1.1 101"), reply
+        answered = [line.split(b":", 1)[1].strip().decode() for line in reply.split(b"\r\n")
+                    if line.lower().startswith(b"sec-websocket-extensions:")]
+        self.extensions = answered[0] if answered else None
 
     @staticmethod
-    def header(length, opcode=0x1, fin=True):
-        """FIN + opcode, then the masked payload length (clients must mask)."""
-        first = (0x80 if fin else 0) | opcode
+    def header(length, opcode=0x1, fin=True, rsv1=False):
+        """FIN (RSV1: compressed) + opcode, then the masked payload length (clients must mask)."""
+        first = (0x80 if fin else 0) | (0x40 if rsv1 else 0) | opcode
         if length < 126:
             return struct.pack("!BB", first, 0x80 | length)
         if length < 1 << 16:
@@ -166,11 +172,15 @@ class RawWebSocket:
             pass
         return True
 
-    def send_text(self, text, cut_after=None):
+    def send_text(self, text, cut_after=None, deflated=False):
         """Sends one text frame (mask of zeros: the payload is sent as is); with cut_after, only the header
-        and that many payload bytes are sent."""
+        and that many payload bytes are sent; deflated: compressed on its own (permessage-deflate with no context
+        kept between messages, as browsers do)."""
         data = text.encode()
-        frame = self.header(len(data)) + b"\0\0\0\0" + data
+        if deflated:
+            compressor = zlib.compressobj(6, zlib.DEFLATED, -15)
+            data = (compressor.compress(data) + compressor.flush(zlib.Z_SYNC_FLUSH))[:-4]
+        frame = self.header(len(data), rsv1=deflated) + b"\0\0\0\0" + data
         self.sock.sendall(frame if cut_after is None else frame[:len(frame) - len(data) + cut_after])
 
     def close(self, reset=False):

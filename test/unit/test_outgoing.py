@@ -1,8 +1,9 @@
 """The Outbox: what waits for one websocket client, whole messages, small before big, each topic fresh while the
-socket is backed up, bounded."""
+socket is backed up, bounded; the LinkMeter, which says whether a client's link is slow."""
 import tracemalloc
 
-from rosbridge.outgoing import FRESH_HORIZON, SMALL_MESSAGE, TOPIC_BACKLOG_BYTES, Outbox
+from rosbridge.outgoing import (DEFLATE_MIN_BYTES, FRESH_HORIZON, SLOW_LINK_BYTES_PER_SECOND, SMALL_MESSAGE,
+                                TOPIC_BACKLOG_BYTES, LinkMeter, Outbox, sends_deflated)
 
 
 class Clock:
@@ -161,3 +162,52 @@ def test_a_message_skipped_or_taken_leaves_no_trace():
     assert (len(box), box.bytes) == (0, 0)
     box.push("/t1", small("z"))
     assert drain(box) == ["z"]
+
+
+# ---- LinkMeter: is a client's link slow enough that its big messages go deflated? ----------------------------
+def test_a_link_is_not_judged_before_a_write_waited():
+    meter = LinkMeter()
+    assert meter.rate is None and not meter.slow
+
+
+def test_a_camera_frame_that_drains_at_20_mbit_s_makes_the_link_slow():
+    meter = LinkMeter()
+    meter.waited(1_228_800, 0.52)  # one raw 640x480 frame as JSON through a 19 Mbit/s link
+    assert meter.slow and 2e6 < meter.rate < 3e6
+
+
+def test_loopback_is_fast_even_when_its_writes_wait():
+    meter = LinkMeter()
+    for _ in range(20):
+        meter.waited(1_228_800, 0.004)  # the reader takes a frame in 4 ms (300 MB/s)
+    assert not meter.slow
+    meter.waited(1_228_800, 0.2)  # one pause of the reader (its machine busy) does not make it slow
+    assert not meter.slow
+
+
+def test_small_writes_that_waited_are_not_enough_to_judge_a_link():
+    meter = LinkMeter()
+    for _ in range(100):
+        meter.waited(2_000, 0.013)  # a pose that waited for the kernel to drain what came before
+    assert meter.rate < SLOW_LINK_BYTES_PER_SECOND and not meter.slow
+
+
+def test_a_link_that_speeds_up_is_fast_again_within_a_few_big_writes():
+    meter = LinkMeter()
+    for _ in range(10):
+        meter.waited(620_000, 0.26)  # deflated frames through 19 Mbit/s
+    assert meter.slow
+    writes = 0
+    while meter.slow:
+        meter.waited(1_228_800, 0.01)  # then a wired link
+        writes += 1
+    assert writes <= 4
+
+
+def test_only_big_messages_go_deflated_to_a_slow_link_and_every_one_with_use_compression():
+    slow, fast, unknown = LinkMeter(), LinkMeter(), LinkMeter()
+    slow.waited(1_228_800, 0.52)
+    fast.waited(1_228_800, 0.004)
+    assert sends_deflated(DEFLATE_MIN_BYTES, False, slow) and not sends_deflated(DEFLATE_MIN_BYTES - 1, False, slow)
+    assert not sends_deflated(1 << 20, False, fast) and not sends_deflated(1 << 20, False, unknown)
+    assert all(sends_deflated(size, True, link) for size in (10, 1 << 20) for link in (slow, fast, unknown))

@@ -1,12 +1,17 @@
 """rosbridge.websocket_frames without sockets: a client's bytes in any pieces, every frame kind, every way of
-breaking RFC 6455, permessage-deflate both ways; and the budget's turns over a reader fed a flood."""
+breaking RFC 6455, permessage-deflate both ways (and a big frame deflated once for every client that sends it
+compressed); and the budget's turns over a reader fed a flood."""
+import base64
 import os
+import random
 import struct
+import tracemalloc
 import zlib
 
 import pytest
 from hypothesis import given, settings, strategies as st
 
+from rosbridge import frames
 from rosbridge import websocket_frames as ws
 from rosbridge.budget import FRAMES_PER_TURN, ClientBudget
 
@@ -148,32 +153,40 @@ def test_any_sequence_of_frames_in_any_cuts_reads_back(messages, cuts):
 
 
 # ---- permessage-deflate ------------------------------------------------------------------------------
-@pytest.mark.parametrize("offer, answer", [
-    ("permessage-deflate; client_max_window_bits", "permessage-deflate; server_no_context_takeover"),
-    ("permessage-deflate", "permessage-deflate; server_no_context_takeover"),
-    ("x-webkit-deflate-frame, permessage-deflate; client_no_context_takeover",
-     "permessage-deflate; server_no_context_takeover; client_no_context_takeover"),
-    ("permessage-deflate; server_max_window_bits=10",
-     "permessage-deflate; server_no_context_takeover; server_max_window_bits=10"),
-    ("permessage-deflate; server_max_window_bits=8", None),  # zlib cannot write that window
-    ("permessage-deflate; mystery", None),
-    ("", None),
+BOTH = "permessage-deflate; server_no_context_takeover; client_no_context_takeover"
+
+
+@pytest.mark.parametrize("offer, answer, bits", [
+    ("permessage-deflate; client_max_window_bits", BOTH, 15),  # Chromium's and Tornado's offer
+    ("permessage-deflate", BOTH, 15),  # (client_no_context_takeover added: RFC 7692 7.1.1.2)
+    ("x-webkit-deflate-frame, permessage-deflate; client_no_context_takeover", BOTH, 15),
+    ("permessage-deflate; server_max_window_bits=10", BOTH + "; server_max_window_bits=10", 10),
+    ("permessage-deflate; client_max_window_bits=8", BOTH, 15),  # (we inflate any window)
+    ("permessage-deflate; server_max_window_bits=8, permessage-deflate", BOTH, 15),  # the second offer taken
+    ("permessage-deflate; server_max_window_bits=8", None, None),  # zlib cannot write that window
+    ("permessage-deflate; server_max_window_bits", None, None),  # it needs a value
+    ("permessage-deflate; client_max_window_bits=7", None, None),
+    ("permessage-deflate; server_no_context_takeover; server_no_context_takeover", None, None),
+    ("permessage-deflate; mystery", None, None),
+    ("", None, None),
 ])
-def test_deflate_negotiation(offer, answer):
-    assert ws.negotiate_deflate(offer)[0] == answer
+def test_deflate_negotiation(offer, answer, bits):
+    assert ws.negotiate_deflate(offer) == (answer, bits)
 
 
-def client_deflated(compressor, payload):
+def client_deflated(payload, compressor=None):
+    """A client's compressed message: with no context kept between messages (client_no_context_takeover), each
+    with a compressor of its own."""
+    compressor = compressor or zlib.compressobj(9, zlib.DEFLATED, -15)
     data = compressor.compress(payload) + compressor.flush(zlib.Z_SYNC_FLUSH)
     assert data.endswith(b"\x00\x00\xff\xff")
     return data[:-4]
 
 
 def test_deflated_messages_are_unpacked_and_weighed_as_unpacked():
-    compressor = zlib.compressobj(9, zlib.DEFLATED, -15)  # the client keeps its context between messages
     text = b'{"op":"publish","topic":"/a","msg":{"data":"' + b"a" * 50_000 + b'"}}'
     reader = ws.FrameReader(1 << 20, deflate=True)
-    first, second = client_deflated(compressor, text), client_deflated(compressor, text)
+    first, second = client_deflated(text), client_deflated(text)
     reader.receive(client_frame(first, rsv1=True) + client_frame(second[:5], fin=False, rsv1=True)
                    + client_frame(second[5:], ws.CONTINUATION) + client_frame(b"plain"))
     got = events(reader)
@@ -182,9 +195,39 @@ def test_deflated_messages_are_unpacked_and_weighed_as_unpacked():
     assert got[0][2] == len(text) and got[1][2] + got[2][2] == len(text)
 
 
-def test_a_small_deflated_message_that_unpacks_over_the_limit_is_refused():
+def test_a_client_that_keeps_its_context_after_agreeing_not_to_is_still_understood():
+    """Tornado 6.2's client drops the answer's client_no_context_takeover (its header parser loses parameters
+    without a value) and points back into its earlier messages."""
     compressor = zlib.compressobj(9, zlib.DEFLATED, -15)
-    bomb = client_deflated(compressor, b"0" * 2_000_000)  # a few kilobytes on the wire
+    texts = [b'{"op":"publish","topic":"/a","msg":{"data":"' + os.urandom(n).hex().encode() + b'"}}'
+             for n in (3000, 40_000, 10)]
+    texts.append(texts[0])  # its window is 32 kB: this one points back past the 80 kB of the second
+    reader = ws.FrameReader(1 << 20, deflate=True)
+    for text in texts:
+        reader.receive(client_frame(client_deflated(text, compressor), rsv1=True))
+        assert reader.next_event()[1] == text.decode()
+    assert len(reader._inflated) <= 2 * ws.CONTEXT_BYTES
+
+
+def test_readers_keep_no_inflater_between_messages():
+    """Clients that once sent a compressed message hold no zlib state (about 40 kB each if kept), only the end
+    of what they sent."""
+    message = client_frame(client_deflated(b'{"op":"set_level","level":"warning"}' * 30), rsv1=True)  # 1 kB
+    readers = [ws.FrameReader(1 << 20, deflate=True) for _ in range(200)]
+    tracemalloc.start()
+    try:
+        before = tracemalloc.get_traced_memory()[0]
+        for reader in readers:
+            reader.receive(message)
+            assert reader.next_event()[0] == ws.TEXT
+        held = tracemalloc.get_traced_memory()[0] - before
+    finally:
+        tracemalloc.stop()
+    assert held < 200 * 4_000, held
+
+
+def test_a_small_deflated_message_that_unpacks_over_the_limit_is_refused():
+    bomb = client_deflated(b"0" * 2_000_000)  # a few kilobytes on the wire
     reader = ws.FrameReader(1_000_000, deflate=True)
     reader.receive(client_frame(bomb, rsv1=True))
     with pytest.raises(ws.ProtocolError) as refused:
@@ -192,12 +235,79 @@ def test_a_small_deflated_message_that_unpacks_over_the_limit_is_refused():
     assert refused.value.code == ws.TOO_BIG
 
 
-def test_what_the_server_deflates_a_client_unpacks():
-    _, deflate = ws.negotiate_deflate("permessage-deflate")
-    decompressor = zlib.decompressobj(-15)
-    for payload in (b"", b"x", os.urandom(1000), b'{"op":"publish"}' * 1000):
-        packed = deflate.compress(payload)
-        assert decompressor.decompress(packed + b"\x00\x00\xff\xff") == payload
+@pytest.mark.parametrize("parts", [(b"",), (b"x",), (os.urandom(1000),), (b'{"op":"publish"}' * 1000,),
+                                   (b'{"op":"publish","msg":{"data":"', base64.b64encode(os.urandom(300_000)),
+                                    b'"}}')])
+def test_what_the_server_deflates_a_fresh_inflater_unpacks(parts):
+    whole = b"".join(parts)
+    for max_bits in (9, 12, 15):
+        bits = ws.message_window_bits(len(whole), max_bits)
+        assert 9 <= bits <= max_bits
+        packed = ws.deflate_message(parts, bits)
+        # an inflater with only that window unpacks it: the message stays within the window negotiated
+        assert zlib.decompressobj(-bits).decompress(packed + b"\x00\x00\xff\xff") == whole
+    assert ws.message_window_bits(100, 15) == 9 and ws.message_window_bits(1 << 20, 15) == 15
+
+
+def test_a_cameras_base64_deflates_to_well_under_its_size():
+    noise = bytes(random.Random(1).choice(range(96, 160)) for _ in range(200_000))  # a grainy picture's bytes
+    text = b'{"op":"publish","msg":{"data":"' + base64.b64encode(noise) + b'"}}'
+    assert len(ws.deflate_message((text,), 15)) < 0.8 * len(text)
+
+
+# ---- one deflated payload for every client that sends a frame compressed (frames.deflated_payload) ----------
+class OffLoop:
+    """off_loop(fn, then) as the bridge's thread does it, run when the test says."""
+
+    def __init__(self):
+        self.jobs = []
+
+    def __call__(self, fn, then):
+        self.jobs.append((fn, then))
+
+    def run(self):
+        jobs, self.jobs = self.jobs, []
+        for fn, then in jobs:
+            then(fn())
+
+
+@pytest.mark.parametrize("frame", [
+    frames.Utf8Text(b'{"op":"publish","msg":"' + b"ab" * 50_000 + b'"}'),
+    frames.SplicedFrame([b'{"op":"publish","msg":{"data":"', b"QUJD" * 30_000, b'"}}'], text=True)],
+    ids=["text", "spliced"])
+def test_a_big_frame_is_deflated_once_for_every_client_and_kept_with_it(frame):
+    off_loop, got = OffLoop(), []
+    for client in range(3):
+        assert frames.deflated_payload(frame, 15, off_loop, got.append) is None
+    assert len(off_loop.jobs) == 1
+    off_loop.run()
+    assert len(got) == 3 and got[0] is got[1] is got[2]
+    assert zlib.decompressobj(-15).decompress(got[0] + b"\x00\x00\xff\xff") == bytes(frame)
+    assert frames.deflated_payload(frame, 15, off_loop, got.append) is got[0] and not off_loop.jobs  # a later client
+    assert frames.deflated_payload(frame, 10, off_loop, got.append) is None  # another window: made for it
+    off_loop.run()
+    assert zlib.decompressobj(-10).decompress(got[-1] + b"\x00\x00\xff\xff") == bytes(frame)
+
+
+def test_a_failed_deflate_is_told_and_tried_again_next_time():
+    frame, off_loop, got = frames.Utf8Text(b"x" * 100_000), OffLoop(), []
+    frames.deflated_payload(frame, 15, off_loop, got.append)
+    (fn, then), = off_loop.jobs
+    off_loop.jobs.clear()
+    then(None)  # (what off_loop.EncodingThread gives when fn raised)
+    assert got == [None]
+    assert frames.deflated_payload(frame, 15, off_loop, got.append) is None and len(off_loop.jobs) == 1
+
+
+def test_a_small_frame_is_deflated_at_once_and_a_plain_bytes_one_each_time():
+    text = frames.Utf8Text(b'{"op":"status","level":"info","msg":"hello"}')
+    packed = frames.deflated_payload(text, 15)
+    assert frames.deflated_payload(text, 15) is packed
+    binary = b"\xa2" + b"x" * 80_000
+    off_loop = OffLoop()
+    frames.deflated_payload(binary, 15, off_loop, lambda payload: None)
+    frames.deflated_payload(binary, 15, off_loop, lambda payload: None)
+    assert len(off_loop.jobs) == 2
 
 
 def test_server_frames():
@@ -254,9 +364,7 @@ def test_after_a_client_ends_its_deflate_stream_its_next_messages_still_unpack()
     reader = ws.FrameReader(1 << 20, deflate=True)
     final = zlib.compressobj(9, zlib.DEFLATED, -15)
     ended = final.compress(b'{"op":"a"}') + final.flush(zlib.Z_FINISH)  # a final block (RFC 7692 7.2.3.4)
-    compressor = zlib.compressobj(9, zlib.DEFLATED, -15)
-    reader.receive(client_frame(ended, rsv1=True) + client_frame(client_deflated(compressor, b'{"op":"b"}'),
-                                                                   rsv1=True))
+    reader.receive(client_frame(ended, rsv1=True) + client_frame(client_deflated(b'{"op":"b"}'), rsv1=True))
     assert [payload for _, payload, _ in events(reader)] == ['{"op":"a"}', '{"op":"b"}']
 
 
