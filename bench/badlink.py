@@ -211,14 +211,19 @@ class Bench:
 
     # ---- one case ------------------------------------------------------------------------------------------
 
+    @property
+    def deflate_arg(self):
+        """The websocket clients offer permessage-deflate, as browsers and roslibjs in Node do, unless --no-deflate."""
+        return ["--no-deflate"] if self.a.no_deflate else []
+
     def client(self, kind, ws_url, page_url, server):
         if kind == "console":
             proc = self.spawn([VENV_PY, BENCH / "badlink_clients.py", "console", "--url", page_url,
                                "--mode", "plain" if server == "plain" else "bridge",
                                *(["--phone"] if self.a.phone else [])], f"console-{server}", inside=True)
         else:
-            proc = self.spawn([PY, BENCH / "badlink_clients.py", "ws", "--url", ws_url, "--style", kind],
-                              f"{kind}-{server}", inside=True)
+            proc = self.spawn([PY, BENCH / "badlink_clients.py", "ws", "--url", ws_url, "--style", kind,
+                               *self.deflate_arg], f"{kind}-{server}", inside=True)
         self.wait_line(proc, r"^READY", 120)
         return proc
 
@@ -278,8 +283,8 @@ class Bench:
         srv, stat, ws_url, _ = self.server(server)
         client = None
         try:
-            client = self.spawn([PY, BENCH / "badlink_clients.py", "driver", "--url", ws_url], f"driver-{server}",
-                                inside=True)
+            client = self.spawn([PY, BENCH / "badlink_clients.py", "driver", "--url", ws_url, *self.deflate_arg],
+                                f"driver-{server}", inside=True)
             self.wait_line(client, r"^READY", 60)
             time.sleep(3.0)
             self.twists()  # (forget the start)
@@ -601,6 +606,8 @@ def main():
                    help="also measure the bridge (and its page) of this commit, built from git in ~/.cache/turtlesim")
     peers.add_arguments(p)
     p.add_argument("--phone", action="store_true", help="the console on a phone's screen (390x844), not a desktop's")
+    p.add_argument("--no-deflate", action="store_true", help="the websocket clients offer no permessage-deflate "
+                   "(browsers and roslibjs in Node offer it; the console's Chromium always does)")
     p.add_argument("--no-readme", action="store_true")
     p.add_argument("--render", metavar="DIR", help="print (and with --readme, write) the text of an earlier run "
                    "from its directory's run.json, measuring nothing")
@@ -625,10 +632,12 @@ def main():
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: sys.exit("badlink: stopped by signal"))
     full = (a.links == list(LINKS) and a.clients == list(CLIENTS) and a.pictures == list(PICTURES)
-            and a.servers == list(SERVERS) and not a.phone)
+            and a.servers == list(SERVERS) and not a.phone and not a.no_deflate)
     started, load_before = time.monotonic(), os.getloadavg()[0]
     workdir = Path(tempfile.mkdtemp(prefix="badlink-"))
-    remarks = []
+    remarks = [("The roslibjs-style and careful clients and the driver offered no permessage-deflate (--no-deflate)."
+                if a.no_deflate else "The roslibjs-style and careful clients and the driver offered permessage-deflate "
+                "(`permessage-deflate; client_max_window_bits`), as browsers and roslibjs in Node do.")]
     if "reference" in a.servers:
         why = peers.reference_missing(a)
         if why:

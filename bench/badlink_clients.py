@@ -1,20 +1,22 @@
 """The bad-link benchmark's clients (bench/badlink.py runs them inside the network namespace, behind the shaped
 link). One role per process:
 
-  ws       a rosbridge websocket client (Tornado's) subscribed to the rover's small topic and camera:
+  ws       a rosbridge websocket client (Tornado's) subscribed to the rover's small topic and camera, offering
+           permessage-deflate as browsers and roslibjs in Node (the `ws` package) do, unless --no-deflate:
              --style roslibjs  both topics as roslibjs 1.x subscribes by default: JSON, compression "none",
                                throttle_rate 0, queue_length 0
              --style careful   the camera as CBOR with throttle_rate 66 and queue_length 1; the small topic as
                                above; status ops from the level "warning" up (set_level)
            it records, for every message, when it arrived (wall time) and its stamp (the small topic's data, the
-           camera's header.stamp), and the frame's size
+           camera's header.stamp), and the frame's size (unpacked); and the bytes the connection read in all
+           (`wire_bytes`, Tornado's count: fewer than the messages' with deflate)
   console  headless Chromium (Debian's, with Debian's chromedriver, through Selenium: run it with the test venv's
            python) on a page: --mode bridge, the console (the Camera panel showing the camera, the small topic
            opened in the Topics panel, both on screen); --mode plain, bench/plain_server.py's page. It injects
            bench/badlink_page.js, which reads the picture's age from its pixels and the small topic's from its text
   driver   drives: advertises /rover/cmd_vel and publishes a Twist at 20 Hz (linear.x 1.0, its send time in
            linear.z), watching the camera meanwhile as the careful client does (CBOR, throttle_rate 66,
-           queue_length 1), until it is killed or its link is cut
+           queue_length 1), until it is killed or its link is cut; it offers permessage-deflate as ws does
   sink     reads a TCP stream and reports its goodput (the link's raw capacity)
 
 Protocol: READY when connected and subscribed; then each line on stdin is a command: `result` prints
@@ -47,6 +49,8 @@ def main():
     p.add_argument("--listen", help="sink: address:port")
     p.add_argument("--window", default="1280,1100", help="console: the browser's viewport, width,height")
     p.add_argument("--phone", action="store_true", help="console: a phone's screen (390x844 at 3x, touch)")
+    p.add_argument("--no-deflate", action="store_true",
+                   help="ws, driver: offer no permessage-deflate (browsers and roslibjs in Node offer it)")
     a = p.parse_args()
     {"ws": lambda: asyncio.run(ws_client(a)), "console": lambda: console(a), "sink": lambda: sink(a),
      "driver": lambda: asyncio.run(driver(a))}[a.role]()
@@ -82,6 +86,12 @@ def subscribe_ops(a):
              **camera}]
 
 
+def deflate_offer(a):
+    """Tornado's compression_options: {} offers permessage-deflate (`permessage-deflate; client_max_window_bits`,
+    as Chromium and ws offer it), None offers nothing."""
+    return None if a.no_deflate else {}
+
+
 async def ws_client(a):
     import cbor2
     from tornado.websocket import websocket_connect
@@ -110,7 +120,8 @@ async def ws_client(a):
         else:
             statuses.append((now, f"op {kind}"))
 
-    ws = await websocket_connect(a.url, max_message_size=64 << 20, on_message_callback=on_frame)
+    ws = await websocket_connect(a.url, max_message_size=64 << 20, on_message_callback=on_frame,
+                                 compression_options=deflate_offer(a))
     if a.style == "careful":  # (it wants to hear what its link cost it: the bridge tells that as warnings)
         await ws.write_message(json.dumps({"op": "set_level", "level": "warning"}))
     for op in subscribe_ops(a):
@@ -122,7 +133,9 @@ async def ws_client(a):
             await asyncio.sleep(0.05)
         words = lines.pop(0)
         if words[:1] == ["result"]:
-            report(small=small, camera=camera, statuses=statuses[:20], status_count=len(statuses), closed=closed)
+            report(small=small, camera=camera, statuses=statuses[:20], status_count=len(statuses), closed=closed,
+                   deflate=ws.headers.get("Sec-WebSocket-Extensions"),
+                   wire_bytes=ws.protocol._wire_bytes_in)  # (Tornado's own count of what the socket read)
         elif words[:1] == ["quit"]:
             break
     ws.close()
@@ -131,7 +144,8 @@ async def ws_client(a):
 async def driver(a):
     from tornado.websocket import websocket_connect
 
-    ws = await websocket_connect(a.url, max_message_size=64 << 20, on_message_callback=lambda frame: None)
+    ws = await websocket_connect(a.url, max_message_size=64 << 20, on_message_callback=lambda frame: None,
+                                 compression_options=deflate_offer(a))
     ws.stream.set_nodelay(True)
     await ws.write_message(json.dumps({"op": "advertise", "topic": a.cmd_vel, "type": "geometry_msgs/Twist"}))
     await ws.write_message(json.dumps({"op": "subscribe", "topic": a.camera, "type": "sensor_msgs/Image",
