@@ -67,17 +67,18 @@ def test_nothing_runs_before_auth(auth_bridge, frame):
     ws.close()
 
 
-@pytest.mark.parametrize("frame", [
-    auth_frame(mac="0" * 128),
-    auth_frame(level="superuser"),  # the MAC covers the level
-    auth_frame(t=time.time() - 3600),  # too old (and the MAC no longer matches)
-    {k: v for k, v in auth_frame().items() if k != "rand"},
-    {**auth_frame(), "t": "now"},
-    {**auth_frame(), "extra": 1},
+# (made when the test runs: a frame made at collection would be out of auth_time_delta, refused for its time)
+@pytest.mark.parametrize("make_frame", [
+    lambda: auth_frame(mac="0" * 128),
+    lambda: auth_frame(level="superuser"),  # the MAC covers the level
+    lambda: auth_frame(t=time.time() - 3600),  # too old (and the MAC no longer matches)
+    lambda: {k: v for k, v in auth_frame().items() if k != "rand"},
+    lambda: {**auth_frame(), "t": "now"},
+    lambda: {**auth_frame(), "extra": 1},
 ], ids=["bad-mac", "changed-level", "old", "missing-field", "wrong-type", "extra-field"])
-def test_bad_auth_is_refused_and_closes(auth_bridge, frame):
+def test_bad_auth_is_refused_and_closes(auth_bridge, make_frame):
     ws = WsClient(auth_bridge)
-    ws.send(frame)
+    ws.send(make_frame())
     reply = ws.recv()
     assert reply["op"] == "status" and reply["level"] == "error"
     assert ws.is_closed()

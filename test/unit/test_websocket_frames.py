@@ -92,7 +92,10 @@ def test_frames_in_any_pieces_come_out_whole_and_in_order():
     (client_frame(struct.pack("!H", 999), ws.CLOSE), ws.PROTOCOL_ERROR),
     (client_frame(struct.pack("!H", 1005), ws.CLOSE), ws.PROTOCOL_ERROR),
     (client_frame(struct.pack("!H", 1000) + b"\xff", ws.CLOSE), ws.INVALID_DATA),
-])
+], ids=["unmasked", "rsv1 without an extension", "opcode 3", "opcode 11", "long ping", "fragmented ping",
+        "lone continuation", "a new message inside one", "bad UTF-8", "1-byte close", "close code 999",
+        "close code 1005", "close reason bad UTF-8"])  # (named: the frames' masks are random, and pytest-xdist's
+# workers must collect the same test ids)
 def test_what_breaks_the_protocol_is_refused_with_its_close_code(frame, code):
     reader = ws.FrameReader(1000)
     reader.receive(frame)
