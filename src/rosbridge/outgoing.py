@@ -201,11 +201,11 @@ class Outbox:
 
 # Deflating what a slow link carries (websocket.ClientConnection, for a client that offered permessage-deflate):
 # a message of DEFLATE_MIN_BYTES or more goes compressed when the client's link drains slower than
-# SLOW_LINK_BYTES_PER_SECOND. Why that rate: zlib's level 1 takes a camera's 1.2 MB of JSON (base64) to about half
-# at 80-100 MB/s on this project's 2-core machine (12-15 ms, once for every slow client, off the loop). At 8 MB/s
-# (64 Mbit/s: Wi-Fi, a phone) that half is 75 ms less on the link per frame, five times what deflating costs; at
-# faster links the saving shrinks towards the cost, and a wired or loopback client (tens to hundreds of MB/s)
-# gets the bytes as they are, at no CPU.
+# SLOW_LINK_BYTES_PER_SECOND. Why that rate: zlib's level 1 takes a camera's 1.2 MB of JSON (base64) to 0.5-0.6
+# of its size at 60-85 MB/s on this project's 2-core machine (15-20 ms, once for every slow client, off the loop).
+# At 8 MB/s (64 Mbit/s: Wi-Fi, a phone) that is 60-75 ms less on the link per frame, four times what deflating
+# costs; at faster links the saving shrinks towards the cost, and a wired or loopback client (tens to hundreds of
+# MB/s) gets the bytes as they are, at no CPU.
 DEFLATE_MIN_BYTES = SMALL_MESSAGE
 SLOW_LINK_BYTES_PER_SECOND = 8_000_000
 MEASURED_BYTES = 256 * 1024  # what the waits must have carried before a link is judged (one camera frame does)

@@ -53,7 +53,7 @@ SETTINGS = (
     Setting("compress_slow_links", bool, True,
             "websocket permessage-deflate for a client that offers it (browsers, roslibjs in Node) while its link "
             "is measured slow (under 8 MB/s): its messages of 64 kB and more (a camera frame, a map) go deflated, "
-            "made once for every such client; false = only with `use_compression`. See \"Fresh on a slow link\"",
+            "made once for every such client; false = only with `use_compression`. See \"Deflated on a slow link\"",
             ours=True),
     Setting("websocket_ping_interval", float, 0.0, "seconds between keep-alive pings; 0 = none"),
     Setting("websocket_ping_timeout", float, 30.0, "seconds without a pong before the connection is closed (and a camera stream whose frame has not left)"),
