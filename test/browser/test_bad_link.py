@@ -12,6 +12,8 @@ from selenium.webdriver.support.ui import Select
 
 from harness import ARTIFACTS, wait_for
 
+pytestmark = pytest.mark.alone  # (they time what a driver sees: tools/test runs them with nothing beside them)
+
 CAMERA = "/turtle_camera/image_raw"
 
 

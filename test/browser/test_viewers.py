@@ -178,6 +178,7 @@ def test_the_tf_tree_lists_frames_with_parent_rate_age_and_the_transform_between
 
 
 # ---- smooth at the topics' real rates ------------------------------------------------------------------------------
+@pytest.mark.alone
 def test_a_fast_laser_and_fifty_tf_frames_at_100_hz_keep_the_page_smooth(open_page, node, publishers):
     """A 1081-ray scan at 40 Hz and 50 TF frames at 100 Hz, both viewers shown: the page's animation frames per
     second, and how many scans the laser viewer drew (at most one per animation frame: all 40 a second)."""

@@ -32,11 +32,12 @@ def windowed(start_turtlesim, display, tmp_path):
 
 
 def window_geometry(display):
-    """(x, y, width, height) of the window titled TurtleSim, or None."""
+    """(x, y, width, height) of the window titled TurtleSim, or None (also while it is still 1x1: Tk maps a
+    window before it gives it its size, and a busy machine lets a test look in between)."""
     res = os.popen(f"DISPLAY={display} xwininfo -name TurtleSim 2>/dev/null").read()
     values = dict(re.findall(r"^\s*(Absolute upper-left X|Absolute upper-left Y|Width|Height):\s+(-?\d+)",
                              res, re.M))
-    if len(values) < 4:
+    if len(values) < 4 or (values["Width"], values["Height"]) == ("1", "1"):
         return None
     return tuple(int(values[k]) for k in ("Absolute upper-left X", "Absolute upper-left Y", "Width", "Height"))
 
