@@ -1,6 +1,7 @@
 """Real processes for the tests: a private roscore per session, nodes started with rosrun/roslaunch,
 and the stock CLI tools. Every process is started in its own process group and killed at teardown."""
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -69,6 +70,18 @@ class Proc:
 
     def wait_output(self, text, timeout=10.0):
         return wait_for(lambda: text in self.output(), timeout, what=f"{text!r} in output of {self.args}")
+
+    def wait_line(self, pattern, timeout=10.0, after=0):
+        """The first match of the line regex `pattern` (its group, if it has one) after the first `after` matches;
+        raises if the process ends first."""
+        def found():
+            hits = re.findall(pattern, self.output(), re.M)
+            if len(hits) > after:
+                return hits[after:]
+            if not self.alive():
+                raise RuntimeError(f"{self.args[:6]} ended:\n{self.output()[-3000:]}")
+            return None
+        return wait_for(found, timeout, what=f"{pattern} from {self.args[:6]}")[0]
 
     def alive(self):
         return self.popen.poll() is None
