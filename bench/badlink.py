@@ -30,6 +30,7 @@ import harness  # noqa: E402  (private roscore, process groups, logs, /proc read
 
 import peers  # noqa: E402
 import reporting  # noqa: E402
+import stats  # noqa: E402
 
 PY = "/usr/bin/python3"
 VENV_PY = str(REPO / ".build" / "venv" / "bin" / "python")  # (Selenium)
@@ -145,14 +146,7 @@ class Bench:
 
     @staticmethod
     def wait_line(proc, pattern, timeout, after=0):
-        def found():
-            hits = re.findall(pattern, proc.output(), re.M)
-            if len(hits) > after:
-                return hits[after:]
-            if not proc.alive():
-                raise RuntimeError(f"{proc.args[:6]} ended:\n{proc.output()[-3000:]}")
-            return None
-        return harness.wait_for(found, timeout, what=f"{pattern} from {proc.args[:6]}")[0]
+        return proc.wait_line(pattern, timeout, after)
 
     def result(self, proc, timeout=60):
         before = len(re.findall(r"^RESULT (.*)$", proc.output(), re.M))
@@ -265,7 +259,7 @@ class Bench:
                        cpu_ms_per_frame=(cpu1 - cpu0) * 1e3 / figures["camera_frames"]
                        if figures["camera_frames"] else None,
                        cpu_share=(cpu1 - cpu0) / (t1 - t0), tbf_drops=drops, tbf_backlog_max=max(backlog),
-                       tbf_backlog_p50=pct(backlog, 0.5), code=code)
+                       tbf_backlog_p50=stats.percentile(backlog, 0.5), code=code)
         (self.workdir / f"{name}.json").write_text(json.dumps({"figures": figures, "raw": got}))
         print(f"badlink: {name}: " + json.dumps({k: round(v, 3) if isinstance(v, float) else v
                                                  for k, v in figures.items()}), file=sys.stderr, flush=True)
@@ -307,7 +301,8 @@ class Bench:
         figures = {"how": how, "zero_after_end": zero - end if zero else None,
                    "zero_after_last": zero - last if zero and last else None, "zeros": sum(
                        1 for t, x, z in twists if x == 0 and z == 0 and t >= end - 0.05),
-                   "twist_p50": pct(ages, 0.5), "twist_p95": pct(ages, 0.95), "twist_max": max(ages, default=None),
+                   "twist_p50": stats.percentile(ages, 0.5), "twist_p95": stats.percentile(ages, 0.95),
+                   "twist_max": max(ages, default=None),
                    "twist_rate": len(ages) / 3.0, "code": code}
         (self.workdir / f"{name}.json").write_text(json.dumps({"figures": figures, "raw": twists}))
         print(f"badlink: {name}: " + json.dumps(figures), file=sys.stderr, flush=True)
@@ -368,13 +363,6 @@ def before_workspace(commit, log):
     return ws, full
 
 
-def pct(values, q):
-    if not values:
-        return None
-    values = sorted(values)
-    return values[min(len(values) - 1, int(round(q * (len(values) - 1))))]
-
-
 def summarize(got, kind, t0, t1, published):
     """Figures of one case from the client's records (wall times) and the rover's counts for [t0, t1)."""
     seconds = t1 - t0
@@ -400,14 +388,15 @@ def summarize(got, kind, t0, t1, published):
         return [age for t, age in rows if t0 + lo * seconds <= t < t0 + hi * seconds]
 
     return {"small_delivered": delivered, "small_rate": len(small) / seconds,
-            "small_p50": pct(ages(small), 0.5), "small_p95": pct(ages(small), 0.95),
+            "small_p50": stats.percentile(ages(small), 0.5), "small_p95": stats.percentile(ages(small), 0.95),
             "small_max": max(ages(small), default=None),
-            "small_p95_first": pct(ages(small, 0, 1 / 3), 0.95), "small_p95_last": pct(ages(small, 2 / 3, 1), 0.95),
+            "small_p95_first": stats.percentile(ages(small, 0, 1 / 3), 0.95),
+            "small_p95_last": stats.percentile(ages(small, 2 / 3, 1), 0.95),
             "camera_frames": len(camera), "camera_fps": len(camera) / seconds,
-            "camera_p50": pct(ages(camera), 0.5), "camera_p95": pct(ages(camera), 0.95),
+            "camera_p50": stats.percentile(ages(camera), 0.5), "camera_p95": stats.percentile(ages(camera), 0.95),
             "camera_max": max(ages(camera), default=None),
-            "camera_p95_first": pct(ages(camera, 0, 1 / 3), 0.95),
-            "camera_p95_last": pct(ages(camera, 2 / 3, 1), 0.95),
+            "camera_p95_first": stats.percentile(ages(camera, 0, 1 / 3), 0.95),
+            "camera_p95_last": stats.percentile(ages(camera, 2 / 3, 1), 0.95),
             "published_small": published["small"], "published_camera": published["camera"], **extra}
 
 

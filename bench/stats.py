@@ -1,5 +1,6 @@
 """Small measuring tools shared by the benchmark roles and the suite (standard library only)."""
 import asyncio
+import bisect
 import json
 import statistics
 import sys
@@ -78,3 +79,44 @@ def latency_summary(rtts, sent):
 def median(values):
     values = [v for v in values if v is not None]
     return statistics.median(values) if values else None
+
+
+def count_between(times, t0, t1):
+    """How many of the ascending `times` fall in [t0, t1)."""
+    return bisect.bisect_left(times, t1) - bisect.bisect_left(times, t0)
+
+
+def commands(handlers):
+    """Serves the lines of stdin until `quit` or its end: each is a command word and its arguments; the handler
+    of that word returns the values the `RESULT` line reports. (Blocks: an asyncio role runs it in a thread.)"""
+    for line in sys.stdin:
+        words = line.split()
+        if not words:
+            continue
+        if words[0] == "quit":
+            return
+        result(**handlers[words[0]](*words[1:]))
+
+
+def percentile(values, q):
+    """The q-quantile (0-1) of values, the nearest rank; None if there are none."""
+    if not values:
+        return None
+    values = sorted(values)
+    return values[min(len(values) - 1, int(round(q * (len(values) - 1))))]
+
+
+class CpuWindow:
+    """CPU seconds a process spends from now on (proc_stat: a harness.ProcStat): the sum of its threads' own
+    counts (the scheduler's, to the microsecond, where /proc/<pid>/stat counts 10 ms ticks), or the ticks if a
+    thread ended meanwhile (it took its count with it)."""
+
+    def __init__(self, proc_stat):
+        self.proc_stat = proc_stat
+        self.threads, self.ticks = proc_stat.thread_cpu(), proc_stat.cpu_seconds()
+
+    def seconds(self):
+        threads, ticks = self.proc_stat.thread_cpu(), self.proc_stat.cpu_seconds()
+        if set(self.threads) - set(threads):
+            return ticks - self.ticks
+        return sum(t - self.threads.get(tid, 0.0) for tid, t in threads.items())
