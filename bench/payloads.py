@@ -4,6 +4,7 @@ baseline move exactly the same data. Each payload carries a sequence number so r
 import base64
 import json
 import random
+import struct
 
 IMAGE_W, IMAGE_H = 640, 480
 STRING_BYTES = 1_000_000
@@ -99,7 +100,12 @@ def ros_msg(kind, seq=0):
 
 
 def seq_of(kind, msg):
-    """The sequence number in a received message, given as a rospy object or as a JSON dict."""
+    """The sequence number in a received message, given as a rospy object, a JSON dict, or its ROS bytes (as
+    cbor-raw's {"bytes": ...} or foxglove_bridge's payload)."""
+    msg = _ros_bytes(msg)
+    if isinstance(msg, (bytes, memoryview)):  # (twist: linear.x first; float: data; image, cloud: header.seq)
+        return int(struct.unpack_from("<d", msg)[0]) if kind in ("twist", "float") else \
+            struct.unpack_from("<I", msg)[0] if kind in ("image", "cloud") else 0
     if isinstance(msg, dict):
         if kind == "twist":
             return int(msg["linear"]["x"])
@@ -124,3 +130,22 @@ def _cached(key, make):
     if key not in _cache:
         _cache[key] = make()
     return _cache[key]
+
+
+def stamp_of(kind, msg):
+    """The header stamp (seconds) of a received image or cloud, as seq_of takes it; None for the others."""
+    if kind not in ("image", "cloud"):
+        return None
+    msg = _ros_bytes(msg)
+    if isinstance(msg, (bytes, memoryview)):
+        secs, nsecs = struct.unpack_from("<II", msg, 4)
+    elif isinstance(msg, dict):
+        secs, nsecs = msg["header"]["stamp"]["secs"], msg["header"]["stamp"]["nsecs"]
+    else:
+        secs, nsecs = msg.header.stamp.secs, msg.header.stamp.nsecs
+    return secs + nsecs / 1e9 if secs else None
+
+
+def _ros_bytes(msg):
+    """cbor-raw's message ({"bytes": the ROS bytes, "secs", "nsecs": when the bridge got it}) as its bytes."""
+    return msg["bytes"] if isinstance(msg, dict) and "bytes" in msg else msg

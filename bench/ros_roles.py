@@ -64,6 +64,8 @@ def pub(a):
         msg = msgs[i % len(msgs)]
         if a.kind == "image":
             msg.header.seq = i
+        if a.kind in ("image", "cloud"):
+            msg.header.stamp = rospy.Time.now()  # (its age at a client: payloads.stamp_of)
         publisher.publish(msg)
         if period:
             time.sleep(max(0.0, start + (i + 1) * period - time.monotonic()))

@@ -21,6 +21,7 @@ sys.path.insert(0, str(REPO / "test" / "integration"))
 import hostile  # noqa: E402  (the isolation tests' hostile clients and their victim)
 
 import payloads  # noqa: E402
+import peers  # noqa: E402
 import stats  # noqa: E402
 
 PY = "/usr/bin/python3"
@@ -29,8 +30,10 @@ PY = "/usr/bin/python3"
 class Run:
     """One suite run: a private roscore and helpers to start roles and read their results."""
 
-    def __init__(self, workdir):
+    def __init__(self, workdir, peer_args):
         self.workdir = Path(workdir)
+        self.peers = peer_args  # (bench/peers.py: where the other bridges are)
+        self.foxglove_missing = peers.foxglove_missing(peer_args)
         self.ros = harness.RosMaster(self.workdir).start()
         # (test/ for the messages the tests publish too: test/sensor_messages.py)
         self.ros.env["PYTHONPATH"] = f"{BENCH}:{REPO / 'test'}:{self.ros.env.get('PYTHONPATH', '')}"
@@ -79,6 +82,11 @@ class Run:
         proc, port = harness.launch_bridge(self.ros, **launch_args)
         return proc, f"ws://127.0.0.1:{port}", harness.ProcStat(harness.node_pid(self.ros, "/rosbridge_websocket"))
 
+    def foxglove(self):
+        """A fresh foxglove_bridge (bench/peers.py): (Proc, websocket URL, ProcStat)."""
+        proc, stat, url = peers.start_foxglove(self.ros, self.peers, name="bench_foxglove")
+        return proc, url, stat
+
     def transport(self, *args):
         port = harness.free_port()
         proc = self.role("transport_server.py", "--port", port, *args)
@@ -90,15 +98,15 @@ class Run:
 
 
 class Cpu:
-    """CPU seconds a process spends between start and stop."""
+    """CPU seconds a process spends between start and stop (stats.CpuWindow: its threads' own counts, to the
+    microsecond, or 10 ms ticks if a thread ended meanwhile)."""
 
     def __init__(self, proc_stat):
-        self.proc_stat = proc_stat
-        self.start = proc_stat.cpu_seconds()
+        self.window = stats.CpuWindow(proc_stat)
 
     def us_per(self, messages):
-        # (rounded: /proc counts in ticks, and two equal tick counts must compare equal after the float division)
-        return round((self.proc_stat.cpu_seconds() - self.start) * 1e6 / messages, 3) if messages else None
+        # (rounded: two equal tick counts must compare equal after the float division)
+        return round(self.window.seconds() * 1e6 / messages, 3) if messages else None
 
 
 # ---- measurements: each returns a dict of figures for one round ------------------------------------------
@@ -139,29 +147,79 @@ def bridge_in(run, url, server, kind, count, rate=0, client_args=()):
     return figures
 
 
-def bridge_out(run, url, server, kind, count, compression="none", rate=0, queue_size=100, clients=1):
+def bridge_out(run, url, server, kind, count, compression="none", rate=0, queue_size=100, clients=1,
+               protocol="rosbridge"):
     """rospy publisher (at full speed, or `rate` Hz; queued, or synchronous with queue_size 0) -> the bridge ->
     `clients` subscribed websocket clients (one process each). With several, `delivered` is the least any client
-    got and the CPU is per message published."""
+    got and the CPU is per message published (`server_us_delivered`: per message delivered to any client), `age_p95`
+    the highest client's (an image's age: arrival - its header stamp). protocol "foxglove": the server is
+    foxglove_bridge (which learns the topic from the master: the publisher comes first; each client's subscription
+    is a roscpp subscriber of its own, on the one connection roscpp keeps per topic, added a moment after the
+    client's request)."""
     topic = run.topic("out")
-    subscribers = [run.role("ws_roles.py", "subscribe", "--url", url, "--topic", topic, "--kind", kind,
-                            "--count", count, "--compression", compression) for _ in range(clients)]
-    for client in subscribers:
-        run.ready(client)
     pub = run.role("ros_roles.py", "pub", "--topic", topic, "--kind", kind, "--count", count, "--rate", rate,
                    "--queue-size", queue_size)
+    subscribers = [run.role("ws_roles.py", "subscribe", "--url", url, "--topic", topic, "--kind", kind,
+                            "--count", count, "--compression", compression, "--protocol", protocol)
+                   for _ in range(clients)]
+    for client in subscribers:
+        run.ready(client, timeout=60)
     run.ready(pub)
+    if protocol == "foxglove":
+        time.sleep(1.0)
     cpu = Cpu(server)
     run.go(pub)
     results = [run.result(client) for client in subscribers]
     got = min(results, key=lambda r: r["received"])
+    ages = [r["age_p95"] for r in results if r.get("age_p95") is not None]
+    spent, delivered = cpu.us_per(1), sum(r["received"] for r in results)  # (µs: all of it)
     figures = {"rate": got["rate"], "delivered": got["received"] / count,
-               "server_us": cpu.us_per(got["received"] if clients == 1 else count),
+               "server_us": spent / (got["received"] if clients == 1 else count) if got["received"] else None,
+               "server_us_delivered": spent / delivered if delivered else None,
+               "age_p95": max(ages) if ages else None,
                "wire_bytes": got["bytes"] / got["received"] if got["received"] else None}
     if got["statuses"]:
         figures["status"] = got["statuses"]
     run.stop(*subscribers, pub)
     return figures
+
+
+def foxglove_out(run, kind, count, **options):
+    """bridge_out through a fresh foxglove_bridge (bench/peers.py), or None when it is not built."""
+    if run.foxglove_missing:
+        return None
+    proc, url, stat = run.foxglove()
+    try:
+        return bridge_out(run, url, stat, kind, count, protocol="foxglove", **options)
+    finally:
+        run.stop(proc)
+
+
+def foxglove_rows(run, table, label, bridged, fox_rounds, limit, key="server_us", lossless=False, age=False):
+    """Rows of the bridge's figures (`bridged`: {client: medians}) beside foxglove_bridge's in the same run (its
+    clients get the ROS bytes, as cbor-raw's do): CPU per message (key) against `limit`; with `lossless`, every
+    message delivered by both; with `age`, the p95 age no higher than foxglove's."""
+    fox_rounds = [r for r in fox_rounds if r]
+    if not fox_rounds:
+        table.notes.append(f"{label}: {peers.FOXGLOVE_NAME} not measured ({run.foxglove_missing}).")
+        return
+    fox, peer = medians(fox_rounds), f"{peers.FOXGLOVE_NAME} (ROS bytes)"
+
+    def at_most(mine, theirs, factor):
+        return mine is not None and theirs is not None and mine <= factor * theirs
+    for client, r in bridged.items():
+        table.row(f"{label} ({client}): bridge CPU per message{' delivered' if key != 'server_us' else ''}",
+                  r.get(key), "µs", peer, fox.get(key), f"<= {limit}x", at_most(r.get(key), fox.get(key), limit))
+        if lossless:
+            table.row(f"{label} ({client}): messages delivered", r["delivered"], "%", peer, fox["delivered"],
+                      "100%", r["delivered"] >= 1.0)
+        if age:
+            ms = [f.get("age_p95") and f["age_p95"] * 1e3 for f in (r, fox)]
+            table.row(f"{label} ({client}): age p95 at the client", ms[0], "ms", peer, ms[1], "no higher",
+                      at_most(ms[0], ms[1], 1.0))
+    if not lossless:
+        table.row(f"{label}: messages delivered (the least any client got)",
+                  min(r["delivered"] for r in bridged.values()), "%", peer, fox["delivered"])
 
 
 def transport_in(run, count, rate=0, forward=False, client_args=()):
@@ -299,8 +357,8 @@ class Table:
 def fmt(value, unit):
     if value is None:
         return "n/a"
-    if unit == "%":
-        return f"{value * 100:.1f}%"
+    if unit == "%":  # (a loss too small for one decimal still shows)
+        return f"{value * 100:.1f}%" if value >= 1 or value < 0.9995 else f"{value * 100:.2f}%"
     if abs(value) >= 100:
         return f"{value:,.0f} {unit}".strip()
     return f"{value:.3g} {unit}".strip()
@@ -312,7 +370,7 @@ def section_throughput(run, table, rounds, count):
     the bridge: a synchronous rospy publisher (a queued one paces itself, each message then wakes the loop on its
     own: that case is shown too), and a bridge whose max_queue holds the whole burst, so nothing is dropped."""
     queued, sync, ceil_in, ceil_out, into, out, paced = [], [], [], [], [], [], []
-    ceil_in_single, into_single = [], []
+    ceil_in_single, into_single, paced_raw, paced_fox = [], [], [], []
     for _ in range(rounds):
         queued.append(rospy_pubsub(run, "twist", count))
         sync.append(rospy_pubsub(run, "twist", count, queue_size=0))
@@ -325,7 +383,9 @@ def section_throughput(run, table, rounds, count):
         into_single.append(bridge_in(run, url, server, "twist", count, client_args=FRAME_BY_FRAME))
         out.append(bridge_out(run, url, server, "twist", count, queue_size=0))
         paced.append(bridge_out(run, url, server, "twist", count))
+        paced_raw.append(bridge_out(run, url, server, "twist", count, "cbor-raw"))
         run.stop(bridge)
+        paced_fox.append(foxglove_out(run, "twist", count))
     queued, sync, ceil_in, ceil_out, into, out, paced, ceil_in_single, into_single = map(
         medians, (queued, sync, ceil_in, ceil_out, into, out, paced, ceil_in_single, into_single))
     for client, bridged, ceiling in (("batching client", into, ceil_in),
@@ -355,6 +415,8 @@ def section_throughput(run, table, rounds, count):
               ceil_out["server_us"])
     table.row("ROS -> client from a queued rospy publisher: messages delivered", paced["delivered"], "%",
               "plain rospy", queued["delivered"])
+    foxglove_rows(run, table, f"ROS -> client from a queued rospy publisher ({paced['rate']:,.0f} msg/s)",
+                  {"JSON": paced, "cbor-raw": medians(paced_raw)}, paced_fox, limit=0.8, lossless=True)
 
 
 RATES = ((100, 10.0), (1000, 5.0))  # Hz, seconds: most robot topics run at 10-1000 Hz, not in floods
@@ -365,7 +427,7 @@ def section_rates(run, table, rounds):
     both ways, against the bare transport at the same rates."""
     for hz, seconds in RATES:
         count = int(hz * seconds)
-        ceil_in, ceil_out, into, out, forwarding = [], [], [], [], []
+        ceil_in, ceil_out, into, out, forwarding, raw, fox = [], [], [], [], [], [], []
         for _ in range(rounds):
             ceil_in.append(transport_in(run, count, rate=hz))
             forwarding.append(transport_in(run, count, rate=hz, forward=True))
@@ -373,7 +435,11 @@ def section_rates(run, table, rounds):
             bridge, url, server = run.bridge()
             into.append(bridge_in(run, url, server, "twist", count, rate=hz))
             out.append(bridge_out(run, url, server, "twist", count, rate=hz))
+            if hz >= 1000:  # (issue 25: beside foxglove_bridge, whose clients get the ROS bytes, as cbor-raw's)
+                raw.append(bridge_out(run, url, server, "twist", count, "cbor-raw", rate=hz))
             run.stop(bridge)
+            if hz >= 1000:
+                fox.append(foxglove_out(run, "twist", count, rate=hz))
         ceil_in, ceil_out, into, out, forwarding = map(medians, (ceil_in, ceil_out, into, out, forwarding))
         goal, limit = ("<= 1.3x", 1.3) if hz >= 1000 else ("", None)
         for way, bridge_r, ceil in (("client -> ROS", into, ceil_in), ("ROS -> client", out, ceil_out)):
@@ -383,6 +449,9 @@ def section_rates(run, table, rounds):
             table.row(f"{way} at {hz:,} Hz: messages delivered", bridge_r["delivered"], "%", "all sent", 1.0)
         table.row(f"client -> ROS at {hz:,} Hz: vs the bare server that also writes each message to a TCP reader",
                   into["server_us"], "µs", "bare Tornado+JSON server + one send per message", forwarding["server_us"])
+        if raw:
+            foxglove_rows(run, table, f"ROS -> client at {hz:,} Hz", {"JSON": out, "cbor-raw": medians(raw)}, fox,
+                          limit=0.9)
 
 
 def section_latency(run, table, rounds):
@@ -430,6 +499,7 @@ def section_fanout(run, table, rounds, sizes):
 
 
 CAMERA_HZ = 30
+TWENTY = 20  # clients on one camera (issue 25)
 
 
 def section_large(run, table, rounds, count):
@@ -439,6 +509,7 @@ def section_large(run, table, rounds, count):
         plain, paced, into, outs = [], [], [], {c: [] for c in ("none", "png", "cbor")}
         ceilings = {"none": [], "cbor": []}
         to_three = {c: [] for c in ceilings} if kind == "image" else {}
+        raw, fox, fox_twenty, to_twenty = [], [], [], {"CBOR": [], "cbor-raw": []}
         for _ in range(rounds):
             plain.append(rospy_pubsub(run, kind, count))
             paced.append(rospy_pubsub(run, kind, count, rate=CAMERA_HZ))
@@ -450,7 +521,15 @@ def section_large(run, table, rounds, count):
                 outs[c].append(bridge_out(run, url, server, kind, count, c, rate=CAMERA_HZ))
             for c in to_three:
                 to_three[c].append(bridge_out(run, url, server, kind, count, c, rate=CAMERA_HZ, clients=3))
+            if kind == "image":  # (issue 25: beside foxglove_bridge, one client and twenty)
+                raw.append(bridge_out(run, url, server, kind, count, "cbor-raw", rate=CAMERA_HZ))
+                for c in to_twenty:
+                    to_twenty[c].append(bridge_out(run, url, server, kind, count, c.lower(), rate=CAMERA_HZ,
+                                                   clients=TWENTY))
             run.stop(bridge)
+            if kind == "image":
+                fox.append(foxglove_out(run, kind, count, rate=CAMERA_HZ))
+                fox_twenty.append(foxglove_out(run, kind, count, rate=CAMERA_HZ, clients=TWENTY))
         plain, paced, into = medians(plain), medians(paced), medians(into)
         outs = {c: medians(v) for c, v in outs.items()}
         ceilings = {c: medians(v) for c, v in ceilings.items()}
@@ -479,6 +558,13 @@ def section_large(run, table, rounds, count):
                       "one client", outs[c]["server_us"])
         table.row(f"{label}, ROS -> client (none): vs a rospy subscriber node's CPU", outs["none"]["server_us"],
                   "µs", "rospy subscriber node", paced["sub_us"])
+        if raw:
+            foxglove_rows(run, table, f"{label}, ROS -> client at {CAMERA_HZ} Hz",
+                          {"JSON": outs["none"], "CBOR": outs["cbor"], "cbor-raw": medians(raw)}, fox, limit=1.0,
+                          age=True)
+            foxglove_rows(run, table, f"{label}, ROS -> {TWENTY} clients at {CAMERA_HZ} Hz",
+                          {c: medians(v) for c, v in to_twenty.items()}, fox_twenty, limit=0.5,
+                          key="server_us_delivered")
 
 
 CLOUD_HZ, CLOUD_COUNT = 5, 100  # a 300k-point lidar at 5 Hz, for 20 s (5 ms a cloud: 50 CPU ticks of 10 ms)
@@ -593,6 +679,7 @@ def main():
     p.add_argument("--count", type=int, default=50000, help="Twist messages per throughput run (enough CPU ticks: /proc counts in 10 ms)")
     p.add_argument("--fanout", type=int, nargs="+", default=[1, 100, 1000], help="client counts")
     p.add_argument("--no-readme", action="store_true", help="print the table only")
+    peers.add_arguments(p)
     a = p.parse_args()
     soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
     resource.setrlimit(resource.RLIMIT_NOFILE, (hard, hard))  # the bridge inherits it: 1000 clients need fds
@@ -601,7 +688,7 @@ def main():
 
     started, load_before = time.monotonic(), os.getloadavg()[0]
     table, extras = Table(), []
-    run = Run(tempfile.mkdtemp(prefix="bench-"))
+    run = Run(tempfile.mkdtemp(prefix="bench-"), a)
     try:
         sections = {"throughput": lambda: section_throughput(run, table, a.rounds, a.count),
                     "rates": lambda: section_rates(run, table, a.rounds),

@@ -3,7 +3,8 @@
   publish    advertises a topic, then on cue sends `count` publish ops as fast as the socket takes them; with
              --one-frame-per-write, from a blocking socket that masks and sends each frame by itself, as
              synchronous clients do (websocket-client, which roslibpy's users and scripts often use)
-  subscribe  subscribes (optionally with compression) and counts the messages and bytes that arrive
+  subscribe  subscribes (optionally with compression; or to foxglove_bridge, --protocol foxglove) and counts the
+             messages and bytes that arrive, and an image's age (arrival - its header stamp)
   rtt        round trips: publishes pings at `rate` Hz and times the echoes coming back on another topic
   fanout     opens `clients` connections, all subscribed to one topic, and checks every one gets every message
 
@@ -23,6 +24,7 @@ import cbor2
 from tornado.util import _websocket_mask  # (the client's masking cost is not what is measured)
 from tornado.websocket import websocket_connect
 
+import foxglove_protocol
 import payloads
 import stats
 
@@ -39,7 +41,9 @@ def main():
     p.add_argument("--count", type=int, default=1000)
     p.add_argument("--rate", type=float, default=100.0, help="rtt: pings per second")
     p.add_argument("--publish-rate", type=float, default=0.0, help="publish: Hz; 0 = as fast as possible")
-    p.add_argument("--compression", default="none", choices=["none", "png", "cbor"])
+    p.add_argument("--compression", default="none", choices=["none", "png", "cbor", "cbor-raw"])
+    p.add_argument("--protocol", default="rosbridge", choices=["rosbridge", "foxglove"],
+                   help="subscribe: a rosbridge server, or foxglove_bridge (foxglove_protocol.py: the ROS bytes)")
     p.add_argument("--clients", type=int, default=1)
     p.add_argument("--idle", type=float, default=2.0)
     p.add_argument("--timeout", type=float, default=60.0)
@@ -122,29 +126,42 @@ def publish_frame_by_frame(a):
 
 async def subscribe(a):
     seen = stats.Arrivals()
-    statuses = []
+    statuses, ages = [], []
+
+    def message(msg, size, arrived):
+        seen.add(payloads.seq_of(a.kind, msg) if a.kind != "string" else 0, size)
+        stamp = payloads.stamp_of(a.kind, msg)
+        if stamp:
+            ages.append(arrived - stamp)
 
     def on_frame(frame):
         if frame is None:
             return
+        arrived = time.time()
         op, msg, size = decode(frame)
         if op == "publish":
-            seen.add(payloads.seq_of(a.kind, msg) if a.kind != "string" else 0, size)
+            message(msg, size, arrived)
         elif op in ("png", "fragment"):
             seen.add(0, size)
         elif op == "status":
             statuses.append(msg or frame)
 
-    ws = await websocket_connect(a.url, max_message_size=MAX_FRAME, on_message_callback=on_frame)
-    await send(ws, {"op": "subscribe", "topic": a.topic, "type": payloads.TYPES[a.kind],
-                    "compression": a.compression, "queue_length": 0})
+    if a.protocol == "foxglove":
+        ws = await foxglove_protocol.Client(lambda topic, payload, size, arrived: message(payload, size, arrived),
+                                            statuses.append).connect(a.url)
+        await ws.subscribe([a.topic], timeout=a.timeout)
+    else:
+        ws = await websocket_connect(a.url, max_message_size=MAX_FRAME, on_message_callback=on_frame)
+        await send(ws, {"op": "subscribe", "topic": a.topic, "type": payloads.TYPES[a.kind],
+                        "compression": a.compression, "queue_length": 0})
     print("READY", flush=True)
     deadline = time.monotonic() + a.timeout
     while seen.n < a.count and time.monotonic() < deadline:
         if seen.last is not None and time.monotonic() - seen.last > a.idle:
             break
         await asyncio.sleep(0.02)
-    stats.result(**seen.summary(), statuses=[str(s)[:200] for s in statuses[:3]])
+    stats.result(**seen.summary(), statuses=[str(s)[:200] for s in statuses[:3]],
+                 age_p50=stats.percentile(ages, 0.5), age_p95=stats.percentile(ages, 0.95))
     ws.close()
 
 
