@@ -77,7 +77,9 @@ class Outbox:
       service responses, status) are never skipped.
     - Bounds for everything: max_frames and max_bytes. Beyond them the oldest whole messages are dropped; a
       message larger than the whole bound is refused. Skipped, dropped and refused are counted by topic for the
-      client's status messages (take_report)."""
+      client's status messages (take_report). A message counts its bytes as encoded: one that goes deflated to
+      a slow link is deflated once taken (websocket.py), so its smaller size never lets more wait here; its
+      deflated copy lives with the frame (frames.deflated_payload)."""
 
     def __init__(self, max_frames, max_bytes, clock):
         self.max_frames, self.max_bytes, self._clock = max_frames, max_bytes, clock

@@ -229,6 +229,31 @@ def test_readers_keep_no_inflater_between_messages():
     assert held < 200 * 4_000, held
 
 
+@settings(max_examples=60, deadline=None)
+@given(st.booleans(), st.lists(st.tuples(st.booleans(), st.booleans(), st.binary(max_size=2000)), max_size=12),
+       st.lists(st.integers(1, 700), min_size=1, max_size=10))
+def test_any_deflated_messages_in_any_cuts_read_back(keeps_context, messages, cuts):
+    """Messages compressed or not (ws leaves the small ones as they are), each on its own or with the client's
+    context kept; some repeat the one before, so that a kept context is pointed back into."""
+    compressor = zlib.compressobj(6, zlib.DEFLATED, -15)
+    frames, expected = [], []
+    for compressed, repeats, payload in messages:
+        text = (expected[-1] if expected and repeats else "") + payload.hex()
+        data = text.encode()
+        if compressed:
+            frames.append(client_frame(client_deflated(data, compressor if keeps_context else None), rsv1=True))
+        else:
+            frames.append(client_frame(data))
+        expected.append(text)
+    data, reader, got, at, index = b"".join(frames), ws.FrameReader(1 << 20, deflate=True), [], 0, 0
+    while at < len(data):
+        size = cuts[index % len(cuts)]
+        reader.receive(data[at:at + size])
+        got += [payload for _, payload, _ in events(reader)]
+        at, index = at + size, index + 1
+    assert got == expected
+
+
 def test_a_small_deflated_message_that_unpacks_over_the_limit_is_refused():
     bomb = client_deflated(b"0" * 2_000_000)  # a few kilobytes on the wire
     reader = ws.FrameReader(1_000_000, deflate=True)
