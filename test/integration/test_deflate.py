@@ -82,8 +82,8 @@ def test_a_reader_that_keeps_up_gets_big_messages_as_they_are(bridge, node):
     try:
         client.send_text(json.dumps({"op": "subscribe", "topic": "/deflate_fast/camera", "type": "sensor_msgs/Image"}))
         wait_for(lambda: rover.camera.get_num_connections(), 20, what="the bridge to subscribe")
+        thread, got = read_in_background(client, None, 4)  # (reading before the first picture comes)
         rover.start(camera_count=30, small_count=0)
-        thread, got = read_in_background(client, None, 4)
         thread.join(20)
     finally:
         rover.stop()
