@@ -82,6 +82,12 @@ class Page(Browser):
     def js(self, script, *args):
         return self.driver.execute_script(script, *args)
 
+    def click(self, selector, timeout=20):
+        """Clicks the first element matching selector, found and clicked in one step: a list redrawn between a
+        look-up and a click leaves no stale element, and a sticky header over the element does not take it."""
+        wait_for(lambda: self.js("const e = document.querySelector(arguments[0]); if (e) e.click(); return !!e;",
+                                 selector), timeout, what=f"{selector} to click")
+
     def state(self):
         return self.el("conn").get_attribute("data-state")
 

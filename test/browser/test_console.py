@@ -168,8 +168,7 @@ def test_parameters_are_listed_edited_with_their_type_and_deleted(open_page, ros
     value.send_keys("42")
     page.driver.find_element(By.CSS_SELECTOR, f"{row} button[type=submit]").click()
     wait_for(lambda: ros.run(["rosparam", "get", "/console_gain"]).stdout.strip() == "42", 10, what="42 set")
-    wait_for(lambda: page.driver.find_elements(By.CSS_SELECTOR, f"{row} .delete"), 10)
-    page.driver.find_element(By.CSS_SELECTOR, f"{row} .delete").click()
+    page.click(f"{row} .delete")  # (the list is redrawn once the value is set)
     wait_for(lambda: ros.run(["rosparam", "get", "/console_gain"], check=False).returncode != 0, 10,
              what="the parameter deleted")
 
@@ -363,7 +362,7 @@ def test_a_deleted_parameter_comes_back_with_undo_and_a_refused_value_is_reporte
     wait_for(lambda: not page.driver.find_elements(By.CSS_SELECTOR, row), 10, what="its row gone")
     status = "#tab-params .param-status"
     assert "Deleted /console_undo" in text_of(page, status)
-    page.driver.find_element(By.CSS_SELECTOR, f"{status} button.undo").click()
+    page.click(f"{status} button.undo")
     wait_for(lambda: ros.run(["rosparam", "get", "/console_undo"], check=False).stdout.split() ==
              ["-", "1", "-", "2.5", "-", "x"], 10, what="the old value set back")
     param_row(page, "/console_undo")

@@ -35,12 +35,6 @@ def text_of(page, selector):
     return found[0].text if found else ""
 
 
-def click(page, selector):
-    """Clicks the first element matching selector, found and clicked in one step (lists are redrawn)."""
-    wait_for(lambda: page.js("const e = document.querySelector(arguments[0]); if (e) e.click(); return Boolean(e);",
-                             selector), 20, what=f"{selector} to click")
-
-
 def shot(page, name, scroll=".console"):
     """A screenshot of the page with `scroll` (the console) scrolled to the top of the screen."""
     page.js("document.querySelector(arguments[0]).scrollIntoView()", scroll)
@@ -66,14 +60,14 @@ def bag_rows(page):
 def test_record_two_seconds_of_the_pose_and_download_the_bag(open_page):
     page = open_page()
     tab(page, "bags")
-    click(page, '#tab-bags input[type=checkbox][value="/turtle1/pose"]')
+    page.click('#tab-bags input[type=checkbox][value="/turtle1/pose"]')
     assert "bag=%2Fturtle1%2Fpose" in page.driver.current_url
-    click(page, "#tab-bags .bag-start")
+    page.click("#tab-bags .bag-start")
     wait_for(lambda: "Recording" in text_of(page, "#tab-bags .bag-recording"), 10, what="the recording shown")
     wait_for(lambda: " 0 messages" not in text_of(page, "#tab-bags .bag-recording"), 10, what="messages counted")
     page.js("return new Promise(r => setTimeout(r, 2000))")
     shot(page, "tools-bags-recording-desktop", "#tab-bags")
-    click(page, "#tab-bags .bag-stop")
+    page.click("#tab-bags .bag-stop")
     wait_for(lambda: "Last:" in text_of(page, "#tab-bags .bag-last"), 10, what="the last recording's line")
     last = text_of(page, "#tab-bags .bag-last")
     messages = int(last.split(", ")[1].split(" messages")[0])
@@ -92,27 +86,27 @@ def test_record_two_seconds_of_the_pose_and_download_the_bag(open_page):
 def test_black_box_save_and_delete_with_confirm(open_page, bag_folder):
     page = open_page()
     tab(page, "bags")
-    click(page, '#tab-bags input[type=checkbox][value="/turtle1/pose"]')
-    click(page, "#tab-bags .blackbox-keep")
+    page.click('#tab-bags input[type=checkbox][value="/turtle1/pose"]')
+    page.click("#tab-bags .blackbox-keep")
     wait_for(lambda: "messages" in text_of(page, "#tab-bags .blackbox-state")
              and not text_of(page, "#tab-bags .blackbox-state").split(": ")[-1].startswith("0 "), 10,
              what="the black box filling")
     before = {r["name"] for r in bag_rows(page)}
-    click(page, "#tab-bags .blackbox-save")
+    page.click("#tab-bags .blackbox-save")
     wait_for(lambda: "saved" in text_of(page, "#tab-bags .bag-result"), 10, what="saved")
     saved = wait_for(lambda: [r for r in bag_rows(page) if r["name"] not in before and r["name"].startswith("blackbox")]
                      or None, 10, what="the black box's bag listed")[0]
     assert (bag_folder / saved["name"]).read_bytes().startswith(b"#ROSBAG V2.0")
     shot(page, "tools-bags-blackbox-desktop", "#tab-bags")
-    click(page, "#tab-bags .blackbox-off")
+    page.click("#tab-bags .blackbox-off")
     # Delete asks first: Cancel keeps the bag, Delete removes it
     row = f'#tab-bags tr[data-bag="{saved["name"]}"]'
-    click(page, f"{row} .bag-delete")
+    page.click(f"{row} .bag-delete")
     assert "cannot be undone" in text_of(page, f"{row} .confirm")
-    click(page, f"{row} .confirm .cancel")
+    page.click(f"{row} .confirm .cancel")
     assert (bag_folder / saved["name"]).exists()
-    click(page, f"{row} .bag-delete")
-    click(page, f"{row} .confirm .yes")
+    page.click(f"{row} .bag-delete")
+    page.click(f"{row} .confirm .yes")
     wait_for(lambda: not (bag_folder / saved["name"]).exists(), 10, what="the bag deleted")
     wait_for(lambda: saved["name"] not in {r["name"] for r in bag_rows(page)}, 10, what="the bag gone from the list")
 
@@ -132,7 +126,7 @@ def test_a_recording_that_stops_by_itself_says_why(ros, open_page, tmp_path):
     try:
         page = open_page(url=f"http://127.0.0.1:{port}/?tab=bags&bag=/turtle1/pose")
         wait_for(lambda: "Folder:" in text_of(page, "#tab-bags .bag-used"), 10, what="the recorder's state")
-        click(page, "#tab-bags .bag-start")  # 3000 bytes: about 2 s of poses
+        page.click("#tab-bags .bag-start")  # 3000 bytes: about 2 s of poses
         wait_for(lambda: "reached its bound" in text_of(page, "#tab-bags .bag-last"), 15, what="why it stopped")
         assert "error" in page.js("return document.querySelector('#tab-bags .bag-last').className")
         assert not page.el("tab-bags").find_element(By.CSS_SELECTOR, ".bag-stop").is_displayed()
@@ -144,7 +138,7 @@ def test_a_recording_that_stops_by_itself_says_why(ros, open_page, tmp_path):
 def test_bags_screenshots(open_page, screen):
     page = open_page(screen)
     tab(page, "bags")
-    click(page, '#tab-bags input[type=checkbox][value="/turtle1/pose"]')
+    page.click('#tab-bags input[type=checkbox][value="/turtle1/pose"]')
     wait_for(lambda: text_of(page, "#tab-bags .bag-list tbody"), 10, what="the bags listed")
     shot(page, f"tools-bags-{screen}")
     if screen == "phone":
@@ -442,8 +436,8 @@ def shown_tools(page):
 def test_a_reload_and_a_copied_link_keep_the_open_tools(open_page, reconfigurable, fibonacci):
     page = open_page()
     tab(page, "bags")
-    click(page, '#tab-bags input[type=checkbox][value="/turtle1/pose"]')
-    click(page, '#tab-bags input[type=checkbox][value="/rosout"]')
+    page.click('#tab-bags input[type=checkbox][value="/turtle1/pose"]')
+    page.click('#tab-bags input[type=checkbox][value="/rosout"]')
     open_action(page, fibonacci)
     open_reconfigure(page, reconfigurable)
     expected = {"tab": "tab-button-reconfigure", "bags": ["/rosout", "/turtle1/pose"], "node": reconfigurable,

@@ -47,8 +47,8 @@ class Camera:
         index, period, next_at = 0, 1.0 / self.rate, time.monotonic()
         while not self.stop.is_set():
             stamp = self.node.Time.now()
+            self.published[f"{stamp.to_sec():.6f}"] = time.monotonic()  # (before: a reader may have it at once)
             self.pub.publish(self.make(index, stamp))
-            self.published[f"{stamp.to_sec():.6f}"] = time.monotonic()
             while len(self.published) > 10_000:
                 self.published.popitem(last=False)
             index += 1
