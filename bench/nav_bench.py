@@ -406,7 +406,9 @@ def ratio(a, b):
 
 def right(f):
     """What the client found: every message whole and right, or how many were not."""
-    if not f or not f.get("checked"):
+    if not f:
+        return "n/a"
+    if not f.get("checked"):
         return "none came"
     return "all" if not f.get("wrong") else f"{f['wrong']} of {f['checked']} wrong: {f['first_wrong'][:60]}"
 
@@ -579,8 +581,18 @@ def main():
     p.add_argument("--seconds", type=float, default=5.0, help="each streaming case's window, after 1 s of warm-up")
     p.add_argument("--map-repeats", type=int, default=2, help="the map's cases, each on a fresh server (medians)")
     p.add_argument("--no-readme", action="store_true")
+    p.add_argument("--render", metavar="DIR", help="print the text of an earlier run from its directory's run.json, "
+                   "measuring nothing")
     peers.add_arguments(p)
     a = p.parse_args()
+    if a.render:
+        run = json.loads((Path(a.render) / "run.json").read_text())
+        results = {"streams": {tuple(json.loads(k)): v for k, v in run["streams"].items()},
+                   "all": {tuple(json.loads(k)): v for k, v in run["all"].items()}, "again": run["again"]}
+        ros_bytes = run.get("ros_bytes") or {s.name: len(nav_messages.serialized(s.build()))
+                                             for s in nav_messages.STREAMS}
+        print(render(results, ros_bytes, run["remarks"], run["footer"]))
+        return
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: sys.exit("nav: stopped by signal"))
     remarks = []
@@ -607,7 +619,7 @@ def main():
     (workdir / "run.json").write_text(json.dumps({
         "streams": {json.dumps(k): v for k, v in results["streams"].items()},
         "all": {json.dumps(k): v for k, v in results["all"].items()}, "again": results["again"],
-        "remarks": remarks, "footer": footer}))
+        "ros_bytes": bench.ros_bytes, "remarks": remarks, "footer": footer}))
     text = render(results, bench.ros_bytes, remarks, footer)
     print(text)
     if full:
