@@ -191,6 +191,7 @@ def test_the_joystick_held_still_keeps_driving(open_page, twists):
     received = twists()
     page = open_page()
     pad = page.el("joystick")
+    page.js("arguments[0].scrollIntoView({block: 'center'})", pad)  # (not under the sticky header, as a user sees it)
     start = time.monotonic()
     ActionChains(page.driver).move_to_element_with_offset(pad, 0, -40).click_and_hold().perform()
     time.sleep(3)  # held without moving: no pointer event comes meanwhile

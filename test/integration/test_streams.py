@@ -353,7 +353,6 @@ def newest_published(camera):
     return float(next(reversed(camera.published)))
 
 
-@pytest.mark.alone
 def test_a_slow_reader_gets_fresh_frames_never_a_backlog_and_memory_stays_bounded(bridge_proc, node):
     """A viewer that reads 4 kB/s (a frame is ~100 kB) for 10 s, then reads at full speed: what it gets next
     is at most the frame it was in and one fresh frame, not the 10 s of frames in between. Meanwhile a fast viewer
@@ -403,7 +402,6 @@ def cpu_per_second(stat, seconds):
 
 
 @pytest.mark.slow
-@pytest.mark.alone
 def test_viewers_of_the_same_size_and_quality_share_one_encode(bridge_proc, node):
     """The bridge's CPU above a baseline (the topic received, one viewer of a tiny picture): six viewers of six
     qualities cost six encodes of every 1280x720 frame; six viewers of one quality cost about one, so far less.
@@ -479,7 +477,6 @@ def read_at(stream, rate, seconds, burst=8192):
     return parts
 
 
-@pytest.mark.alone
 def test_adaptive_keeps_the_frame_rate_on_a_narrow_link(bridge, node):
     """A viewer behind a 250 kB/s link of a 20 Hz camera whose q50 JPEG is ~40 kB (800 kB/s): adaptive=1 steps
     down until the frames fit and gets most of them; without adaptive, it gets a third of them at best."""
