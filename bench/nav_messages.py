@@ -130,19 +130,6 @@ def point_cloud(points=300_000):
     return cloud
 
 
-def occupancy_grid_cells(side=4000):
-    """The cells of a side x side map as SLAM makes one: unknown (-1) around the explored part, free (0) inside
-    it, walls and obstacles (100) and some cells in between."""
-    rng = random.Random(0)
-    cells = bytearray(b"\xff") * (side * side)
-    for y in range(side // 8, side - side // 8):
-        cells[y * side + side // 8:y * side + side - side // 8] = bytes(side - side // 4)
-    for _ in range(side * 5):
-        at = rng.randrange(side * side - 8)
-        cells[at:at + 8] = bytes([rng.choice([100, 100, 100, 50, 99, 1])]) * 8
-    return bytes(cells)
-
-
 def occupancy_grid_class():
     """nav_msgs/OccupancyGrid whose data (int8[]) is held as bytes and written as they are (genpy would pack a
     Python int per cell: seconds and a gigabyte for this map)."""
@@ -166,6 +153,7 @@ def occupancy_grid(side=4000):
     grid.info.resolution, grid.info.width, grid.info.height = 0.05, side, side
     grid.info.origin.position.x = grid.info.origin.position.y = -side * 0.05 / 2
     grid.info.origin.orientation.w = 1.0
+    from sensor_messages import occupancy_grid_cells
     grid.data = occupancy_grid_cells(side)
     return grid
 

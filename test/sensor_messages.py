@@ -2,6 +2,7 @@
 (bench/page_bench.py, bench/payloads.py), and a thread that publishes them at a steady rate. Needs the ROS message
 packages; only Publishing needs a node."""
 import math
+import random
 import threading
 import time
 from array import array
@@ -83,3 +84,16 @@ class Publishing:
     def stop(self):
         self.stopped.set()
         self.publisher.unregister()
+
+
+def occupancy_grid_cells(side=4000):
+    """The cells of a side x side map as SLAM makes one: unknown (-1) around the explored part, free (0) inside
+    it, walls and obstacles (100) and some cells in between."""
+    rng = random.Random(0)
+    cells = bytearray(b"\xff") * (side * side)
+    for y in range(side // 8, side - side // 8):
+        cells[y * side + side // 8:y * side + side - side // 8] = bytes(side - side // 4)
+    for _ in range(side * 5):
+        at = rng.randrange(side * side - 8)
+        cells[at:at + 8] = bytes([rng.choice([100, 100, 100, 50, 99, 1])]) * 8
+    return bytes(cells)

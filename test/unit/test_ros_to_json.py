@@ -16,6 +16,7 @@ from hypothesis import given, strategies as st
 from sensor_msgs.msg import ChannelFloat32, CompressedImage
 from std_msgs.msg import Header
 
+from sensor_messages import occupancy_grid_cells
 from test_json_values import AllTypes, serialized
 from test_json_values_properties import SETTINGS, messages
 from rosbridge.codec.json_values import dumps, to_json
@@ -233,17 +234,11 @@ def test_a_truncated_big_array_is_an_error_as_before(slot_type):
         json_text(cls)(data[:-1])
 
 
-def map_bytes(side, seed=0):
-    """A nav_msgs/OccupancyGrid-like int8[] of side x side cells: unknown (-1) around, free (0) inside, obstacles
-    (100) and some inflated costs scattered; as its serialized message (header, info, data)."""
-    rng = random.Random(seed)
-    cells = bytearray(b"\xff") * (side * side)
-    for y in range(side // 8, side - side // 8):
-        cells[y * side + side // 8:y * side + side - side // 8] = bytes(side - side // 4)
-    for _ in range(side * 5):
-        at = rng.randrange(side * side - 8)
-        cells[at:at + 8] = bytes([rng.choice([100, 100, 100, 50, 99, 1])]) * 8
-    return struct.pack("<I", len(cells)) + bytes(cells)
+def map_bytes(side):
+    """A nav_msgs/OccupancyGrid-like int8[] of side x side cells (sensor_messages.occupancy_grid_cells), as its
+    serialized field."""
+    cells = occupancy_grid_cells(side)
+    return struct.pack("<I", len(cells)) + cells
 
 
 _GRID_DEFINITION = "std_msgs/Header header\nint8[] data\n" + "=" * 80 + f"\nMSG: std_msgs/Header\n{Header._full_text}\n"
