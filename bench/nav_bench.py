@@ -603,15 +603,16 @@ def main():
             remarks.append(f"{NAMES[kind]} not measured: {why}.")
             print(f"nav: {remarks[-1]}", file=sys.stderr)
     full = set(a.servers) == set(SERVERS) and set(a.streams) == set(nav_messages.BY_NAME) and not a.no_readme
-    started, code, loads = time.monotonic(), reporting.code_state(), []
+    started, code, digest, loads = time.monotonic(), reporting.code_state(), reporting.code_digest(), []
     workdir = Path(tempfile.mkdtemp(prefix="nav-"))
     bench = Bench(workdir, a)
     try:
         results = measure(bench, a, remarks, loads)
     finally:
         bench.close()
-    if reporting.code_state() != code:
-        remarks.append(f"The bridge's code changed during the run ({code} -> {reporting.code_state()}).")
+    if reporting.code_digest() != digest:
+        remarks.append(f"The bridge's or the page's code (src/, web/) changed during the run ({code} -> "
+                       f"{reporting.code_state()}).")
     footer = (f"Measured {time.strftime('%Y-%m-%d %H:%M')} at {reporting.git_head()} (code {code}) on "
               f"{os.cpu_count()} CPUs, {a.seconds:.0f} s per streaming case after {WARMUP:.0f} s of warm-up, the map "
               f"{a.map_repeats} times on each road (medians); took {time.monotonic() - started:.0f} s; load average "

@@ -23,18 +23,23 @@ def write_section(markers, text):
         print(f"wrote {path}", file=sys.stderr)
 
 
-def code_state():
-    """The bridge's and the page's code as a case found it: HEAD, and a digest of any uncommitted change to src/
-    or web/ (others may commit while a run goes on)."""
-    head = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+def _uncommitted():
+    """A digest of the uncommitted changes to src/ and web/ (tracked and new files), and whether there are any."""
     diff = subprocess.run(["git", "-C", str(REPO), "diff", "HEAD", "--", "src", "web"], capture_output=True)
     untracked = subprocess.run(["git", "-C", str(REPO), "ls-files", "--others", "--exclude-standard", "src", "web"],
                                capture_output=True, text=True).stdout.split()
     digest = hashlib.sha1(diff.stdout)
     for name in sorted(untracked):
         digest.update((REPO / name).read_bytes() if (REPO / name).is_file() else b"")
-    changed = diff.stdout or untracked
-    return head.stdout.strip() + (f"+{digest.hexdigest()[:6]}" if changed else "")
+    return digest.hexdigest(), bool(diff.stdout or untracked)
+
+
+def code_state():
+    """The bridge's and the page's code as a case found it: HEAD, and a digest of any uncommitted change to src/
+    or web/ (others may commit while a run goes on)."""
+    head = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+    digest, changed = _uncommitted()
+    return head.stdout.strip() + (f"+{digest[:6]}" if changed else "")
 
 
 def git_head():
@@ -47,3 +52,10 @@ def git_head():
     dirty = [line[3:] for line in dirty if line.strip()]
     return f"commit `{head.stdout.strip()[:70]}`" + (
         f" with uncommitted changes in {', '.join(dirty[:8])}{' ...' if len(dirty) > 8 else ''}" if dirty else "")
+
+
+def code_digest():
+    """A digest of the bridge's and the page's code as it is now (src/ and web/, committed and not): what a run
+    compares at its start and end (a commit elsewhere in the repository leaves it alone)."""
+    trees = subprocess.run(["git", "-C", str(REPO), "rev-parse", "HEAD:src", "HEAD:web"], capture_output=True)
+    return hashlib.sha1(trees.stdout + _uncommitted()[0].encode()).hexdigest()[:8]
