@@ -105,7 +105,11 @@ class Rosbridge:
             self.record.status({"op": "closed"})
             return
         size = size or len(frame)
-        op = cbor2.loads(frame) if isinstance(frame, bytes) else json.loads(frame)
+        try:
+            op = cbor2.loads(frame) if isinstance(frame, bytes) else json.loads(frame)
+        except ValueError as error:  # (e.g. the parts of two messages under one fragment id: the reference's)
+            self.record.status({"op": "undecodable", "bytes": size, "error": str(error)[:100]})
+            return
         kind = op.get("op")
         if kind == "fragment":
             parts, got = self.parts.setdefault(op["id"], ({}, [0]))

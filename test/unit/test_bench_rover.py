@@ -117,3 +117,15 @@ def test_a_fragmented_message_is_put_together_even_when_its_total_is_a_fraction(
                                  "total": (len(text) - 1) / 50 + 1}))
     (arrival,) = record.arrivals["fix"]
     assert arrival[2] > len(text) and record.checks["fix"] == {"checked": 1, "wrong": 0, "first_wrong": None}
+
+
+def test_fragments_of_two_messages_under_one_id_are_said_not_to_make_a_message():
+    """rosbridge_server 0.11.17 numbers every fragmented message's parts from id 0, so two sent at once mix."""
+    stream = nav_messages.BY_NAME["fix"]
+    record = nav_clients.Record({"fix": stream})
+    client = nav_clients.Rosbridge(record)
+    client.encodings["fix"] = "json"
+    text = bridge_frames(stream, "none")[1][0].decode()
+    for num, part in enumerate([text[:40], "{\"op\": \"publish\", \"to", text[80:]]):
+        client.frame(json.dumps({"op": "fragment", "id": 0, "data": part, "num": num, "total": 3}))
+    assert record.arrivals["fix"] == [] and record.statuses[0][1].startswith("{'op': 'undecodable'")
