@@ -2,15 +2,21 @@
 message, with the odd cases such messages have: NaN and inf ranges, empty arrays, non-ASCII text, a 4000x4000 map,
 a 300k-point cloud. Each message is built once; a publisher only sets its stamps (stamp()). Shared by the generator
 node (nav_robot.py), the ceiling (nav_ceiling.py), the clients that check what arrives (nav_clients.py) and
-convert_bench.py. Needs the ROS message packages (no node); the TF frames come from test/sensor_messages.py."""
+convert_bench.py. Needs the ROS message packages (no node); the TF frames and the map's cells come from
+test/sensor_messages.py (shared with the tests)."""
 import io
 import math
 import random
 import struct
+import sys
 from collections import namedtuple
+from pathlib import Path
 
 import genpy
 import std_msgs.msg
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "test"))
+from sensor_messages import moving_frames, occupancy_grid_cells, quaternion, tf_message  # noqa: E402
 
 Stream = namedtuple("Stream", "name topic type hz build")  # hz 0: latched, published once
 
@@ -44,13 +50,11 @@ def laser_scan():
 
 def tf_frames():
     """/tf of a busy robot: 50 frames moving under odom (test/sensor_messages.py's)."""
-    from sensor_messages import moving_frames
     return moving_frames(0, genpy.Time())
 
 
 def tf_static():
     """/tf_static: the sensors' mounts on base_link."""
-    from sensor_messages import quaternion, tf_message
     mounts = [("base_link", "laser", (0.2, 0.0, 0.3), quaternion()),
               ("base_link", "imu_link", (0.0, 0.0, 0.1), quaternion()),
               ("base_link", "gps", (-0.1, 0.0, 0.5), quaternion()),
@@ -153,7 +157,6 @@ def occupancy_grid(side=4000):
     grid.info.resolution, grid.info.width, grid.info.height = 0.05, side, side
     grid.info.origin.position.x = grid.info.origin.position.y = -side * 0.05 / 2
     grid.info.origin.orientation.w = 1.0
-    from sensor_messages import occupancy_grid_cells
     grid.data = occupancy_grid_cells(side)
     return grid
 
