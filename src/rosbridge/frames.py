@@ -80,7 +80,10 @@ def _deflated(frame, bits, waiting, payload):
 
 def cbor_frame(obj):
     """The binary frame holding `obj` in CBOR (see codec.cbor.cbor_parts)."""
-    parts = cbor.cbor_parts(obj)
+    return _binary_frame(cbor.cbor_parts(obj))
+
+
+def _binary_frame(parts):
     return parts[0] if len(parts) == 1 else SplicedFrame(parts, text=False)
 
 
@@ -174,9 +177,7 @@ class TopicMessage:
             msg = cbor_value(self.msg_class)(self.data)  # (straight from the bytes: no genpy message)
             return (cbor_frame({"op": "publish", "topic": self.topic, "msg": msg}),)
         if compression == "cbor-raw":
-            secs = int(self.stamp)
-            raw = {"bytes": bytes(self.data), "secs": secs, "nsecs": int((self.stamp - secs) * 1e9)}
-            return (cbor_frame({"op": "publish", "topic": self.topic, "msg": raw}),)
+            return (_binary_frame(cbor.raw_publish_parts(self.topic, self.data, self.stamp)),)
         text, spliced = json_parts(self.msg_class)(self.data)
         text = '{"op":"publish","topic":%s,"msg":%s}' % (dumps(self.topic), text)
         if spliced and compression == "none" and fragment_size is None:

@@ -21,7 +21,7 @@ from test_ros_to_json import BIG_COUNTS, CLASSES, GRID, BigArrays, big_arrays_me
 from rosbridge.codec.fields import parse_slot_type
 from rosbridge.codec.json_values import dumps, from_json
 from rosbridge.codec import BIG_BYTES
-from rosbridge.codec.cbor import cbor_parts, to_cbor_value
+from rosbridge.codec.cbor import cbor_parts, raw_publish_parts, to_cbor_value
 from rosbridge.codec.ros_to_cbor import cbor_value
 from rosbridge.codec.wrapping import fragments, png_frame, png_unframe
 from rosbridge.frames import SplicedFrame, cbor_frame
@@ -121,6 +121,20 @@ def test_cbor_image_data_is_one_byte_string():
     assert any(part is image.data for part in frame.parts)  # sent as it is, not copied
     decoded = cbor2.loads(bytes(frame))
     assert decoded["op"] == "publish" and decoded["msg"]["data"] == image.data and decoded["msg"]["width"] == 640
+
+
+@pytest.mark.parametrize("size", [0, 4, 23, 24, 255, 256, BIG_BYTES - 1, BIG_BYTES, 640 * 480 * 3])
+@pytest.mark.parametrize("stamp", [0.0, 12.25, 1764150000.000000023, 1764150000.999999])
+@pytest.mark.parametrize("topic", ["/t", "/rover/" + "x" * 300, "/ünïcode"], ids=["short", "long", "unicode"])
+def test_the_cbor_raw_op_is_what_cbor2_writes_and_big_bytes_go_by_reference(size, stamp, topic):
+    data = bytearray(os.urandom(size))
+    parts = raw_publish_parts(topic, data, stamp)
+    secs = int(stamp)
+    assert b"".join(parts) == cbor2.dumps({"op": "publish", "topic": topic, "msg": {
+        "bytes": bytes(data), "secs": secs, "nsecs": int((stamp - secs) * 1e9)}})
+    assert len(parts) == (3 if size >= BIG_BYTES else 1)
+    if size >= BIG_BYTES:
+        assert parts[1] is data  # not copied
 
 
 TEXTS = ["", "1", "{}", "[1]", '"ab"', dumps({"op": "publish", "topic": "/t", "msg": {"data": "x" * 1000}}),

@@ -7,6 +7,7 @@ are byte strings (Uint8Array in roslibjs), the other numeric arrays typed arrays
 (int8 72, uint16 69, int16 77, uint32 70, int32 78, uint64 71, int64 79, float32 85, float64 86: JavaScript typed
 arrays, the 64-bit ones read into plain arrays of numbers), bool[] and string[] plain arrays. The reference tags
 only variable-size arrays; here fixed-size ones are tagged too (roslibjs reads both the same)."""
+import functools
 import os
 import struct
 
@@ -21,6 +22,7 @@ TYPED_ARRAY_TAGS = {
     "int8": (72, "b"), "uint16": (69, "H"), "int16": (77, "h"), "uint32": (70, "I"), "int32": (78, "i"),
     "uint64": (71, "Q"), "int64": (79, "q"), "float32": (85, "f"), "float64": (86, "d"),
 }
+_UINT, _BYTES = 0x00, 0x40  # CBOR's major types 0 (an unsigned integer) and 2 (a byte string), in a head's top bits
 
 
 def _typed_array(tag, code):
@@ -80,11 +82,31 @@ def cbor_parts(obj):
 
     encoded, parts, start = cbor2.dumps(obj, default=stand_in), [], 0
     for token, data in spliced:  # (in the order cbor2 wrote them)
-        place = encoded.index(_bytes_head(16) + token, start)
-        parts += (encoded[start:place] + _bytes_head(len(data)), data)
+        place = encoded.index(_head(_BYTES, 16) + token, start)
+        parts += (encoded[start:place] + _head(_BYTES, len(data)), data)
         start = place + 17
     parts.append(encoded[start:])
     return parts
+
+
+def raw_publish_parts(topic, data, stamp):
+    """The publish op of a `compression: cbor-raw` subscriber, {"op": "publish", "topic": topic, "msg": {"bytes":
+    data, "secs": s, "nsecs": ns}} (data: the message's ROS bytes; stamp: its receipt time in seconds), as
+    cbor2 writes it, in parts as cbor_parts has them. Made here, not by cbor2: the op's head is made once per
+    topic (a message at 1 kHz costs a join), and big bytes (a camera image, a cloud) are never copied: they go
+    by reference, as the CBOR road sends a big uint8[]."""
+    secs = int(stamp)
+    head = _raw_head(topic) + _head(_BYTES, len(data))
+    tail = b"dsecs" + _head(_UINT, secs) + b"ensecs" + _head(_UINT, int((stamp - secs) * 1e9))
+    if len(data) >= BIG_BYTES:
+        return [head, data, tail]
+    return [b"".join((head, data, tail))]
+
+
+@functools.lru_cache(maxsize=1024)  # (the topics a bridge serves: a few dozen)
+def _raw_head(topic):
+    """A map of three pairs, "op": "publish", "topic": topic, "msg": then a map of three pairs and "bytes"."""
+    return b"\xa3bopgpublishetopic" + cbor2.dumps(topic) + b"cmsg\xa3ebytes"
 
 
 class _HasSpliced(Exception):
@@ -101,11 +123,12 @@ def _refuse_other(value):
         raise cbor2.CBOREncodeTypeError(f"cannot serialize type {type(value).__name__}")
 
 
-def _bytes_head(length):
-    """The head of a CBOR byte string of `length` bytes (RFC 8949 section 3: major type 2, then the length)."""
-    if length < 24:
-        return bytes((0x40 | length,))
+def _head(major, value):
+    """The head of a CBOR data item of major type `major` whose argument is `value` (an unsigned integer's value,
+    a byte string's length), in its shortest form (RFC 8949 section 3), as cbor2 writes it."""
+    if value < 24:
+        return bytes((major | value,))
     for info, size in ((24, 1), (25, 2), (26, 4), (27, 8)):
-        if length < 1 << (8 * size):
-            return bytes((0x40 | info,)) + length.to_bytes(size, "big")
-    raise ValueError(f"{length} bytes: too long for CBOR")
+        if value < 1 << (8 * size):
+            return bytes((major | info,)) + value.to_bytes(size, "big")
+    raise ValueError(f"{value}: too big for CBOR")
