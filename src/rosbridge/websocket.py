@@ -224,7 +224,7 @@ class ClientConnection:
 
     # ---- writing ---------------------------------------------------------------------------------
     def _wake(self):
-        self._loop.add_callback(self._flush)
+        self.bridge.writes.wake(self._flush)
 
     def _close_after_sending(self, reason):
         self._close_reason = reason

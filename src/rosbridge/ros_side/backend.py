@@ -1,5 +1,7 @@
 """RosBackend: the protocol's backend (backend.Backend), a short front over publishers, subscribers and
 services, plus the bridge's own /client_count and the master look-ups they share."""
+import contextlib
+
 import rospy
 
 from rosbridge.backend import Backend
@@ -17,12 +19,13 @@ MAX_CALLS_PENDING_PER_CLIENT = 1000  # running or waiting
 
 class RosBackend(Backend):
     def __init__(self, loop, rosapi=None, unregister_timeout=10.0, service_timeout=60.0,
-                 stop_drivers_leaving=False):
+                 stop_drivers_leaving=False, deliveries=contextlib.nullcontext):
+        """deliveries(): a context that each delivery of topics' messages runs in (write_turns.WriteTurns)."""
         self._stop_drivers_leaving = stop_drivers_leaving
         worker = self._worker = RosWorker(loop)
         links = TopicLinks(loop, lambda text: rospy.logwarn_throttle(60, "bridge topics: " + text))
         self._publishers = Publishers(loop, worker, links, unregister_timeout)
-        self._subscribers = Subscribers(loop, worker, links)
+        self._subscribers = Subscribers(loop, worker, links, deliveries)
         self._calls = ServiceCalls(loop, rosapi, MAX_CALLS_RUNNING_PER_CLIENT, MAX_CALLS_RUNNING,
                                    MAX_CALLS_PENDING_PER_CLIENT)
         self._provided = ProvidedServices(loop, worker, service_timeout)

@@ -15,10 +15,11 @@ class TopicSubscriber:
     the worker, only registers the topic with the master (which then tells rospy of the publishers, and rospy
     asks the links to connect) and lists the connections for getBusInfo."""
     __slots__ = ("topic", "type", "asked", "ready", "latched", "active", "_loop", "_links", "_clients",
-                 "_subscriber", "_class")
+                 "_deliveries", "_subscriber", "_class")
 
-    def __init__(self, loop, links, topic, clients):
+    def __init__(self, loop, links, topic, clients, deliveries):
         self._loop, self._links, self.topic, self._clients = loop, links, topic, clients
+        self._deliveries = deliveries  # (the clients write once all the messages of one read are delivered)
         self.type = None  # known once made (loop)
         self.asked = {}  # session -> the type it asked for, checked once the type is known (loop)
         self.ready = False  # (loop)
@@ -60,23 +61,24 @@ class TopicSubscriber:
         if not self.active:
             return
         topic, cls, stamp = self.topic, self._class, time.time()
-        for data in messages:
-            message = TopicMessage(topic, cls, data, stamp)
-            if latching:
-                self.latched = message
-            for session in self._clients(topic):
-                try:
-                    session.deliver(message)
-                except Exception:  # one client's failure must not starve the others
-                    log_bug(f"delivering {topic}")
+        with self._deliveries():
+            for data in messages:
+                message = TopicMessage(topic, cls, data, stamp)
+                if latching:
+                    self.latched = message
+                for session in self._clients(topic):
+                    try:
+                        session.deliver(message)
+                    except Exception:  # one client's failure must not starve the others
+                        log_bug(f"delivering {topic}")
 
 
 class Subscribers:
     """The topics clients subscribe to. A new topic's subscriber is made on the worker; a client learns of a
     failure there through session.ros_refused."""
 
-    def __init__(self, loop, worker, links):
-        self._loop, self._worker, self._links = loop, worker, links
+    def __init__(self, loop, worker, links, deliveries):
+        self._loop, self._worker, self._links, self._deliveries = loop, worker, links, deliveries
         self._entries = {}
         self._holders = Holders()
 
@@ -85,7 +87,8 @@ class Subscribers:
             message_class(type_name)  # an unknown type is refused at once
         entry = self._entries.get(topic)
         if entry is None:
-            entry = self._entries[topic] = TopicSubscriber(self._loop, self._links, topic, self._holders.holders)
+            entry = self._entries[topic] = TopicSubscriber(self._loop, self._links, topic, self._holders.holders,
+                                                                 self._deliveries)
             self._worker.submit(lambda: entry.make(self._worker.graph, type_name),
                                 lambda error, made_type: self._made(entry, error, made_type))
         elif entry.ready and type_name not in (None, entry.type):
