@@ -22,6 +22,7 @@ from rosbridge.bags import Recorder
 from rosbridge.borrowed import handle_connection
 from rosbridge.cloud_pages import cloud_routes
 from rosbridge.globs import Globs, parse_globs
+from rosbridge.heap import reuse_big_buffers
 from rosbridge.off_loop import EncodingThread
 from rosbridge.pages import PageFiles, missing_files
 from rosbridge.ros_side import RosBackend
@@ -30,6 +31,7 @@ from rosbridge.rosapi import Rosapi
 from rosbridge.settings import Settings
 from rosbridge.streams import stream_routes
 from rosbridge.websocket import BridgeSocket, DriverLeases
+from rosbridge.write_turns import WriteTurns
 
 MAX_LOGGED_KINDS = 1000  # kinds of refusal remembered for rate limiting (refused origins are kinds)
 IDLE_TIMEOUT = 10.0  # seconds
@@ -38,8 +40,9 @@ IDLE_TIMEOUT = 10.0  # seconds
 class Bridge:
     """What every connection shares: the ROS side, the protocol settings and the connection policy."""
 
-    def __init__(self, backend, config, settings, allowed_origins=None):
+    def __init__(self, backend, config, settings, writes, allowed_origins=None):
         self.backend, self.config, self.settings = backend, config, settings
+        self.writes = writes  # when the clients' queued frames are written (write_turns.py)
         self.encoder = EncodingThread(tornado.ioloop.IOLoop.current())  # big messages are encoded off the loop
         # big messages deflated for the clients whose link is slow (websocket.py): a thread apart from the encoder's
         self.deflater = EncodingThread(tornado.ioloop.IOLoop.current(), name="rosbridge-deflate")
@@ -104,6 +107,7 @@ def main():
         rospy.logfatal("%s", error)
         raise SystemExit(1)
     raise_fd_limit()
+    reuse_big_buffers()
     secret = None
     if current.authenticate:
         if current.secret_file:
@@ -113,9 +117,10 @@ def main():
     config = protocol.Config(current, globs, auth_secret=secret)
     loop = tornado.ioloop.IOLoop.current()
     rosapi = Rosapi(rosgraph.get_master_uri(), rospy.get_name(), globs, rospy.Time.now)
+    writes = WriteTurns(loop.add_callback)
     backend = RosBackend(loop, rosapi=rosapi, unregister_timeout=current.unregister_timeout,
-                         stop_drivers_leaving=current.deadman_timeout > 0)
-    bridge = Bridge(backend, config, current, allowed_origins=origins)
+                         stop_drivers_leaving=current.deadman_timeout > 0, deliveries=writes.delivering)
+    bridge = Bridge(backend, config, current, writes, allowed_origins=origins)
     backend.set_client_count(0)
     if current.deadman_timeout > 0:
         DriverLeases(bridge, current.deadman_timeout).start()

@@ -1,0 +1,23 @@
+"""The bridge's big buffers and glibc's malloc. By default glibc maps a buffer of a few MB on its own and unmaps
+it when it is freed, or, once its adaptive threshold has grown past that size, gives the heap's top back when a
+message's buffers are freed together. Either way every camera image, cloud or map the bridge converts is written
+into fresh pages, which the kernel faults in one at a time: 3,500 faults for a 4.8 MB cloud,
+more CPU than converting it (bench/README.md, "Where the time goes"). Kept in the heap instead, the same pages
+serve the next message. The cost is bounded: at most REUSE_BYTES of freed memory kept per malloc arena (the loop's,
+and each encoding thread's), and a buffer bigger than that (a 16 MB map's 40 MB of JSON) still mapped and given
+back at once."""
+import ctypes
+
+REUSE_BYTES = 32 << 20  # glibc's own ceiling for its adaptive threshold (DEFAULT_MMAP_THRESHOLD_MAX, 64-bit)
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3  # mallopt's parameters (malloc.h)
+
+
+def reuse_big_buffers(limit=REUSE_BYTES):
+    """Asks glibc to serve buffers of up to `limit` bytes from the heap and to keep up to `limit` bytes freed at
+    its top. True if it did; False with another C library (nothing changes)."""
+    try:
+        mallopt = ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError):
+        return False
+    mallopt.argtypes, mallopt.restype = (ctypes.c_int, ctypes.c_int), ctypes.c_int
+    return bool(mallopt(_M_MMAP_THRESHOLD, limit)) and bool(mallopt(_M_TRIM_THRESHOLD, limit))
