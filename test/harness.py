@@ -254,7 +254,8 @@ def launch_bridge(ros, node_name="rosbridge_websocket", timeout=30.0, **launch_a
 
 
 def _listening_port(ros, proc, node_name, timeout):
-    """The port the bridge node writes to ~actual_port once it listens (the callers clear an earlier one)."""
+    """The port the bridge node writes to ~actual_port once it listens (the callers clear an earlier one); a bridge
+    that never listens is stopped before the error goes up (no caller holds it yet to stop it)."""
     master, param = ros.master(), f"/{node_name}/actual_port"
 
     def port():
@@ -262,7 +263,11 @@ def _listening_port(ros, proc, node_name, timeout):
             raise AssertionError(f"rosbridge exited early:\n{proc.output()}")
         return master.getParam(param) if master.hasParam(param) else None
 
-    return wait_for(port, timeout, what=f"{param} (bridge log: {proc.log_path})")
+    try:
+        return wait_for(port, timeout, what=f"{param} (bridge log: {proc.log_path})")
+    except BaseException:
+        proc.stop()
+        raise
 
 
 def wait_publisher_connected(ros, publisher, topic, subscriber, timeout=20):

@@ -26,9 +26,11 @@ MAX_RSS_GROWTH = {"pings_never_read": 40}
 @pytest.fixture(scope="module")
 def turtlesim(ros):
     turtle = ros.spawn(["rosrun", "turtlesim", "turtlesim_node", "__name:=isolation_turtle"], "isolation_turtle")
-    turtle.wait_output("Spawning turtle [turtle1]", timeout=30)
-    yield
-    turtle.stop()
+    try:
+        turtle.wait_output("Spawning turtle [turtle1]", timeout=30)
+        yield
+    finally:
+        turtle.stop()
 
 
 @pytest.mark.parametrize("abuse", hostile.ABUSES)

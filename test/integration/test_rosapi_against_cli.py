@@ -22,18 +22,22 @@ def graph(ros, node):
     from std_msgs.msg import Empty as EmptyMsg
     from std_srvs.srv import Empty, EmptyResponse
 
-    ros.spawn(["rostopic", "pub", "-r", "5", "/rosapi_test/chatter", "std_msgs/String", "data: hi"], "chatter")
+    chatter = ros.spawn(["rostopic", "pub", "-r", "5", "/rosapi_test/chatter", "std_msgs/String", "data: hi"],
+                        "chatter")
     sub = node.Subscriber("/rosapi_test/cmd", Twist, lambda msg: None)
     srv = node.Service("/rosapi_test/reset", Empty, lambda req: EmptyResponse())
     action = [node.Publisher(f"/rosapi_test/act/{t}", EmptyMsg, queue_size=1)
               for t in ("goal", "cancel", "result", "feedback", "status")]
-    ros.run(["rosparam", "set", "/rosapi_test/gain", "2.5"])
-    ros.run(["rosparam", "set", "/rosapi_test/label", "turtle"])
-    ros.run(["rosparam", "set", "/rosapi_test/nested", "{a: 1, b: [1, 2], c: {d: true}}"])
-    wait_for(lambda: "/rosapi_test/chatter" in ros.run(["rostopic", "list"]).stdout, 20, what="chatter")
-    yield node.get_name()
-    for handle in [sub, srv, *action]:
-        handle.unregister() if hasattr(handle, "unregister") else handle.shutdown()
+    try:
+        ros.run(["rosparam", "set", "/rosapi_test/gain", "2.5"])
+        ros.run(["rosparam", "set", "/rosapi_test/label", "turtle"])
+        ros.run(["rosparam", "set", "/rosapi_test/nested", "{a: 1, b: [1, 2], c: {d: true}}"])
+        wait_for(lambda: "/rosapi_test/chatter" in ros.run(["rostopic", "list"]).stdout, 20, what="chatter")
+        yield node.get_name()
+    finally:
+        for handle in [sub, srv, *action]:
+            handle.unregister() if hasattr(handle, "unregister") else handle.shutdown()
+        chatter.stop()
 
 
 @pytest.fixture

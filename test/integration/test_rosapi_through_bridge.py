@@ -18,23 +18,29 @@ def connect(port):
     return client
 
 
+def bridge_and_client(ros, node_name, **settings):
+    """A bridge with these settings and a roslibpy client of it (yielded); both stopped after, even when the client
+    never connects."""
+    proc, port = start_bridge(ros, node_name=node_name, **settings)
+    try:
+        client = connect(port)
+        try:
+            yield client
+        finally:
+            client.close()
+    finally:
+        proc.stop()
+
+
 @pytest.fixture(scope="module")
 def bridge(ros, graph):
-    proc, port = start_bridge(ros, node_name="rosapi_bridge")
-    client = connect(port)
-    yield client
-    client.close()
-    proc.stop()
+    yield from bridge_and_client(ros, "rosapi_bridge")
 
 
 @pytest.fixture(scope="module")
 def glob_bridge(ros, graph):
-    proc, port = start_bridge(ros, node_name="rosapi_glob_bridge", topics_glob="[/rosapi_test/*]",
-                              services_glob="['/rosapi_test/*']", params_glob="[/rosapi_test/gain]")
-    client = connect(port)
-    yield client
-    client.close()
-    proc.stop()
+    yield from bridge_and_client(ros, "rosapi_glob_bridge", topics_glob="[/rosapi_test/*]",
+                                 services_glob="['/rosapi_test/*']", params_glob="[/rosapi_test/gain]")
 
 
 def cli_list(ros, *args):
