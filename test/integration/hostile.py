@@ -98,9 +98,17 @@ ABUSES_IN_PROCESS = {f.__name__: f for f in (flood, subscribe_many, advertise_ma
                                   silent_service, auth_flood)}
 
 
+def unawaited_writes_quiet(loop, context):
+    """The flood's unawaited writes are cancelled when its connection closes; each would print a traceback
+    (tens of thousands: seconds of the attacker's exit, after its flood)."""
+    if not isinstance(context.get("exception"), asyncio.CancelledError):
+        loop.default_exception_handler(context)
+
+
 async def main(url, abuse, seconds):
     """Runs one abuse, again and again on a new connection when the bridge closes it, for `seconds`."""
     end, done = time.monotonic() + seconds, []
+    asyncio.get_running_loop().set_exception_handler(unawaited_writes_quiet)
     while time.monotonic() < end:
         ws = await websocket_connect(url)
         try:
