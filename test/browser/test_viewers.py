@@ -435,7 +435,7 @@ def test_diagnostics_table_worst_first(open_page, node, publishers):
     assert table == [["ERROR", "battery", "voltage low", "b1"], ["WARN", "lidar", "hot", "l1"],
                      ["OK", "camera", "ok", ""], ["OK", "motors: left", "ok", "m1"]]
     assert text_of(page, f"{area} .diag-summary") == "4 statuses: 1 ERROR · 1 WARN · 2 OK"
-    page.driver.find_element(By.CSS_SELECTOR, rows).click()
+    page.click(rows)  # (found and clicked in one step: the table is redrawn as statuses come)
     wait_for(lambda: "voltage" in text_of(page, f"{area} .diag-values"), 5, what="the error's values")
     shot(page, area, "diagnostics")
 

@@ -225,5 +225,14 @@ def test_sigusr1_saves_a_snapshot_headless_too(tmp_path, start_turtlesim):
     proc = start_turtlesim(env={"TURTLESIM_SNAPSHOT": str(path)})
     proc.signal(signal.SIGUSR1)
     wait_for(path.exists, 10, what="the snapshot")
+    wait_for(lambda: png_size(path) == (500, 500), 10, what="a complete PNG")
+
+
+def png_size(path):
+    """The picture's size, or None while the file is still being written (PIL cannot read it yet)."""
     from PIL import Image
-    wait_for(lambda: Image.open(path).size == (500, 500), 10, what="a complete PNG")
+    try:
+        with Image.open(path) as picture:
+            return picture.size
+    except OSError:  # (PIL's UnidentifiedImageError is one)
+        return None
