@@ -8,6 +8,8 @@ import threading
 import time
 import zlib
 
+import pytest
+
 from bridge_client import RawWebSocket, WsClient, ping
 from fixtures import bridge_fixture
 from harness import launch_bridge, wait_for
@@ -48,6 +50,7 @@ def camera_frames(got, rover, topic):
     return frames
 
 
+@pytest.mark.slow
 def test_behind_a_slow_link_big_messages_arrive_deflated_and_whole_and_without_the_offer_as_before(bridge, node):
     rover = Rover(node, "/deflate_slow")
     offering = RawWebSocket(bridge, recv_buffer=65536, extensions=OFFER)

@@ -4,6 +4,8 @@ keeps up loses nothing."""
 import json
 import time
 
+import pytest
+
 from bridge_client import RawWebSocket, WsClient
 from fixtures import bridge_fixture
 from slow_link import Rover, paced_frames
@@ -15,6 +17,7 @@ def percentile(values, fraction):
     return values[min(len(values) - 1, int(fraction * len(values)))]
 
 
+@pytest.mark.slow
 def test_a_slow_reader_keeps_its_small_topic_fresh_while_a_camera_is_subscribed(bridge, node):
     rover = Rover(node, "/fresh_slow")
     client = RawWebSocket(bridge, recv_buffer=65536)

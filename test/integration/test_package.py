@@ -41,6 +41,7 @@ def installed(ros, install, command):
             f"source {install}/setup.bash && exec {command}"]
 
 
+@pytest.mark.slow
 def test_installed_messages_nodes_launch_file_and_page(ros, install_space):
     assert (install_space / "share" / "turtlesim" / "web" / "index.html").is_file()
     assert (install_space / "share" / "turtlesim" / "web" / "vendor" / "roslib.min.js").is_file()
@@ -98,6 +99,7 @@ def test_definitions_are_installed(ros, kind, type_name):
     assert shown.returncode == 0 and shown.stdout.strip(), shown.stdout + shown.stderr
 
 
+@pytest.mark.slow
 def test_the_readme_workspace_route(ros, tmp_path):
     """The README's route: clone into a workspace's src, `bash tools/setup` there, `catkin_make`, then rosrun and
     roslaunch from that workspace find one executable each and the bridge serves the page."""
