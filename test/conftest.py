@@ -1,8 +1,17 @@
 import os
+import signal
 
 import pytest
 
 from harness import RosMaster
+
+# A suite started in the background by a script (`bash .ci/run &`) inherits SIGINT and SIGQUIT ignored (POSIX shells
+# do that to asynchronous commands without job control), and so would every node it starts: a test of Ctrl-C would
+# find the node deaf to it. The nodes start as from a terminal instead (a handler set here is reset on exec).
+if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+if signal.getsignal(signal.SIGQUIT) == signal.SIG_IGN:
+    signal.signal(signal.SIGQUIT, signal.SIG_DFL)
 
 
 @pytest.fixture(scope="session")

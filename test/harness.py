@@ -1,6 +1,7 @@
 """Real processes for the tests: a private roscore per session, nodes started with rosrun/roslaunch,
 and the stock CLI tools. Every process is started in its own process group and killed at teardown."""
 import os
+import random
 import re
 import signal
 import socket
@@ -16,7 +17,18 @@ ARTIFACTS = REPO / "test" / "artifacts"
 
 
 def free_port():
-    with socket.socket() as s:
+    """A port free now for a server to listen on, chosen below the kernel's range for port 0 (ip_local_port_range), so
+    that no other socket is given it before the server binds it (roslaunch's own XML-RPC server, bound to port 0,
+    once took the port just chosen for its roscore: that worker's whole session failed)."""
+    below = int(Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split()[0])
+    for port in random.sample(range(10000, below), min(500, max(0, below - 10000))):
+        with socket.socket() as s:
+            try:
+                s.bind(("127.0.0.1", port))
+            except OSError:
+                continue
+            return port
+    with socket.socket() as s:  # (a port-0 range that leaves no room below it)
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
 
