@@ -230,6 +230,7 @@ def camera(ros, sim):
     proc.stop()
 
 
+@pytest.mark.alone  # (its frame rate: 3 fps of 10 once, with two other workers and a benchmark beside it)
 @pytest.mark.parametrize("topic", ["/turtle_camera/image_raw", "/turtle_camera/image_raw/compressed"])
 def test_the_camera_panel_shows_the_demo_camera_live(open_page, camera, topic):
     page = open_page()
