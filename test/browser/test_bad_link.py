@@ -237,6 +237,8 @@ def test_the_age_of_an_open_topics_newest_message_is_shown_live(open_page, node,
         wait_for(lambda: "old (by its header.stamp)" in text_of(page, age(CAMERA)), 15, what="the camera's age")
         wait_for(lambda: "old (by its header.stamp)" in text_of(page, age("/bad_link/point")), 15,
                  what="the point's age")
+        # (its one message is shown as come: the stats said "waiting for a message" for up to a second more)
+        assert "waiting" not in text_of(page, '.open-topic[data-topic="/bad_link/point"] .stats')
 
         def seconds(selector):
             value, unit = text_of(page, selector).split(": ")[1].split(" ")[:2]

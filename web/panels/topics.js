@@ -266,7 +266,10 @@ class OpenTopic {
     const now = performance.now();
     this.arrivals.push([now / 1000, sizeOf(message)]);
     while (this.arrivals.length && this.arrivals[0][0] < now / 1000 - WINDOW_S) this.arrivals.shift();
-    if (this.latest === null) this.showInfo();  // subscribed by now: this page is among the subscribers
+    if (this.latest === null) {  // the first: subscribed by now (this page is among the subscribers), and the
+      this.showInfo();           // stats no longer say "waiting" while the age already shows
+      if (this.visible) this.showStats();
+    }
     this.latest = message;
     const stamp = message.header?.stamp;
     this.newest = { arrived: now, age: stamp ? this.session?.ageOf(stamp) ?? null : null };
