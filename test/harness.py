@@ -98,6 +98,12 @@ class Proc:
     def alive(self):
         return self.popen.poll() is None
 
+    def __enter__(self):  # `with ros.spawn(...) as proc:` stops it when the block ends, even by an exception
+        return self
+
+    def __exit__(self, *_):
+        self.stop()
+
     def signal(self, sig):
         if self.alive():
             os.killpg(self.popen.pid, sig)

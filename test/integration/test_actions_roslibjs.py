@@ -16,17 +16,12 @@ pytestmark = pytest.mark.skipif(
 
 @pytest.fixture(scope="module")
 def url(ros):
-    server = ros.spawn(["/usr/bin/python3", str(REPO / "test" / "nodes" / "fibonacci_server.py"), "_step:=0.05"],
-                       "fibonacci_server")
-    try:
+    with ros.spawn(["/usr/bin/python3", str(REPO / "test" / "nodes" / "fibonacci_server.py"), "_step:=0.05"],
+                   "fibonacci_server") as server:
         server.wait_output("serving /tools_fibonacci", 30)
         proc, port = start_bridge(ros, node_name="actions_bridge")
-        try:
+        with proc:
             yield f"ws://127.0.0.1:{port}"
-        finally:
-            proc.stop()
-    finally:
-        server.stop()
 
 
 @pytest.mark.parametrize("roslib", ["roslib1", "roslib2"])

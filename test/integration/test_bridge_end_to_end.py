@@ -18,12 +18,9 @@ def bridge(ros):
 
 @pytest.fixture(scope="module")
 def turtlesim(ros):
-    proc = ros.spawn(["rosrun", "turtlesim", "turtlesim_node"], "turtlesim_node")
-    try:
+    with ros.spawn(["rosrun", "turtlesim", "turtlesim_node"], "turtlesim_node") as proc:
         wait_for(lambda: "/turtle1/pose" in dict(ros.master().getTopicTypes()), 30, what="/turtle1/pose")
         yield proc
-    finally:
-        proc.stop()
 
 
 @pytest.fixture

@@ -19,16 +19,11 @@ pytestmark = pytest.mark.skipif(
 
 @pytest.fixture(scope="module")
 def url(ros):
-    turtle = ros.spawn(["rosrun", "turtlesim", "turtlesim_node"], "turtlesim_node")
-    try:
+    with ros.spawn(["rosrun", "turtlesim", "turtlesim_node"], "turtlesim_node"):
         wait_for(lambda: "/turtle1/pose" in dict(ros.master().getTopicTypes()), 30, what="/turtle1/pose")
         proc, port = start_bridge(ros, node_name="roslibjs_bridge")
-        try:
+        with proc:
             yield f"ws://127.0.0.1:{port}"
-        finally:
-            proc.stop()
-    finally:
-        turtle.stop()
 
 
 @pytest.fixture(params=VERSIONS)

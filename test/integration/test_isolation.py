@@ -25,12 +25,9 @@ MAX_RSS_GROWTH = {"pings_never_read": 8}  # (its pongs wait one at a time: 0 MB;
 
 @pytest.fixture(scope="module")
 def turtlesim(ros):
-    turtle = ros.spawn(["rosrun", "turtlesim", "turtlesim_node", "__name:=isolation_turtle"], "isolation_turtle")
-    try:
+    with ros.spawn(["rosrun", "turtlesim", "turtlesim_node", "__name:=isolation_turtle"], "isolation_turtle") as turtle:
         turtle.wait_output("Spawning turtle [turtle1]", timeout=30)
         yield
-    finally:
-        turtle.stop()
 
 
 @pytest.mark.parametrize("abuse", hostile.ABUSES)

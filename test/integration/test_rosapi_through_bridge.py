@@ -22,14 +22,12 @@ def bridge_and_client(ros, node_name, **settings):
     """A bridge with these settings and a roslibpy client of it (yielded); both stopped after, even when the client
     never connects."""
     proc, port = start_bridge(ros, node_name=node_name, **settings)
-    try:
+    with proc:
         client = connect(port)
         try:
             yield client
         finally:
             client.close()
-    finally:
-        proc.stop()
 
 
 @pytest.fixture(scope="module")
