@@ -1,4 +1,6 @@
-"""Work too long for the event loop: encoding a big message (a 16 MB map would hold every other client and topic
+"""Work off the event loop.
+
+EncodingThread: work too long for the event loop: encoding a big message (a 16 MB map would hold every other client and topic
 meanwhile: `bridge.encoder`), making a camera stream's JPEGs (streams.py), deflating a big message for the
 clients whose link is slow (`bridge.deflater`, websocket.py and frames.deflated_payload: a thread apart, so that a
 map's encoding never holds a slow client's next frame). One thread per use, jobs in the order given; a thread
@@ -6,8 +8,17 @@ starts with its first job.
 
 Hand-off: run(fn, then) is called on the loop; fn() runs on the thread and must touch nothing but what it was
 given (a TopicMessage's class and bytes, a frame's bytes, which nothing changes); then(result) runs on the loop
-(IOLoop.add_callback), with None if fn raised (a bug, logged)."""
+(IOLoop.add_callback), with None if fn raised (a bug, logged).
+
+CallThreads: threads for calls that block for as long as someone else takes (a ROS service: ros_side/services.py),
+so each call needs a thread of its own while it runs. A thread that finished waits a while for the next call:
+the loop starts a thread only when more calls run at once than ever lately, because Thread.start() waits until
+the OS has run the new thread, and on a busy machine that held every client 0.1-0.4 s (test_isolation's victim,
+beside a flood, calling /rosapi/get_time). Hand-off: run(fn) may be called from any thread; fn runs on a pool
+thread and hands its own result back."""
+import collections
 import concurrent.futures
+import threading
 
 from rosbridge.errors import log_bug
 
@@ -27,3 +38,41 @@ class EncodingThread:
             log_bug(f"a job of the {self._name} thread")
             result = None
         then(result)
+
+
+class CallThreads:
+    """As many threads as calls run at once; one idle for `idle_s` ends (nothing is kept for a burst gone by)."""
+
+    def __init__(self, name, idle_s=60.0):
+        self._name, self._idle_s = name, idle_s
+        self._lock = threading.Condition(threading.Lock())
+        self._jobs = collections.deque()  # under _lock, with:
+        self._idle = 0  # threads waiting for a job
+
+    def run(self, fn):
+        with self._lock:
+            self._jobs.append(fn)
+            start = self._idle < len(self._jobs)
+            if not start:
+                self._lock.notify()
+        if start:
+            threading.Thread(target=self._work, name=self._name, daemon=True).start()
+
+    def _work(self):
+        lock = self._lock
+        with lock:
+            while True:
+                while not self._jobs:
+                    self._idle += 1
+                    woken = lock.wait(self._idle_s)
+                    self._idle -= 1
+                    if not woken and not self._jobs:
+                        return
+                job = self._jobs.popleft()
+                lock.release()
+                try:
+                    job()
+                except Exception:  # (the caller's job hands back its own errors: this is a bug)
+                    log_bug(f"a job of the {self._name} threads")
+                finally:
+                    lock.acquire()

@@ -126,7 +126,7 @@ class Victim:
 
     def __init__(self, url, auth=None):
         self.url, self.auth = url, auth
-        self.arrivals, self.call_times = [], []
+        self.arrivals, self.call_times, self.own_stalls = [], [], []
         self.ready, self._stop = threading.Event(), threading.Event()
         self._thread = threading.Thread(target=lambda: asyncio.run(self._run()), daemon=True)
         self._thread.start()
@@ -150,7 +150,12 @@ class Victim:
                     self.ready.set()
                 elif message.get("op") == "service_response" and message.get("id") in calls:
                     self.call_times.append(now - calls.pop(message["id"]))
-        reading = asyncio.ensure_future(reader())
+        async def ticker():  # how late this thread's own loop ran: a gap it causes is not the bridge's
+            while True:
+                before = time.monotonic()
+                await asyncio.sleep(0.01)
+                self.own_stalls.append((before, time.monotonic() - before - 0.01))
+        reading, ticking = asyncio.ensure_future(reader()), asyncio.ensure_future(ticker())
         n = 0
         while not self._stop.is_set():
             n += 1
@@ -160,10 +165,15 @@ class Victim:
         self.unanswered = [time.monotonic() - sent for sent in calls.values()]
         ws.close()
         reading.cancel()
+        ticking.cancel()
 
     def largest_gap(self, since):
+        """The largest gap between poses after `since`, where it began (seconds after `since`) and this
+        thread's own longest stall in it."""
         times = [t for t in self.arrivals if t >= since]
-        return max((b - a for a, b in zip(times, times[1:])), default=float("inf"))
+        gap, start = max(((b - a, a) for a, b in zip(times, times[1:])), default=(float("inf"), since))
+        own = max((lag for t, lag in self.own_stalls if start <= t <= start + gap), default=0.0)
+        return gap, start - since, own
 
     def stop(self):
         self._stop.set()
@@ -175,15 +185,20 @@ ABUSES = [*ABUSES_IN_PROCESS, "pings_never_read"]
 
 def measure(ros, url, server, abuse, seconds, auth=None):
     """Runs `abuse` for `seconds` beside a Victim (sending `auth` first if given) on the bridge at `url` whose
-    server process is `server` (a ProcStat); returns what the attacker did and what the victim saw."""
+    server process is `server` (a ProcStat); returns what the attacker did and what the victim saw (times in
+    seconds from the attacker's start: `attacked`, when it ended; `gap_at`, when the largest gap began; and
+    `victims_own_stall`, the victim's own loop's longest stall in that gap, which the bridge did not cause)."""
     victim = Victim(url, auth)
     time.sleep(1.0)
     rss_before, started = server.rss_mb(), time.monotonic()
     attacker = ros.spawn([sys.executable, __file__, url, abuse, str(seconds)], f"hostile_{abuse}")
     code = attacker.popen.wait(seconds + 90)
+    attacked = time.monotonic() - started
     time.sleep(0.5)
     victim.stop()
-    return {"attacker": attacker.output().strip(), "attacker_exit": code, "gap": victim.largest_gap(started),
+    gap, gap_at, own_stall = victim.largest_gap(started)
+    return {"attacker": attacker.output().strip(), "attacker_exit": code, "attacked": attacked,
+            "gap": gap, "gap_at": gap_at, "victims_own_stall": own_stall,
             "slowest_call": max(victim.call_times + victim.unanswered, default=float("inf")),
             "rss_growth": server.rss_mb() - rss_before}
 

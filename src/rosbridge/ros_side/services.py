@@ -3,7 +3,6 @@ import collections
 import concurrent.futures
 import functools
 import itertools
-import threading
 
 import rosgraph
 import rospy
@@ -11,12 +10,13 @@ import rosservice
 
 from rosbridge.codec.json_values import ConversionError, from_json, request_from_args, to_json
 from rosbridge.errors import RequestError, refusal_text
+from rosbridge.off_loop import CallThreads
 from rosbridge.types import service_class
 
 
 class ServiceCalls:
-    """Client -> ROS service calls, each on a thread of its own so that a slow or silent service holds only
-    its own callers. Bounded: at most max_running calls of one client run at once (a call's thread counts
+    """Client -> ROS service calls, each on a thread of its own while it runs (off_loop.CallThreads) so that a
+    slow or silent service holds only its own callers. Bounded: at most max_running calls of one client run at once (a call's thread counts
     until the service answers, even after the client's timeout told it no), at most max_total in all; the
     others wait, in turns between clients, and one client may have at most max_pending calls in all."""
 
@@ -27,6 +27,7 @@ class ServiceCalls:
         self._running = {}  # session -> calls of it still running
         self._total = 0
         self._waiting = collections.OrderedDict()  # session -> deque of (start, answer); the next turn first
+        self._threads = CallThreads("service call")
 
     def call(self, session, service, args, type_name, timeout, reply):
         running, waiting = self._running.get(session, 0), self._waiting.get(session, ())
@@ -71,7 +72,7 @@ class ServiceCalls:
                 result = (False, str(error) or repr(error))
             self._loop.add_callback(self._finished, session, answer, *result)
 
-        threading.Thread(target=run, name=f"call {service}", daemon=True).start()
+        self._threads.run(run)
 
     def _finished(self, session, answer, ok, values):
         self._total -= 1
