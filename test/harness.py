@@ -34,14 +34,15 @@ def free_port():
 
 
 def wait_for(predicate, timeout=10.0, interval=0.05, what="condition"):
-    """Polls predicate() until it returns something truthy; returns it, or raises AssertionError."""
+    """Polls predicate() until it returns something truthy; returns it, or raises AssertionError saying `what`
+    (a text, or a function giving one: what was seen by then)."""
     deadline = time.monotonic() + timeout
     while True:
         value = predicate()
         if value:
             return value
         if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {timeout}s waiting for {what}")
+            raise AssertionError(f"timed out after {timeout}s waiting for {what() if callable(what) else what}")
         time.sleep(interval)
 
 

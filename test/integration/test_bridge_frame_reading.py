@@ -11,7 +11,7 @@ import time
 import pytest
 
 from bridge_client import RawWebSocket
-from harness import start_bridge, wait_for
+from harness import start_bridge, wait_for, wait_publisher_connected
 
 TOPIC = "/frame_reading/text"
 BIG = 300_000  # characters: several of the bridge's reads (64 KB each)
@@ -64,14 +64,14 @@ def pieces(data, sizes):
 
 @pytest.mark.parametrize("sizes", [None, [1], [3, 7, 1, 2], [5000, 70_000, 13]],
                          ids=["one-write", "byte-by-byte-start", "tiny-pieces", "odd-pieces"])
-def test_frames_are_read_whole_whatever_pieces_they_come_in(port, node, sizes):
+def test_frames_are_read_whole_whatever_pieces_they_come_in(ros, port, node, sizes):
     from std_msgs.msg import String
     got = []
     sub = node.Subscriber(TOPIC, String, lambda m: got.append(m.data))
     client = RawWebSocket(port)
     try:
         client.sock.sendall(ADVERTISE)
-        wait_for(lambda: sub.get_num_connections() >= 1, 20, what="the bridge's publisher connected")
+        wait_publisher_connected(ros, "/frame_reading_bridge", TOPIC, node.get_name())
         stream, expected = client_bytes()
         if sizes is None:
             client.sock.sendall(stream)
@@ -157,21 +157,25 @@ def slow_port(ros):
     proc.stop()
 
 
-def test_a_client_over_its_frame_budget_is_slowed_and_loses_nothing(slow_port, node):
+def test_a_client_over_its_frame_budget_is_slowed_and_loses_nothing(ros, slow_port, node):
     from std_msgs.msg import String
     got, topic = [], "/frame_reading/budget"
     sub = node.Subscriber(topic, String, lambda m: got.append(m.data))
     client, other = RawWebSocket(slow_port), RawWebSocket(slow_port)
     try:
         client.sock.sendall(advertise(topic))
-        wait_for(lambda: sub.get_num_connections() >= 1, 20, what="the bridge's publisher connected")
+        # (seen from the bridge's side: what it publishes before that waits only as many as its queue_size, 100;
+        # rospy's subscriber counts its connection before it has even connected)
+        wait_publisher_connected(ros, "/frame_budget_bridge", topic, node.get_name())
         expected = [str(i) for i in range(300)]
         started = time.monotonic()
         client.sock.sendall(b"".join(RawWebSocket.frame(publish(text, topic)) for text in expected))
         other.sock.sendall(RawWebSocket.frame(b"meanwhile", opcode=0x9))
         assert other.recv_frame() == (0xA, b"meanwhile")
         answered = time.monotonic() - started
-        wait_for(lambda: len(got) >= len(expected), 20, what="every message on the topic")
+        wait_for(lambda: len(got) >= len(expected), 20,
+                 what=lambda: f"every message on the topic: {len(got)} came, missing "
+                              f"{sorted(set(expected) - set(got), key=int)[:20]}")
         took = time.monotonic() - started
         assert got == expected
         assert took > 1.5 and answered < 0.5, (took, answered)  # 100 at once, then 100 a second

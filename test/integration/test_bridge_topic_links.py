@@ -12,7 +12,7 @@ import pytest
 from std_msgs.msg import String
 
 from bridge_client import WsClient
-from harness import ProcStat, node_pid, start_bridge, wait_for
+from harness import ProcStat, node_pid, start_bridge, wait_for, wait_publisher_connected
 
 from rosbridge import tcpros
 from rosbridge.ros_side.links import LINK_QUEUE_BYTES
@@ -109,7 +109,7 @@ def publishing_to_a_slow_and_a_stuck_subscriber(ros, node, bridge, topic, queue_
     ws.send({"op": "advertise", "topic": topic, "type": "std_msgs/String", "queue_size": queue_size})
     got = []
     reader = node.Subscriber(topic, String, lambda m: got.append(int(m.data.split(":")[0])), queue_size=10)
-    wait_for(lambda: reader.get_num_connections() >= 1, 20, what="the reading subscriber connected")
+    wait_publisher_connected(ros, "/links_bridge", topic, node.get_name())
     bridge_node = xmlrpc.client.ServerProxy(ros.master().lookupNode("/links_bridge"))
     _, _, (_, host, port) = bridge_node.requestTopic("/stuck_subscriber", topic, [["TCPROS"]])
     stuck = socket.socket()
