@@ -16,9 +16,10 @@ from rosbridge.types import service_class
 
 class ServiceCalls:
     """Client -> ROS service calls, each on a thread of its own while it runs (off_loop.CallThreads) so that a
-    slow or silent service holds only its own callers. Bounded: at most max_running calls of one client run at once (a call's thread counts
-    until the service answers, even after the client's timeout told it no), at most max_total in all; the
-    others wait, in turns between clients, and one client may have at most max_pending calls in all."""
+    slow or silent service holds only its own callers. Bounded: at most max_running calls of one client run at
+    once (a call's thread counts until the service answers, even after the client's timeout told it no), at most
+    max_total in all; the others wait, in turns between clients, and one client may have at most max_pending
+    calls in all."""
 
     def __init__(self, loop, rosapi, max_running, max_total, max_pending):
         self._loop, self._rosapi = loop, rosapi
