@@ -11,13 +11,14 @@ given (a TopicMessage's class and bytes, a frame's bytes, which nothing changes)
 (IOLoop.add_callback), with None if fn raised (a bug, logged).
 
 CallThreads: threads for calls that block for as long as someone else takes (a ROS service: ros_side/services.py),
-so each call needs a thread of its own while it runs. A thread that finished waits a while for the next call:
-the loop starts a thread only when more calls run at once than ever lately, because Thread.start() waits until
-the OS has run the new thread, and on a busy machine that held every client 0.1-0.4 s (test_isolation's victim,
-beside a flood, calling /rosapi/get_time). Hand-off: run(fn) may be called from any thread; fn runs on a pool
-thread and hands its own result back."""
+so each call needs a thread of its own while it runs. A thread that finished waits a while for the next call,
+and new threads are started by a thread kept for that alone, never by the caller: Thread.start() waits until the
+OS has run the new thread, which on a busy machine held the loop, and every client, 0.1-0.7 s at a time
+(test_isolation's victim beside a flood, calling /rosapi/get_time). Hand-off: run(fn) may be called from any
+thread and never waits; fn runs on a pool thread and hands its own result back."""
 import collections
 import concurrent.futures
+import queue
 import threading
 
 from rosbridge.errors import log_bug
@@ -41,21 +42,28 @@ class EncodingThread:
 
 
 class CallThreads:
-    """As many threads as calls run at once; one idle for `idle_s` ends (nothing is kept for a burst gone by)."""
+    """As many threads as calls run at once; one idle for `idle_s` ends (nothing is kept for a burst gone by).
+    The starter thread is started here, when the bridge starts (its own start may wait)."""
 
     def __init__(self, name, idle_s=60.0):
         self._name, self._idle_s = name, idle_s
         self._lock = threading.Condition(threading.Lock())
         self._jobs = collections.deque()  # under _lock, with:
         self._idle = 0  # threads waiting for a job
+        self._to_start = queue.SimpleQueue()  # a None for each thread to start
+        threading.Thread(target=self._start_threads, name=f"{name} starter", daemon=True).start()
 
     def run(self, fn):
         with self._lock:
             self._jobs.append(fn)
-            start = self._idle < len(self._jobs)
-            if not start:
+            if self._idle >= len(self._jobs):
                 self._lock.notify()
-        if start:
+                return
+        self._to_start.put(None)
+
+    def _start_threads(self):
+        while True:
+            self._to_start.get()
             threading.Thread(target=self._work, name=self._name, daemon=True).start()
 
     def _work(self):

@@ -76,3 +76,25 @@ def test_calls_at_once_each_get_a_thread():
         started.get(timeout=5)
     assert len(pool_threads("test burst")) == 10
     release.set()
+
+
+def test_the_caller_never_starts_a_thread(monkeypatch):
+    """Thread.start() waits for the OS to run the new thread (0.7 s once, beside a flood under load): the
+    loop that hands over a call must not wait for that, not even for the first call or a burst."""
+    pool, release, started = CallThreads("test starts", idle_s=0.2), threading.Event(), queue.SimpleQueue()
+    starters, start = [], threading.Thread.start
+
+    def recorded_start(thread):
+        starters.append(threading.current_thread())
+        start(thread)
+    monkeypatch.setattr(threading.Thread, "start", recorded_start)
+
+    def call():
+        started.put(1)
+        release.wait()
+    for _ in range(3):
+        pool.run(call)
+    for _ in range(3):
+        started.get(timeout=5)
+    release.set()
+    assert len(starters) == 3 and threading.current_thread() not in starters

@@ -25,8 +25,9 @@ Threads, what each may touch, and how work crosses between them:
   from its threads (when the topic is unregistered): Link.close marks it done and hands the closing of its
   stream to the loop. A message never crosses a thread.
 - Service-call threads (ServiceCalls), one per call in flight, bounded per client and in total, kept a minute
-  for the next call (off_loop.CallThreads): each calls a ROS service or rosapi and hands its answer to the loop
-  (IOLoop.add_callback); the counters of calls in flight are only touched on the loop.
+  for the next call and started by a starter thread of their own, never by the loop (off_loop.CallThreads):
+  each calls a ROS service or rosapi and hands its answer to the loop (IOLoop.add_callback); the counters of
+  calls in flight are only touched on the loop.
 - rospy's service threads for services that clients provide (ProvidedServices._serve): each puts the call on
   the loop (add_callback) and blocks on a concurrent.futures.Future that only the loop resolves."""
 from rosbridge.ros_side.backend import RosBackend
