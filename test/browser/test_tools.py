@@ -380,7 +380,9 @@ def test_the_demo_lasers_rays_changed_in_the_reconfigure_tab_show_in_the_laser_v
     type_into(page, rays, asked)
     wait_for(lambda: node.get_param("/turtle_laser/rays") == int(asked), 10, what=f"the node back at {asked} rays")
     tab(page, "topics")
-    wait_for(lambda: f"{asked} rays" in text_of(page, RAYS_SHOWN), 20, what=f"the laser drawn with {asked} rays")
+    wait_for(lambda: f"{asked} rays" in text_of(page, RAYS_SHOWN), 20,
+             what=lambda: f"the laser drawn with {asked} rays (it shows: {text_of(page, RAYS_SHOWN)!r}; the node "
+                          f"runs {node.get_param('/turtle_laser/rays')})")
     page.js("document.querySelector(arguments[0]).closest('.open-topic').scrollIntoView()", RAYS_SHOWN)
     ARTIFACTS.mkdir(parents=True, exist_ok=True)
     page.driver.save_screenshot(str(ARTIFACTS / f"tools-demo-laser-viewer-{screen}.png"))
