@@ -5,7 +5,8 @@ thread with absolute deadlines every 16 ms and hands each tick's readings to a p
 yields the processor after every message it queues, which would make ticks late with many turtles); the
 main thread runs the window (or just waits when there is no display). Every access to the world holds
 `self.lock`. ROS registration (advertising, subscribing, registering services) happens outside that lock
-so that it never delays a tick."""
+so that it never delays a tick. The publishing thread and the service threads that spawn and kill turtles
+share the turtles' interfaces (TurtleInterfaces): a killed turtle's is withdrawn between two publishes."""
 import collections
 import math
 import os
@@ -79,12 +80,41 @@ class TurtleInterface:
             service.shutdown()
 
 
+class TurtleInterfaces:
+    """Each turtle's interface (make(name): a new one, advertised), by name. The publishing thread publishes
+    through them while service threads add and withdraw them: one is closed only once no publish through it is
+    under way, because rospy fails a publish to a topic unregistered meanwhile, and that once ended the
+    publishing thread (every pose stopped, in a CI run that killed a turtle)."""
+
+    def __init__(self, make):
+        self._make = make
+        self._table = {}
+        self._publishing = threading.Lock()  # held by a publish, and while one is taken out of the table
+
+    def publish(self, readings):
+        for reading in readings:
+            with self._publishing:
+                interface = self._table.get(reading.name)
+                if interface is not None:  # None while its topics are still being advertised
+                    interface.publish(reading)
+
+    def sync(self, names):
+        """Advertises the interfaces of new turtles and withdraws those of removed ones (not under the lock:
+        each is a few calls to the master)."""
+        with self._publishing:
+            gone = [self._table.pop(name) for name in set(self._table) - names]
+        for interface in gone:
+            interface.close()
+        for name in names - set(self._table):
+            self._table[name] = self._make(name)
+
+
 class TurtlesimNode:
     def __init__(self):
         self.lock = threading.Lock()  # guards self.world
         self.stopped = threading.Event()  # set when the node is done
         self._registration = threading.Lock()  # one spawn/kill/reset (and its ROS registrations) at a time
-        self._interfaces = {}  # turtle name -> TurtleInterface
+        self._interfaces = TurtleInterfaces(lambda name: TurtleInterface(self, name))
         self._unpublished = collections.deque(maxlen=UNPUBLISHED_TICKS)  # readings of recent ticks
         self._tick_done = threading.Condition()
         for param, default in zip(BACKGROUND_PARAMS, DEFAULT_BACKGROUND):
@@ -135,12 +165,7 @@ class TurtlesimNode:
             self._sync_interfaces()
 
     def _sync_interfaces(self):
-        """Advertises the topics and services of new turtles and withdraws those of removed ones."""
-        names = set(self.locked(self.world.names))
-        for name in set(self._interfaces) - names:
-            self._interfaces.pop(name).close()
-        for name in names - set(self._interfaces):
-            self._interfaces[name] = TurtleInterface(self, name)
+        self._interfaces.sync(set(self.locked(self.world.names)))
 
     def _background(self):
         return tuple(self._color_param(param, default)
@@ -187,10 +212,7 @@ class TurtlesimNode:
                 if not self._tick_done.wait_for(lambda: self._unpublished, timeout=0.5):
                     continue
                 readings = self._unpublished.popleft()
-            for reading in readings:
-                interface = self._interfaces.get(reading.name)
-                if interface is not None:  # None while its topics are still being advertised
-                    interface.publish(reading)
+            self._interfaces.publish(readings)
 
     # ---- pictures ------------------------------------------------------------------------------------
 
