@@ -64,24 +64,10 @@ def test_a_blocked_call_holds_no_other_and_idle_threads_end():
     assert pool_threads("test pool") == []
 
 
-def test_calls_at_once_each_get_a_thread():
-    pool, release, started = CallThreads("test burst", idle_s=0.2), threading.Event(), queue.SimpleQueue()
-
-    def call():
-        started.put(1)
-        release.wait()
-    for _ in range(10):
-        pool.run(call)
-    for _ in range(10):
-        started.get(timeout=5)
-    assert len(pool_threads("test burst")) == 10
-    release.set()
-
-
-def test_the_caller_never_starts_a_thread(monkeypatch):
+def test_calls_at_once_each_get_a_thread_and_the_caller_starts_none(monkeypatch):
     """Thread.start() waits for the OS to run the new thread (0.7 s once, beside a flood under load): the
     loop that hands over a call must not wait for that, not even for the first call or a burst."""
-    pool, release, started = CallThreads("test starts", idle_s=0.2), threading.Event(), queue.SimpleQueue()
+    pool, release, started = CallThreads("test burst", idle_s=0.2), threading.Event(), queue.SimpleQueue()
     starters, start = [], threading.Thread.start
 
     def recorded_start(thread):
@@ -92,9 +78,10 @@ def test_the_caller_never_starts_a_thread(monkeypatch):
     def call():
         started.put(1)
         release.wait()
-    for _ in range(3):
+    for _ in range(10):
         pool.run(call)
-    for _ in range(3):
+    for _ in range(10):
         started.get(timeout=5)
     release.set()
-    assert len(starters) == 3 and threading.current_thread() not in starters
+    assert len(pool_threads("test burst")) == 10
+    assert len(starters) == 10 and threading.current_thread() not in starters
