@@ -16,7 +16,7 @@ import sensor_msgs.msg
 from PIL import Image
 
 from test_json_values import AllTypes, deserialized, serialized
-from test_json_values_properties import SETTINGS, messages
+from test_json_values_properties import EACH_TYPE, messages
 from test_ros_to_json import BIG_COUNTS, CLASSES, GRID, BigArrays, big_arrays_message, map_bytes
 from rosbridge.codec.fields import parse_slot_type
 from rosbridge.codec.json_values import dumps, from_json
@@ -236,7 +236,7 @@ def genpy_cbor(cls, data):
 
 
 @pytest.mark.parametrize("cls", CLASSES, ids=lambda cls: cls._type)
-@settings(SETTINGS, max_examples=25)
+@EACH_TYPE
 @given(data=st.data())
 def test_random_messages_give_the_cbor_of_genpy_and_to_cbor_value(cls, data):
     wire_bytes = serialized(data.draw(messages(cls, any_wire_value=True)))

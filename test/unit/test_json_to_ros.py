@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, strategies as st
 
 from test_json_values import AllTypes, serialized
-from test_json_values_properties import SETTINGS, json_junk, messages
+from test_json_values_properties import EACH_TYPE, SETTINGS, json_junk, messages
 from test_ros_to_json import CLASSES
 from rosbridge.codec.json_values import ConversionError, from_json, to_json
 from rosbridge.codec.json_to_ros import packer
@@ -33,7 +33,7 @@ def packed(cls, value):
 
 
 @pytest.mark.parametrize("cls", CLASSES, ids=lambda cls: cls._type)
-@SETTINGS
+@EACH_TYPE
 @given(data=st.data())
 def test_random_messages_as_json_pack_like_convert(cls, data):
     value = json.loads(json.dumps(to_json(data.draw(messages(cls)))))  # ints stay ints, as a client sends them

@@ -18,7 +18,7 @@ from std_msgs.msg import Header
 
 from sensor_messages import occupancy_grid_cells
 from test_json_values import AllTypes, serialized
-from test_json_values_properties import SETTINGS, messages
+from test_json_values_properties import EACH_TYPE, messages
 from rosbridge.codec.json_values import dumps, to_json
 from rosbridge.codec import BIG_BYTES
 from rosbridge.codec.fields import parse_slot_type
@@ -55,7 +55,7 @@ def test_every_installed_message_package_is_covered():
 
 
 @pytest.mark.parametrize("cls", CLASSES, ids=lambda cls: cls._type)
-@SETTINGS
+@EACH_TYPE
 @given(data=st.data())
 def test_random_messages_give_the_text_of_genpy_and_convert(cls, data):
     wire_bytes = serialized(data.draw(messages(cls, any_wire_value=True)))
