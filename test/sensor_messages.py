@@ -71,7 +71,8 @@ class Publishing:
         self.make, self.period = make, 1.0 / rate_hz
         self.published = 0
         self.stopped = threading.Event()
-        threading.Thread(target=self._run, daemon=True).start()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
 
     def _run(self):
         due = time.monotonic()
@@ -83,6 +84,7 @@ class Publishing:
 
     def stop(self):
         self.stopped.set()
+        self._thread.join(10)  # (rospy fails a publish to a topic unregistered meanwhile)
         self.publisher.unregister()
 
 

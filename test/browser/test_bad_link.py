@@ -11,6 +11,7 @@ from selenium.webdriver.common.keys import Keys
 from selenium.webdriver.support.ui import Select
 
 from harness import ARTIFACTS, wait_for
+from sensor_messages import Publishing
 
 pytestmark = pytest.mark.alone  # (they time what a driver sees: tools/test runs them with nothing beside them)
 
@@ -75,28 +76,10 @@ def open_topic(page, topic):
     wait_for(lambda: page.js(click), 20, what=f"{topic} listed")
 
 
-def publisher(node, topic, msg_class, make, period):
-    """Publishes make(n) on topic every period seconds from a thread until the returned stop() is called."""
-    pub = node.Publisher(topic, msg_class, queue_size=10)
-    stopped = threading.Event()
-
-    def run():
-        n = 0
-        while not stopped.wait(period):
-            n += 1
-            pub.publish(make(n))
-    threading.Thread(target=run, daemon=True).start()
-
-    def stop():
-        stopped.set()
-        pub.unregister()
-    return stop
-
-
 def test_the_skipped_counter_counts_what_the_bridge_skipped_for_a_page_that_fell_behind(open_page, node):
     from std_msgs.msg import String
     big = "x" * 400_000
-    stop = publisher(node, "/bad_link/flood", String, lambda n: String(f"{n} {big}"), 0.02)  # 20 MB/s
+    flood = Publishing(node, "/bad_link/flood", String, lambda n: String(f"{n} {big}"), 50)  # 20 MB/s
     try:
         page = open_page()
         open_topic(page, "/bad_link/flood")
@@ -109,7 +92,7 @@ def test_the_skipped_counter_counts_what_the_bridge_skipped_for_a_page_that_fell
         wait_for(lambda: int(page.js("return document.querySelector('.link-health .skipped b').textContent")) > 0,
                  15, what="the skipped messages counted")
     finally:
-        stop()
+        flood.stop()
     assert "skipped" not in page.feedback()  # (counted in the strip, not written in the feedback list)
 
 
@@ -256,7 +239,7 @@ def test_a_value_is_shown_at_the_next_animation_frame_after_it_arrives(open_page
     """Each value of a 10 Hz topic is on screen within a few animation frames of its publication (the tree was
     redrawn 150 ms after a message came, showing half of them, each late)."""
     from std_msgs.msg import String
-    stop = publisher(node, "/bad_link/clock", String, lambda n: String(f"{time.time():.3f}"), 0.1)
+    clock = Publishing(node, "/bad_link/clock", String, lambda n: String(f"{time.time():.3f}"), 10)
     try:
         page = open_page()
         open_topic(page, "/bad_link/clock")
@@ -277,7 +260,7 @@ def test_a_value_is_shown_at_the_next_animation_frame_after_it_arrives(open_page
         time.sleep(4)
         shown = sorted(page.js("return window.shown"))
     finally:
-        stop()
+        clock.stop()
     assert len(shown) >= 32, f"{len(shown)} of ~40 values shown"  # every one of them, about
     assert shown[len(shown) // 2] < 60, f"shown {shown[len(shown) // 2]:.0f} ms after publication (median)"
 

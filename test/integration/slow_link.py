@@ -23,6 +23,7 @@ class Rover:
         self.small_hz, self.camera_hz = small_hz, camera_hz
         self.pictures = [os.urandom(WIDTH * HEIGHT * 3) for _ in range(4)]
         self._stop = threading.Event()
+        self._thread = None  # (start)
         self.sent = {"small": 0, "camera": 0}
 
     def wait_connected(self):
@@ -55,12 +56,14 @@ class Rover:
             time.sleep(max(0.0, min(next_small, next_camera) - time.monotonic()))
 
     def start(self, **kwargs):
-        thread = threading.Thread(target=self.run, kwargs=kwargs, daemon=True)
-        thread.start()
-        return thread
+        self._thread = threading.Thread(target=self.run, kwargs=kwargs, daemon=True)
+        self._thread.start()
+        return self._thread
 
     def stop(self):
         self._stop.set()
+        if self._thread is not None:
+            self._thread.join(10)  # (rospy fails a publish to a topic unregistered meanwhile)
         self.small.unregister()
         self.camera.unregister()
 
