@@ -15,13 +15,20 @@ so each call needs a thread of its own while it runs. A thread that finished wai
 and new threads are started by a thread kept for that alone, never by the caller: Thread.start() waits until the
 OS has run the new thread, which on a busy machine held the loop, and every client, 0.1-0.7 s at a time
 (test_isolation's victim beside a flood, calling /rosapi/get_time). Hand-off: run(fn) may be called from any
-thread and never waits; fn runs on a pool thread and hands its own result back."""
+thread and never waits; fn runs on a pool thread and hands its own result back. A thread the OS refuses (a
+process at its limit of tasks or memory) is asked for again every START_RETRY_S, the call waiting meanwhile: the
+starter thread goes on, so the calls after it are not lost with it."""
 import collections
 import concurrent.futures
+import itertools
+import logging
 import queue
 import threading
+import time
 
 from rosbridge.errors import log_bug
+
+START_RETRY_S = 0.5
 
 
 class EncodingThread:
@@ -64,7 +71,19 @@ class CallThreads:
     def _start_threads(self):
         while True:
             self._to_start.get()
-            threading.Thread(target=self._work, name=self._name, daemon=True).start()
+            self._start_one()
+
+    def _start_one(self):
+        for attempt in itertools.count():
+            try:
+                threading.Thread(target=self._work, name=self._name, daemon=True).start()
+                return
+            except RuntimeError as error:  # ("can't start new thread")
+                if attempt == 0:
+                    logging.getLogger("rosbridge").warning(
+                        "cannot start a %s thread (%s): its call waits, asked again every %s s",
+                        self._name, error, START_RETRY_S)
+                time.sleep(START_RETRY_S)
 
     def _work(self):
         lock = self._lock

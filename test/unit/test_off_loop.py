@@ -85,3 +85,21 @@ def test_calls_at_once_each_get_a_thread_and_the_caller_starts_none(monkeypatch)
     release.set()
     assert len(pool_threads("test burst")) == 10
     assert len(starters) == 10 and threading.current_thread() not in starters
+
+
+def test_a_thread_the_os_refuses_once_does_not_stop_the_calls(monkeypatch):
+    """Thread.start() raises RuntimeError when the OS has no thread to give (a process at its limit of tasks or
+    memory): the call waits and is run once a thread can be had, and the calls after it too."""
+    pool, ran = CallThreads("test refused", idle_s=0.2), queue.SimpleQueue()
+    start, refusals = threading.Thread.start, []
+
+    def refused_once(thread):
+        if thread.name == "test refused" and not refusals:
+            refusals.append(thread)
+            raise RuntimeError("can't start new thread")
+        start(thread)
+    monkeypatch.setattr(threading.Thread, "start", refused_once)
+    for i in range(3):
+        pool.run(lambda i=i: ran.put(i))
+    assert sorted(ran.get(timeout=5) for _ in range(3)) == [0, 1, 2]
+    assert len(refusals) == 1
