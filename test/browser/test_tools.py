@@ -356,6 +356,17 @@ LASER_VIEW = "topic=/turtle1/scan&view=/turtle1/scan:laser"  # the laser viewer 
 RAYS_SHOWN = '.open-topic[data-topic="/turtle1/scan"] .viewer .viewer-stats'
 
 
+def laser_viewer_state(page):
+    """What the page has of the laser viewer, for a failure's message (text_of reads only what is displayed)."""
+    return page.js("""const stats = document.querySelector(arguments[0]);
+        const canvas = stats?.closest('.viewer')?.querySelector('canvas');
+        return {tab: [...document.querySelectorAll('[role="tabpanel"]')].filter(t => !t.hidden).map(t => t.id),
+                stats: stats?.textContent, displayed: stats ? stats.getClientRects().length : null,
+                viewerHidden: stats?.closest('.viewer')?.hidden, canvas: canvas && {...canvas.dataset,
+                  width: canvas.width}, visibility: document.visibilityState, connection:
+                  document.getElementById('conn-text')?.textContent};""", RAYS_SHOWN)
+
+
 @pytest.mark.parametrize("screen", ["desktop", "phone"])
 def test_the_demo_lasers_rays_changed_in_the_reconfigure_tab_show_in_the_laser_viewer(open_page, bridge_url, node,
                                                                                        demo_nodes, laser_settings,
@@ -382,7 +393,7 @@ def test_the_demo_lasers_rays_changed_in_the_reconfigure_tab_show_in_the_laser_v
     tab(page, "topics")
     wait_for(lambda: f"{asked} rays" in text_of(page, RAYS_SHOWN), 20,
              what=lambda: f"the laser drawn with {asked} rays (it shows: {text_of(page, RAYS_SHOWN)!r}; the node "
-                          f"runs {node.get_param('/turtle_laser/rays')})")
+                          f"runs {node.get_param('/turtle_laser/rays')}; the page: {laser_viewer_state(page)})")
     page.js("document.querySelector(arguments[0]).closest('.open-topic').scrollIntoView()", RAYS_SHOWN)
     ARTIFACTS.mkdir(parents=True, exist_ok=True)
     page.driver.save_screenshot(str(ARTIFACTS / f"tools-demo-laser-viewer-{screen}.png"))
