@@ -144,8 +144,11 @@ export class ActionsPanel extends ListPanel {
     const state = item.querySelector('.goal-state');
     const cancel = item.querySelector('.goal-cancel');
     const feedbackCount = { n: 0 };
+    let ended = false;  // its end is shown: a status from before it, come late by another topic, changes nothing
     const handle = chosen.client.send(goal, {
       onStatus: status => {
+        if (ended && !DONE.has(status.status)) return;
+        ended = DONE.has(status.status);
         state.textContent = STATUS[status.status] ?? `status ${status.status}`;
         state.dataset.status = STATUS[status.status] ?? '';
         item.querySelector('.goal-text').textContent = status.text || '';
