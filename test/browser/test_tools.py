@@ -26,7 +26,10 @@ def bridge_url(ros, sim, bag_folder):
 
 
 def tab(page, name):
+    """Clicks a console tab's button as a person does, and waits for its panel (a click the layout moved away
+    from, with no error from the driver, fails here by name)."""
     page.el(f"tab-button-{name}").click()
+    wait_for(lambda: page.el(f"tab-{name}").is_displayed(), 5, what=f"the {name} tab shown after its button's click")
     return page.el(f"tab-{name}")
 
 
@@ -417,7 +420,10 @@ def test_the_demo_lasers_rays_changed_in_the_reconfigure_tab_show_in_the_laser_v
     if screen == "phone":
         assert small_controls(page, "reconfigure") == []
     type_into(page, rays, asked)
-    wait_for(lambda: node.get_param("/turtle_laser/rays") == int(asked), 10, what=f"the node back at {asked} rays")
+    # (the page's answer, as a person waits for it: it takes the clamp's message away, and the layout moves)
+    wait_for(lambda: f"answered: rays = {asked}" in text_of(page, "#tab-reconfigure .reconfigure-status"), 10,
+             what=f"the node's answer: back at {asked} rays")
+    assert node.get_param("/turtle_laser/rays") == int(asked)
     tab(page, "topics")
     wait_for(lambda: f"{asked} rays" in text_of(page, RAYS_SHOWN), 20,
              what=lambda: f"the laser drawn with {asked} rays (it shows: {text_of(page, RAYS_SHOWN)!r}; the node "
