@@ -88,6 +88,14 @@ class Page(Browser):
         wait_for(lambda: self.js("const e = document.querySelector(arguments[0]); if (e) e.click(); return !!e;",
                                  selector), timeout, what=f"{selector} to click")
 
+    def tab(self, name):
+        """Clicks a console tab's button as a person does, and waits for its panel (a click the layout moved away
+        from, with no error from the driver, fails here by name); returns the panel."""
+        self.el(f"tab-button-{name}").click()
+        wait_for(lambda: self.el(f"tab-{name}").is_displayed(), 5,
+                 what=f"the {name} tab shown after its button's click")
+        return self.el(f"tab-{name}")
+
     def state(self):
         return self.el("conn").get_attribute("data-state")
 

@@ -11,14 +11,10 @@ from harness import ARTIFACTS, wait_for
 from sensor_messages import Publishing
 
 
-def tab(page, name):
-    page.el(f"tab-button-{name}").click()
-    return page.el(f"tab-{name}")
-
 
 def open_topic(page, topic):
     """Opens a topic from the Topics tab's list, as a person clicks its name."""
-    tab(page, "topics")
+    page.tab("topics")
     # found and clicked in one step: the list is redrawn when a rate changes, which would make a found row stale
     click = f"""const button = document.querySelector('#tab-topics tr[data-topic="{topic}"] button');
                 if (button) button.click();
@@ -108,7 +104,7 @@ def test_turtle_pose_rate_is_turtlesims(open_page):
 
 def test_a_service_called_from_its_generated_form(open_page, ros):
     page = open_page()
-    tab(page, "services")
+    page.tab("services")
     select = Select(page.el("service-name"))
     wait_for(lambda: "/spawn" in options(page, "service-name"), 20, what="/spawn listed")
     select.select_by_value("/spawn")
@@ -142,7 +138,7 @@ def test_a_service_called_from_its_generated_form(open_page, ros):
 def test_parameters_are_listed_edited_with_their_type_and_deleted(open_page, ros):
     ros.run(["rosparam", "set", "/console_gain", "7"])
     page = open_page()
-    tab(page, "params")
+    page.tab("params")
     row = '#tab-params tr[data-param="/console_gain"]'
     wait_for(lambda: page.driver.find_elements(By.CSS_SELECTOR, row), 20, what="/console_gain listed")
     value = page.driver.find_element(By.CSS_SELECTOR, f"{row} input")
@@ -163,7 +159,7 @@ def test_parameters_are_listed_edited_with_their_type_and_deleted(open_page, ros
 
 def test_a_nodes_publications_subscriptions_and_services(open_page):
     page = open_page()
-    tab(page, "nodes")
+    page.tab("nodes")
     select = Select(page.el("node-name"))
     wait_for(lambda: "/turtlesim" in options(page, "node-name"), 20, what="/turtlesim")
     select.select_by_value("/turtlesim")
@@ -174,7 +170,7 @@ def test_a_nodes_publications_subscriptions_and_services(open_page):
 
 def test_log_lines_arrive_and_filter(open_page, node):
     page = open_page()
-    tab(page, "logs")
+    page.tab("logs")
     wait_for(lambda: (node.loginfo("console says hello"), "console says hello" in text_of(page, ".log-lines"))[1],
              20, interval=0.5, what="the log line")
     Select(page.driver.find_element(By.CSS_SELECTOR, "select.log-level")).select_by_value("4")
@@ -277,7 +273,7 @@ def test_a_reload_or_the_link_on_another_device_shows_the_same_topics_plots_and_
     wait_for(lambda: page.driver.find_elements(By.CSS_SELECTOR, leaf), 15, what="the pose's numbers")
     press(page, leaf)  # x
     wait_for(lambda: "/turtle1/pose x" in text_of(page, ".plot-series"), 5, what="the series")
-    tab(page, "services")
+    page.tab("services")
     seen = open_topics(page)
     assert seen == [chatter, "/turtle1/pose"]  # the newest on top
 
@@ -287,7 +283,7 @@ def test_a_reload_or_the_link_on_another_device_shows_the_same_topics_plots_and_
             page.wait_state("connected")
         assert shown_tab(reopened) == "tab-button-services"
         assert reopened.el("tab-topics").get_attribute("hidden") is not None
-        tab(reopened, "topics")
+        reopened.tab("topics")
         wait_for(lambda: open_topics(reopened) == seen, 20, what="the same topics open")
         opened = f'.open-topic[data-topic="{chatter}"]'
         wait_for(lambda: "hello" in text_of(reopened, f"{opened} .message"), 15, what="their messages")
@@ -295,13 +291,13 @@ def test_a_reload_or_the_link_on_another_device_shows_the_same_topics_plots_and_
         reopened.driver.find_element(By.CSS_SELECTOR, f"{opened} .close").click()
     page.driver.refresh()  # closing is kept too
     page.wait_state("connected")
-    tab(page, "topics")
+    page.tab("topics")
     wait_for(lambda: open_topics(page) == ["/turtle1/pose"], 20, what="the closed topic left out")
 
 
 def publish_form(page, topic, msg_type, fields):
     """Fills the Publish tab's topic and type, loads the form and fills its fields ({path: text})."""
-    tab(page, "publish")
+    page.tab("publish")
     for selector, value in ((".publish-topic", topic), (".publish-type", msg_type)):
         box = page.driver.find_element(By.CSS_SELECTOR, f"#tab-publish {selector}")
         box.clear()
@@ -337,7 +333,7 @@ def param_row(page, name):
 def test_a_deleted_parameter_comes_back_with_undo_and_a_refused_value_is_reported(open_page, ros):
     ros.run(["rosparam", "set", "/console_undo", "[1, 2.5, x]"])
     page = open_page()
-    tab(page, "params")
+    page.tab("params")
     row = param_row(page, "/console_undo")
     value = page.driver.find_element(By.CSS_SELECTOR, f"{row} input")
     value.clear()

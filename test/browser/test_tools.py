@@ -25,13 +25,6 @@ def bridge_url(ros, sim, bag_folder):
     proc.stop()
 
 
-def tab(page, name):
-    """Clicks a console tab's button as a person does, and waits for its panel (a click the layout moved away
-    from, with no error from the driver, fails here by name)."""
-    page.el(f"tab-button-{name}").click()
-    wait_for(lambda: page.el(f"tab-{name}").is_displayed(), 5, what=f"the {name} tab shown after its button's click")
-    return page.el(f"tab-{name}")
-
 
 def text_of(page, selector):
     found = page.driver.find_elements(By.CSS_SELECTOR, selector)
@@ -62,7 +55,7 @@ def bag_rows(page):
 
 def test_record_two_seconds_of_the_pose_and_download_the_bag(open_page):
     page = open_page()
-    tab(page, "bags")
+    page.tab("bags")
     page.click('#tab-bags input[type=checkbox][value="/turtle1/pose"]')
     assert "bag=%2Fturtle1%2Fpose" in page.driver.current_url
     page.click("#tab-bags .bag-start")
@@ -88,7 +81,7 @@ def test_record_two_seconds_of_the_pose_and_download_the_bag(open_page):
 
 def test_black_box_save_and_delete_with_confirm(open_page, bag_folder):
     page = open_page()
-    tab(page, "bags")
+    page.tab("bags")
     page.click('#tab-bags input[type=checkbox][value="/turtle1/pose"]')
     page.click("#tab-bags .blackbox-keep")
     wait_for(lambda: "messages" in text_of(page, "#tab-bags .blackbox-state")
@@ -140,7 +133,7 @@ def test_a_recording_that_stops_by_itself_says_why(ros, open_page, tmp_path):
 @pytest.mark.parametrize("screen", ["desktop", "phone"])
 def test_bags_screenshots(open_page, screen):
     page = open_page(screen)
-    tab(page, "bags")
+    page.tab("bags")
     page.click('#tab-bags input[type=checkbox][value="/turtle1/pose"]')
     wait_for(lambda: text_of(page, "#tab-bags .bag-list tbody"), 10, what="the bags listed")
     shot(page, f"tools-bags-{screen}")
@@ -175,7 +168,7 @@ def type_into(page, selector, text):
 def open_reconfigure(page, node, param="int_"):
     """Chooses node in the Reconfigure tab and waits for its form, with param's value shown."""
     from selenium.webdriver.support.ui import Select
-    tab(page, "reconfigure")
+    page.tab("reconfigure")
     wait_for(lambda: node in page.js("return [...document.querySelectorAll('#reconfigure-node option')]"
                                      ".map(o => o.value)"), 20, what=f"{node} listed")
     Select(page.el("reconfigure-node")).select_by_value(node)
@@ -258,7 +251,7 @@ def fibonacci(ros):
 
 def open_action(page, server):
     from selenium.webdriver.support.ui import Select
-    tab(page, "actions")
+    page.tab("actions")
     wait_for(lambda: server in page.js("return [...document.querySelectorAll('#action-server option')]"
                                        ".map(o => o.value)"), 20, what=f"{server} listed")
     Select(page.el("action-server")).select_by_value(server)
@@ -409,22 +402,21 @@ def test_the_demo_lasers_rays_changed_in_the_reconfigure_tab_show_in_the_laser_v
     assert "double 0.5 … 40" in text_of(page, f"{field(page, 'rate')} label")
     rays = f"{field(page, 'rays')} input.reconfigure-number"
     asked = {"desktop": "90", "phone": "45"}[screen]
-    type_into(page, rays, asked)
-    wait_for(lambda: f"answered: rays = {asked}" in text_of(page, "#tab-reconfigure .reconfigure-status"), 10,
-             what="the node's answer")
-    assert node.get_param("/turtle_laser/rays") == int(asked)
+
+    def set_rays():  # and wait for the page's answer, as a person does (it may move the layout: see below)
+        type_into(page, rays, asked)
+        wait_for(lambda: f"answered: rays = {asked}" in text_of(page, "#tab-reconfigure .reconfigure-status"), 10,
+                 what=f"the node's answer: {asked} rays")
+        assert node.get_param("/turtle_laser/rays") == int(asked)
+    set_rays()
     type_into(page, rays, "5000")  # beyond the range: the node runs its maximum, and the form says so
     wait_for(lambda: "set 1440" in text_of(page, f"{field(page, 'rays')} .err"), 10, what="the clamp said")
     assert "above the maximum 1440" in text_of(page, f"{field(page, 'rays')} .err")
     shot(page, f"tools-demo-laser-reconfigure-{screen}", f"{field(page, 'rays')}" if screen == "phone" else ".console")
     if screen == "phone":
         assert small_controls(page, "reconfigure") == []
-    type_into(page, rays, asked)
-    # (the page's answer, as a person waits for it: it takes the clamp's message away, and the layout moves)
-    wait_for(lambda: f"answered: rays = {asked}" in text_of(page, "#tab-reconfigure .reconfigure-status"), 10,
-             what=f"the node's answer: back at {asked} rays")
-    assert node.get_param("/turtle_laser/rays") == int(asked)
-    tab(page, "topics")
+    set_rays()  # (the answer takes the clamp's message away: the phone's layout moves under the tab buttons)
+    page.tab("topics")
     wait_for(lambda: f"{asked} rays" in text_of(page, RAYS_SHOWN), 20,
              what=lambda: f"the laser drawn with {asked} rays (it shows: {text_of(page, RAYS_SHOWN)!r}; the node "
                           f"runs {node.get_param('/turtle_laser/rays')}; the page: {laser_viewer_state(page)})")
@@ -482,7 +474,7 @@ def shown_tools(page):
 
 def test_a_reload_and_a_copied_link_keep_the_open_tools(open_page, reconfigurable, fibonacci):
     page = open_page()
-    tab(page, "bags")
+    page.tab("bags")
     page.click('#tab-bags input[type=checkbox][value="/turtle1/pose"]')
     page.click('#tab-bags input[type=checkbox][value="/rosout"]')
     open_action(page, fibonacci)
