@@ -30,12 +30,23 @@ def add_noise(ranges, sigma, range_max, gauss):
     return [r if math.isinf(r) else min(range_max, max(RANGE_MIN, r + gauss(0.0, sigma))) for r in ranges]
 
 
-def finite_settings(requested, previous):
-    """The settings to run with, and the names of those refused: dynamic_reconfigure's Server clamps each value to
-    its range, but NaN compares false with both ends and passes; a value that is not a finite number keeps its
-    previous one."""
-    refused = [name for name, value in requested.items() if not math.isfinite(value)]
-    return {**requested, **{name: previous[name] for name in refused}}, refused
+def usable_settings(requested, previous):
+    """The settings to run with, and the names of those refused. dynamic_reconfigure's Server clamps each value to
+    its range, but NaN compares false with both ends and passes, and a value comes with the type its sender gave
+    it (a double named `rays` from a web page's form passes the clamp). A value that is not a finite number of the
+    previous value's kind keeps the previous one; an integral double for an integer setting is taken as an int."""
+    settings, refused = dict(requested), []
+    for name, value in requested.items():
+        kind = type(previous[name])
+        usable = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+        if usable and kind is int and value != int(value):
+            usable = False
+        if usable:
+            settings[name] = kind(value)
+        else:
+            settings[name] = previous[name]
+            refused.append(name)
+    return settings, refused
 
 
 def _to_walls(x, y, dx, dy):

@@ -12,7 +12,7 @@ code can drift from the generator; the module is installed with the package (cat
 at run time instead would need those same templates, a writable place and the generator's command-line calling
 convention, for nothing gained.
 The Server reads the private parameters at start (`_rays:=90` works), clamps every value to its range and keeps the
-parameters in step; the callback also refuses what the clamp lets through (NaN)."""
+parameters in step; the callback also refuses what the clamp lets through (NaN, a fraction for `rays`)."""
 import math
 import random
 import threading
@@ -23,7 +23,7 @@ from dynamic_reconfigure.server import Server
 from sensor_msgs.msg import LaserScan
 
 from turtlesim.cfg import LaserConfig
-from turtlesim.laser import RANGE_MIN, add_noise, finite_settings, scan
+from turtlesim.laser import RANGE_MIN, add_noise, scan, usable_settings
 from turtlesim.pose_watch import PoseWatch
 
 SETTINGS = tuple(LaserConfig.defaults)  # rate, rays, range_max, noise
@@ -39,9 +39,10 @@ class Laser:
 
     def reconfigure(self, config, _level):
         """dynamic_reconfigure's callback (on its service thread): the configuration it answers is what we run."""
-        settings, refused = finite_settings({name: config[name] for name in SETTINGS}, self.settings)
+        settings, refused = usable_settings({name: config[name] for name in SETTINGS}, self.settings)
         for name in refused:
-            rospy.logwarn("%s must be a finite number, not %s: it stays %s", name, config[name], settings[name])
+            rospy.logwarn("%s must be a finite %s, not %r: it stays %s", name, type(settings[name]).__name__,
+                          config[name], settings[name])
         config.update(settings)
         self.settings = settings
         self.reconfigured.set()

@@ -84,6 +84,22 @@ def test_the_lasers_settings_change_what_it_publishes_and_out_of_range_values_ar
     answer = laser_settings.update_configuration({"rate": math.nan, "rays": 180, "noise": 0.0})
     assert (answer["rate"], answer["rays"]) == (40.0, 180)
     assert latest(node, "/turtle1/scan", LaserScan, lambda m: len(m.ranges) == 180).scan_time == pytest.approx(1 / 40)
+    # a double for the integer `rays` (a web page's call, which dynamic_reconfigure's Client would have made an int)
+    # passes the clamp: refused, and the node scans on; an integral one is taken
+    assert reconfigure_raw(node, rays=100.5)["rays"] == 180
+    assert reconfigure_raw(node, rays=120.0)["rays"] == 120
+    assert len(latest(node, "/turtle1/scan", LaserScan, lambda m: len(m.ranges) == 120).ranges) == 120
+
+
+def reconfigure_raw(node, **doubles):
+    """The laser's set_parameters service called with these values as doubles, as a rosbridge client may: its
+    answer as a dict."""
+    from dynamic_reconfigure.encoding import decode_config
+    from dynamic_reconfigure.msg import Config, DoubleParameter
+    from dynamic_reconfigure.srv import Reconfigure
+    call = node.ServiceProxy("/turtle_laser/set_parameters", Reconfigure)
+    config = Config(doubles=[DoubleParameter(name, value) for name, value in doubles.items()])
+    return decode_config(call(config).config)
 
 
 def test_the_lasers_start_up_parameters_are_read_and_clamped_too(demo, node, ros):

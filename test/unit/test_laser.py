@@ -5,7 +5,7 @@ import statistics
 
 import pytest
 
-from turtlesim.laser import RANGE_MIN, TURTLE_RADIUS, add_noise, finite_settings, scan
+from turtlesim.laser import RANGE_MIN, TURTLE_RADIUS, add_noise, scan, usable_settings
 from turtlesim.sim import HEIGHT, WIDTH
 
 
@@ -51,9 +51,16 @@ def test_noise_moves_finite_ranges_within_the_lasers_limits_and_leaves_inf():
     assert statistics.stdev(spread) == pytest.approx(0.2, rel=0.1)
 
 
-def test_a_setting_that_is_not_a_finite_number_keeps_its_previous_value():
+def test_a_setting_that_is_not_a_finite_number_of_its_kind_keeps_its_previous_value():
     previous = {"rate": 10.0, "rays": 360, "range_max": 12.0, "noise": 0.0}
-    settings, refused = finite_settings({"rate": math.nan, "rays": 90, "range_max": math.inf, "noise": 0.1}, previous)
+    settings, refused = usable_settings({"rate": math.nan, "rays": 90, "range_max": math.inf, "noise": 0.1}, previous)
     assert settings == {"rate": 10.0, "rays": 90, "range_max": 12.0, "noise": 0.1}
     assert refused == ["rate", "range_max"]
-    assert finite_settings(previous, previous) == (previous, [])
+    assert usable_settings(previous, previous) == (previous, [])
+    # a double for the integer `rays` (a web form's number): integral ones are taken as ints, fractions refused
+    settings, refused = usable_settings({**previous, "rays": 100.5, "rate": 5}, previous)
+    assert (settings["rays"], settings["rate"], refused) == (360, 5.0, ["rays"])
+    settings, _ = usable_settings({**previous, "rays": 90.0}, previous)
+    assert settings["rays"] == 90 and type(settings["rays"]) is int
+    for junk in ("90", True, None, [90]):
+        assert usable_settings({**previous, "rays": junk}, previous) == (previous, ["rays"])
