@@ -145,6 +145,42 @@ def test_slow_client_skips_to_the_newest_and_is_told(bridge, node):
     pub.unregister()
 
 
+def test_a_latched_message_lives_with_its_publisher_and_each_publisher_gives_its_own(bridge, node, ros):
+    """As ROS does: a later subscriber gets the latched message of every publisher still there (two static TF
+    broadcasters each latch their own /tf_static), and none of one that left ("Publishers: None")."""
+    from std_msgs.msg import String
+    topic = "/clients_test/latched_two"
+    here = node.Publisher(topic, String, queue_size=1, latch=True)
+    here.publish(String("from the test"))
+    there = ros.spawn(["rostopic", "pub", "-l", topic, "std_msgs/String", "data: 'from rostopic'"], "latched_pub")
+    wait_for(lambda: len(publishers_of(ros, topic)) == 2, 20, what="two publishers")
+    first, second = connect(bridge), connect(bridge)
+    try:
+        first.send({"op": "subscribe", "topic": topic, "type": "std_msgs/String"})
+        texts = {first.recv_op("publish")["msg"]["data"] for _ in range(2)}
+        assert texts == {"from the test", "from rostopic"}
+        second.send({"op": "subscribe", "topic": topic, "type": "std_msgs/String"})  # the bridge keeps both
+        assert {second.recv_op("publish")["msg"]["data"] for _ in range(2)} == texts
+        there.stop()
+        wait_for(lambda: len(publishers_of(ros, topic)) == 1, 20, what="rostopic pub to leave")
+        time.sleep(1.0)  # (its connection to the bridge has closed by then)
+        here.unregister()
+        wait_for(lambda: not publishers_of(ros, topic), 20, what="the test's publisher to leave")
+        time.sleep(1.0)
+        third = connect(bridge)
+        try:
+            third.send({"op": "subscribe", "topic": topic, "type": "std_msgs/String"})
+            with pytest.raises(TimeoutError):
+                got = third.recv_op("publish", timeout=2.0)
+                print("a message of a publisher gone:", got)
+        finally:
+            third.close()
+    finally:
+        first.close()
+        second.close()
+        here.unregister()
+
+
 def test_a_later_subscriber_gets_the_latched_message(bridge, node):
     from std_msgs.msg import String
     pub = node.Publisher("/clients_test/latched", String, queue_size=1, latch=True)

@@ -69,8 +69,9 @@ class Link(Transport):
 
 class InboundLink(Link):
     """The bridge subscribed to one publisher of a topic. A plain non-blocking socket watched by the loop: each
-    time it is readable, one read, and the messages completed go to deliver(messages, latching) - no future or
-    coroutine step per message, which a topic at a fixed rate would pay on every message."""
+    time it is readable, one read, and the messages completed go to deliver(messages, latched_by) (this link if the
+    publisher latches, else None) - no future or coroutine step per message, which a topic at a fixed rate would
+    pay on every message."""
 
     def __init__(self, loop, topic, cls, publisher_uri, family, address, deliver):
         super().__init__(loop, INBOUND, topic)
@@ -159,7 +160,7 @@ class InboundLink(Link):
             messages = self._reader.feed(chunk)
         if messages and not self.done:
             self.stat_num_msg += len(messages)
-            self._deliver(messages, self._latching)
+            self._deliver(messages, self if self._latching else None)
 
     def _read_reply(self, chunk):
         """The publisher's header, the first frame it sends: True once it is read and accepts us."""
@@ -277,7 +278,7 @@ class OutboundLink(Link):
 class TopicLinks(ProtocolHandler):
     """TCPROS for the topics of the bridge's clients. Its tables are written on the worker (before the rospy
     object is made, after it is dropped) and read on rospy's threads and the loop (dict reads: atomic):
-    - subscriptions: topic -> (genpy class, deliver(messages, latching) called on the loop);
+    - subscriptions: topic -> (genpy class, deliver(messages, latched_by) called on the loop);
     - publications: topic -> an object with `cls`, `latch`, `queue_size`, `closed` and `attach(link)` (loop).
     Other topics go to rospy's own handler (`fallback`)."""
 

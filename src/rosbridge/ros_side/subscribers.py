@@ -24,7 +24,10 @@ class TopicSubscriber:
         self.asked = {}  # session -> the type it asked for, checked once the type is known (loop)
         self.ready = False  # (loop)
         self.active = True  # False once every client left: messages still read are dropped (loop)
-        self.latched = None  # the last message of a latched topic, for clients that subscribe later (loop)
+        # link -> the last message of each latching publisher, for clients that subscribe later (loop): as in ROS,
+        # each publisher latches its own (two static TF broadcasters on /tf_static), and a message goes with
+        # its publisher (its link done: rospy would not give it to a new subscriber either)
+        self.latched = {}
         self._subscriber = None  # (worker)
         self._class = None  # the messages' genpy class: set on the worker before the links may use it
 
@@ -56,16 +59,24 @@ class TopicSubscriber:
         if self._subscriber is not None:
             self._subscriber.unregister()
 
-    def _deliver(self, messages, latching):
-        """On the loop: messages (their bytes) read from one publisher."""
+    def latched_messages(self):
+        """The latched messages of the publishers still linked (loop)."""
+        for link in [link for link in self.latched if link.done]:
+            del self.latched[link]
+        return list(self.latched.values())
+
+    def _deliver(self, messages, latched_by):
+        """On the loop: messages (their bytes) read from one publisher: its link if it latches, else None."""
         if not self.active:
             return
         topic, cls, stamp = self.topic, self._class, time.time()
         with self._deliveries():
             for data in messages:
                 message = TopicMessage(topic, cls, data, stamp)
-                if latching:
-                    self.latched = message
+                if latched_by is not None:
+                    if latched_by not in self.latched:  # a new publisher: forget those gone
+                        self.latched_messages()
+                    self.latched[latched_by] = message
                 for session in self._clients(topic):
                     try:
                         session.deliver(message)
@@ -97,9 +108,9 @@ class Subscribers:
             return
         self._holders.add(topic, session)
         entry.asked[session] = type_name
-        if entry.latched is not None:
-            latched = entry.latched
-            self._loop.add_callback(lambda: session.deliver(latched))
+        latched = entry.latched_messages()
+        if latched:
+            self._loop.add_callback(lambda: [session.deliver(message) for message in latched])
 
     def _made(self, entry, error, made_type):
         topic = entry.topic
