@@ -308,7 +308,11 @@ export class RosSession {
   }
 }
 
-// The bridge serves this page and the websocket on the same host, port and path.
+// The bridge serves this page and the websocket at the same address: the page's folder, path included (a reverse
+// proxy may put the bridge at https://robots.example/rover1/), without its file name, query or fragment. The
+// session's stream, bag and cloud addresses are relative to it.
 export function bridgeUrl(loc = window.location) {
-  return `${loc.protocol === 'https:' ? 'wss' : 'ws'}://${loc.host}/`;
+  const url = new URL('.', loc.href);
+  url.protocol = loc.protocol === 'https:' ? 'wss:' : 'ws:';
+  return url.href;
 }

@@ -21,13 +21,14 @@ CHROMIUM_FLAGS = ["--headless=new", "--no-sandbox", "--disable-gpu", "--disable-
 
 
 class Browser:
-    """One Chromium with its own profile; `driver` is the Selenium WebDriver."""
+    """One Chromium with its own profile, started with CHROMIUM_FLAGS and `flags`; `driver` is the Selenium
+    WebDriver."""
 
-    def __init__(self, screen, mobile=False):
+    def __init__(self, screen, mobile=False, flags=()):
         self.profile = tempfile.mkdtemp(prefix="chromium-profile-")
         options = webdriver.ChromeOptions()
         options.binary_location = "/usr/bin/chromium"
-        for flag in CHROMIUM_FLAGS:
+        for flag in (*CHROMIUM_FLAGS, *flags):
             options.add_argument(flag)
         options.add_argument(f"--user-data-dir={self.profile}")
         options.add_argument(f"--window-size={screen['width']},{screen['height']}")
@@ -68,8 +69,8 @@ class Browser:
 class Page(Browser):
     """The control page loaded from the bridge, connected."""
 
-    def __init__(self, url, screen, mobile):
-        super().__init__(screen, mobile)
+    def __init__(self, url, screen, mobile, flags=()):
+        super().__init__(screen, mobile, flags)
         self.url = url
         self.driver.get("about:blank")
         self.network_urls()  # forget the browser's own start-up requests
@@ -178,11 +179,12 @@ def bridge_url(ros, sim):
 
 @pytest.fixture
 def open_page(bridge_url):
-    """open_page("desktop"|"phone", url=the shared bridge) -> Page, connected; closed after the test."""
+    """open_page("desktop"|"phone", url=the shared bridge, flags=more Chromium flags) -> Page, connected; closed
+    after the test."""
     pages = []
 
-    def open_(screen="desktop", url=None):
-        pages.append(Page(url or bridge_url, SCREENS[screen], mobile=screen == "phone"))
+    def open_(screen="desktop", url=None, flags=()):
+        pages.append(Page(url or bridge_url, SCREENS[screen], mobile=screen == "phone", flags=flags))
         return pages[-1]
 
     yield open_
