@@ -1,12 +1,15 @@
-"""Who may use the bridge's HTTP endpoints beside the websocket (the camera streams, the bags): the same rules as
-the websocket. A request from a web page (an Origin header) must come from a page allowed_origins allows; with
-`authenticate`, the rosauth fields (as the `auth` op has them) come as query parameters."""
+"""Who may use the bridge over HTTP. Every request, the websocket's handshake and the page included, must be
+addressed to this bridge by its Host (host_checked: against DNS rebinding). The endpoints beside the websocket (the
+camera streams, the bags, the clouds) then have the websocket's rules: a request from a web page (an Origin
+header) must come from a page allowed_origins allows; with `authenticate`, the rosauth fields (as the `auth` op has
+them) come as query parameters."""
 import time
 
+import tornado.routing
 import tornado.web
 
 from rosbridge.auth import mac_is_valid
-from rosbridge.origins import origin_allowed
+from rosbridge.origins import host_allowed, host_name, origin_allowed, own_names
 from rosbridge.pages import SECURITY_HEADERS
 
 AUTH_FIELDS = ("mac", "client", "dest", "rand", "t", "level", "end")
@@ -22,13 +25,12 @@ def refusal(bridge, request, what):
     """(status, text) if `request` (a tornado HTTPServerRequest for `what`, e.g. "a camera stream") is refused by
     the origin rules or authentication, else None."""
     origin = request.headers.get("Origin")
-    if origin is not None:
-        same_origin = origin.lower().partition("://")[2] == request.host.lower()
-        if not origin_allowed(origin, same_origin, request.remote_ip, bridge.allowed_origins):
-            bridge.log_refusal((what, origin), f"Refused {what} requested by the web page at origin {origin} "
-                               f"(browser at {request.remote_ip}); allowed_origins decides, as for the websocket")
-            return 403, (f"Cross origin requests not allowed: the web page at {origin} may not use this bridge "
-                         "(allowed_origins)")
+    if origin is not None and not origin_allowed(origin, request.host, request.remote_ip, bridge.allowed_origins,
+                                                 bridge.allowed_hosts):
+        bridge.log_refusal((what, origin), f"Refused {what} requested by the web page at origin {origin} "
+                           f"(browser at {request.remote_ip}); allowed_origins decides, as for the websocket")
+        return 403, (f"Cross origin requests not allowed: the web page at {origin} may not use this bridge "
+                     "(allowed_origins)")
     config = bridge.config
     if config.authenticate:
         text = _auth_refusal(request.query_arguments, config)
@@ -52,6 +54,25 @@ def _auth_refusal(args, config):
     return None
 
 
+def host_checked(bridge, table):
+    """The route table `table` for the requests addressed to this bridge (origins.host_allowed), and every other
+    request refused (MisdirectedRequest)."""
+    own_names()  # (this machine's full name is asked of the resolver now, at start, not by the first request)
+    return [tornado.routing.Rule(_HostMatches(bridge, True), table),
+            tornado.routing.Rule(_HostMatches(bridge, False), MisdirectedRequest, {"bridge": bridge})]
+
+
+class _HostMatches(tornado.routing.Matcher):
+    """The requests whose Host the bridge answers to (allowed True), or the others."""
+
+    def __init__(self, bridge, allowed):
+        self.bridge, self.allowed = bridge, allowed
+
+    def match(self, request):
+        allowed = host_allowed(request.host, self.bridge.allowed_origins, self.bridge.allowed_hosts)
+        return {} if allowed == self.allowed else None
+
+
 class EndpointHandler(tornado.web.RequestHandler):
     """What the endpoints' handlers share: the page's security headers, answers never cached (CACHE_CONTROL),
     and refusals as plain text."""
@@ -72,3 +93,25 @@ class EndpointHandler(tornado.web.RequestHandler):
         if status == 401:
             self.set_header("WWW-Authenticate", 'rosauth realm="rosbridge"')
         self.finish(text + "\n")
+
+
+class MisdirectedRequest(EndpointHandler):
+    """Any request (any method, a websocket's handshake too) addressed to a Host that is not this bridge's."""
+    SHOWN = 200  # characters of the Host shown and logged
+
+    def initialize(self, bridge):
+        self.bridge = bridge
+
+    def prepare(self):
+        request, host, name = self.request, self.request.host[:self.SHOWN], host_name(self.request.host)
+        if name is None:
+            self.refuse(400, f"Host {host} is not a host name or address (with maybe a port)")
+            return
+        advice = f'allowed_hosts:="[{", ".join([*(self.bridge.allowed_hosts or []), name[:self.SHOWN]])}]"'
+        self.bridge.log_refusal(("host", host), f"Refused a request addressed to Host {host} (from "
+                                f"{request.remote_ip}, for {request.path[:self.SHOWN]}): not a name of this machine "
+                                "(a DNS-rebinding page re-points a name of its own here), nor one that allowed_hosts "
+                                "or allowed_origins allows. To allow it, e.g. a reverse proxy's public name: "
+                                f"roslaunch turtlesim rosbridge_websocket.launch {advice}")
+        self.refuse(403, f"Host {host} is not a name of this bridge's machine: refused (DNS rebinding). If it is a "
+                    f"name of yours (a reverse proxy's), start the bridge with {advice} (README, Security)")

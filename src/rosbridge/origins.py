@@ -1,26 +1,61 @@
-"""Which web pages may open a websocket: the browser sends the page's origin, and a robot on a network must not
-be driven by whatever site its user happens to browse. Clients that send no Origin are not browsers."""
+"""Who may use the bridge from a browser, against pages of other sites and DNS rebinding (a site whose name the
+attacker's DNS re-points at this machine: the browser then sends the site's requests here, as to the site itself).
+
+- Host: every request (HTTP or a websocket's handshake) must be addressed to this bridge: a name or address of
+  this machine, a name allowed_hosts allows (a reverse proxy's public name), or the site of a page allowed_origins
+  allows. Browsers always send Host, the name in the page's address; a request without one (an HTTP/1.0 script)
+  is no browser's, and Tornado takes it as addressed to 127.0.0.1.
+- Origin: browsers send the page's origin with a websocket and a cross-site request, and a robot on a network
+  must not be driven by whatever site its user happens to browse. Clients that send no Origin are not browsers."""
 import fnmatch
+import functools
 import ipaddress
+import os
+import re
 import socket
 import urllib.parse
 
+HOST = re.compile(r"(\[[0-9a-f:.]+\]|[^\s:/@\[\]]+)(:[0-9]*)?")  # a name or address (IPv6 in brackets), a port
 
-def origin_allowed(origin, same_origin, peer, patterns):
-    """Whether a browser page of `origin` may open a websocket (clients that send no Origin are not browsers
-    and are not asked). `same_origin`: the page came from this bridge (its Host); `peer`: the browser's address;
-    `patterns`: the allowed_origins launch arg, None when empty.
 
-    The bridge's own page, reached by a name of this machine, is always allowed. Otherwise allowed_origins
-    decides when it is set; by default pages of this machine on any port (by localhost, its name or one of its
-    addresses: a DNS-rebinding name is refused), and pages opened from disk (Origin "null") when the browser
-    runs on this machine (README, Security: a sandboxed frame sends "null" too)."""
+def host_name(host):
+    """The name or address a Host header names, lowercase, without port, brackets or a final dot
+    ("Robots.Example.:8443" -> "robots.example", "[::1]:9090" -> "::1"); None when it is not a host."""
+    match = HOST.fullmatch(host.lower())
+    return match and match[1].strip("[]").rstrip(".") or None
+
+
+def host_allowed(host, patterns, host_patterns):
+    """Whether a request whose Host header is `host` is addressed to this bridge: this machine (is_this_machine), a
+    host `host_patterns` (allowed_hosts: its name, or name:port) allow, or a page's site that `patterns`
+    (allowed_origins, over http or https) allow. Patterns: case-insensitive fnmatch, None when the setting is empty."""
+    host = host.lower()
+    name = host_name(host)
+    if name is None:
+        return False
+    if any(fnmatch.fnmatchcase(text, pattern.lower()) for pattern in host_patterns or () for text in (name, host)):
+        return True
+    if any(fnmatch.fnmatchcase(f"{scheme}://{host}", pattern.lower())
+           for pattern in patterns or () for scheme in ("http", "https")):
+        return True
+    return is_this_machine(name)
+
+
+def origin_allowed(origin, host, peer, patterns, host_patterns=None):
+    """Whether a browser page of `origin` may open a websocket or use an endpoint (clients that send no Origin
+    are not browsers and are not asked). `host`: the request's Host; `peer`: the browser's address; `patterns`,
+    `host_patterns`: the allowed_origins and allowed_hosts settings, None when empty.
+
+    The bridge's own page (its origin is the request's Host, one host_allowed allows) is always allowed. Otherwise
+    allowed_origins decides when it is set; by default pages of this machine on any port (by localhost, its name
+    or one of its addresses: a DNS-rebinding name is refused), and pages opened from disk (Origin "null") when the
+    browser runs on this machine (README, Security: a sandboxed frame sends "null" too)."""
     origin = origin.lower()
     try:
         url = urllib.parse.urlsplit(origin)
     except ValueError:  # e.g. an unbalanced "[": no page has that origin
         return False
-    if same_origin and is_this_machine(url.hostname or ""):
+    if origin.partition("://")[2] == host.lower() and host_allowed(host, patterns, host_patterns):
         return True
     if patterns is not None:
         return any(fnmatch.fnmatchcase(origin, pattern.lower()) for pattern in patterns)
@@ -30,8 +65,10 @@ def origin_allowed(origin, same_origin, peer, patterns):
 
 
 def is_this_machine(host):
-    """localhost, this machine's host name, or one of its addresses (loopback included)."""
-    if host in ("localhost", socket.gethostname().lower()):
+    """localhost and its subdomains (RFC 6761: browsers take them as loopback), this machine's names (own_names),
+    or one of its addresses (loopback included). `host`: lowercase."""
+    host = host.rstrip(".")
+    if host == "localhost" or host.endswith(".localhost") or host in own_names():
         return True
     try:
         address = ipaddress.ip_address(host)
@@ -47,3 +84,19 @@ def is_this_machine(host):
         except OSError:
             return False
     return True
+
+
+def own_names():
+    """This machine's names, lowercase: its host name and that name's first label, the first label in .local (mDNS:
+    a Raspberry Pi is reached as raspberrypi.local), its fully qualified name, and ROS_HOSTNAME and ROS_IP."""
+    name = socket.gethostname().lower()
+    short = name.partition(".")[0]
+    names = {name, short, short + ".local", _fully_qualified(name),
+             *(os.environ.get(variable, "").lower().rstrip(".") for variable in ("ROS_HOSTNAME", "ROS_IP"))}
+    names.discard("")
+    return names
+
+
+@functools.lru_cache(maxsize=4)
+def _fully_qualified(name):
+    return socket.getfqdn(name).lower()  # the resolver's answer, asked once (a slow DNS must not hold requests)

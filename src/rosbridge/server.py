@@ -23,6 +23,7 @@ from rosbridge.borrowed import handle_connection
 from rosbridge.cloud_pages import cloud_routes
 from rosbridge.globs import Globs, parse_globs
 from rosbridge.heap import reuse_big_buffers
+from rosbridge.http_access import host_checked
 from rosbridge.off_loop import EncodingThread
 from rosbridge.pages import PageFiles, missing_files
 from rosbridge.ros_side import RosBackend
@@ -40,13 +41,14 @@ IDLE_TIMEOUT = 10.0  # seconds
 class Bridge:
     """What every connection shares: the ROS side, the protocol settings and the connection policy."""
 
-    def __init__(self, backend, config, settings, writes, allowed_origins=None):
+    def __init__(self, backend, config, settings, writes, allowed_origins=None, allowed_hosts=None):
         self.backend, self.config, self.settings = backend, config, settings
         self.writes = writes  # when the clients' queued frames are written (write_turns.py)
         self.encoder = EncodingThread(tornado.ioloop.IOLoop.current())  # big messages are encoded off the loop
         # big messages deflated for the clients whose link is slow (websocket.py): a thread apart from the encoder's
         self.deflater = EncodingThread(tornado.ioloop.IOLoop.current(), name="rosbridge-deflate")
         self.allowed_origins = allowed_origins  # None: same host only (and clients that send no Origin)
+        self.allowed_hosts = allowed_hosts  # None: this machine's names (and allowed_origins' sites)
         self.clients = set()
         self._logged = {}
 
@@ -81,13 +83,14 @@ class Bridge:
 def routes(bridge, web_root, recorder=None):
     """The route table: "/" is the websocket (and the page), /bags the bag recorder (bag_pages.py), /stream,
     /snapshot, /stream_viewer and /streams the camera streams (streams.py), /cloud the point clouds made small
-    (cloud_pages.py), other paths are files of web_root."""
+    (cloud_pages.py), other paths are files of web_root; a request addressed to a Host not this bridge's is refused
+    whatever its path (http_access.host_checked)."""
     index = Path(web_root) / "index.html" if web_root else None
     table = [(r"/", BridgeSocket, {"bridge": bridge, "index_page": index if index and index.is_file() else None}),
              *stream_routes(bridge), *bag_routes(bridge, recorder), *cloud_routes(bridge)]
     if web_root:
         table.append((r"/(.+)", PageFiles, {"path": str(web_root)}))
-    return table
+    return host_checked(bridge, table)  # every request, by its Host (DNS rebinding)
 
 
 def raise_fd_limit():
@@ -102,7 +105,7 @@ def main():
     try:
         current = Settings(lambda name: rospy.get_param("~" + name, None))
         globs = Globs.parse(current.topics_glob, current.services_glob, current.params_glob)
-        origins = parse_globs(current.allowed_origins)
+        origins, hosts = parse_globs(current.allowed_origins), parse_globs(current.allowed_hosts)
     except ValueError as error:
         rospy.logfatal("%s", error)
         raise SystemExit(1)
@@ -120,7 +123,7 @@ def main():
     writes = WriteTurns(loop.add_callback)
     backend = RosBackend(loop, rosapi=rosapi, unregister_timeout=current.unregister_timeout,
                          stop_drivers_leaving=current.deadman_timeout > 0, deliveries=writes.delivering)
-    bridge = Bridge(backend, config, current, writes, allowed_origins=origins)
+    bridge = Bridge(backend, config, current, writes, allowed_origins=origins, allowed_hosts=hosts)
     backend.set_client_count(0)
     if current.deadman_timeout > 0:
         DriverLeases(bridge, current.deadman_timeout).start()

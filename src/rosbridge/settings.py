@@ -63,6 +63,10 @@ SETTINGS = (
     Setting("allowed_origins", str, "",
             'web pages allowed to connect, e.g. `"[http://*.lan:*]"`; `"[*]"` = any; empty = this machine\'s '
             "pages (see Security); the bridge's own page is always allowed", ours=True),
+    Setting("allowed_hosts", str, "",
+            "names a request may be addressed to (its `Host`) besides this machine's and the sites "
+            '`allowed_origins` allows, e.g. a reverse proxy\'s public name `"[robots.example, *.lan]"`; `"[*]"` = '
+            "any; others are refused against DNS rebinding (see Security)", ours=True),
     Setting("web_root", str, "", "folder served over HTTP; empty = the package's `web/`; `none` = no page",
             ours=True),
 )

@@ -79,11 +79,10 @@ class BridgeSocket(tornado.web.RequestHandler):
     def _policy_refusal(self, origin):
         """(status, text) if the bridge turns this client away: a web page it does not allow, or too many."""
         bridge, peer = self.bridge, self.request.remote_ip
-        if origin is not None:
-            same_origin = origin.lower().partition("://")[2] == self.request.host.lower()
-            if not origin_allowed(origin, same_origin, peer, bridge.allowed_origins):
-                bridge.refused_origin(origin, peer)
-                return 403, "Cross origin websockets not allowed"
+        if origin is not None and not origin_allowed(origin, self.request.host, peer, bridge.allowed_origins,
+                                                     bridge.allowed_hosts):
+            bridge.refused_origin(origin, peer)
+            return 403, "Cross origin websockets not allowed"
         if len(bridge.clients) >= bridge.settings.max_clients:
             bridge.log_refusal("max_clients", f"a client refused: {len(bridge.clients)} connected "
                                f"(max_clients {bridge.settings.max_clients})")

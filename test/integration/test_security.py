@@ -1,5 +1,6 @@
-"""Security of live bridges: the listening address, the origin allow-list, the globs as a wall (not only a
-filter of rosapi lists), rosauth authentication that cannot be bypassed, TLS, and the message size limit."""
+"""Security of live bridges: the listening address, the origin allow-list, the Host check (DNS rebinding), the
+globs as a wall (not only a filter of rosapi lists), rosauth authentication that cannot be bypassed, TLS, and the
+message size limit."""
 import hashlib
 import json
 import socket
@@ -16,6 +17,7 @@ import tornado.httpclient
 
 from bridge_client import WsClient, ping
 from harness import make_workdir, start_bridge, wait_for
+from sensor_messages import big_cloud
 
 SECRET = "fuzz-and-security-secret"
 
@@ -144,6 +146,119 @@ def test_default_refuses_a_dns_rebinding_page(default_bridge):
     Host and Origin of that name, so "same host" holds, yet the page is not one the user trusts."""
     host = f"rebind.example:{default_bridge}"
     assert refused_with_403(default_bridge, f"http://{host}", host_header=host)
+
+
+# ---- Host: DNS rebinding ---------------------------------------------------------------------------------------
+REBIND = "/sec_rebind"
+BAG_BYTES = b"#ROSBAG V2.0\n" + bytes(range(256))
+
+
+@pytest.fixture(scope="module")
+def rebind_bridge(ros, node, tmp_path_factory):
+    """A bridge that has something to steal: a bag, a latched camera picture and a latched cloud; and a reverse
+    proxy's public name in allowed_hosts. (proc, port)."""
+    from sensor_msgs.msg import Image, PointCloud2
+    folder = tmp_path_factory.mktemp("rebind_bags")
+    (folder / "run.bag").write_bytes(BAG_BYTES)
+    camera = node.Publisher(f"{REBIND}/camera", Image, queue_size=1, latch=True)
+    camera.publish(Image(width=4, height=2, encoding="mono8", step=4, data=bytes(8)))
+    cloud = node.Publisher(f"{REBIND}/cloud", PointCloud2, queue_size=1, latch=True)
+    cloud.publish(big_cloud(100))
+    proc, port = start_bridge(ros, node_name="security_rebind_bridge", bag_folder=str(folder),
+                              allowed_hosts="[robots.example, *.robots.lan]")
+    yield proc, port
+    proc.stop()
+    camera.unregister()
+    cloud.unregister()
+
+
+def browser_get(port, path, host):
+    """(status, body) of a GET as a browser sends it for a page's fetch() of its own site (the name `host`
+    re-pointed at 127.0.0.1 by the attacker's DNS): no Origin, the page's Referer and the usual headers."""
+    request = urllib.request.Request(f"http://127.0.0.1:{port}{path}", headers={
+        "Host": host, "Connection": "keep-alive", "Accept": "*/*", "Accept-Language": "en-US,en;q=0.9",
+        "User-Agent": "Mozilla/5.0 (X11; Linux x86_64) AppleWebKit/537.36 (KHTML, like Gecko) Chrome/120.0",
+        "Referer": f"http://{host}/", "Sec-Fetch-Site": "same-origin", "Sec-Fetch-Mode": "cors",
+        "Sec-Fetch-Dest": "empty"})
+    try:
+        with urllib.request.urlopen(request, timeout=20) as answer:
+            return answer.status, answer.read(len(BAG_BYTES))  # (a stream goes on: its start is enough)
+    except urllib.error.HTTPError as error:
+        return error.code, error.read()
+
+
+REBIND_PATHS = ["/bags/run.bag", "/bags", f"/snapshot?topic={REBIND}/camera", f"/cloud?topic={REBIND}/cloud",
+                f"/stream?topic={REBIND}/camera", f"/stream_viewer?topic={REBIND}/camera", "/streams", "/",
+                "/app.js"]
+
+
+@pytest.mark.parametrize("path", REBIND_PATHS)
+def test_a_dns_rebinding_page_reads_nothing(rebind_bridge, path):
+    """Before: 200 and the bag, the list, the picture, the cloud (a same-origin GET carries no Origin)."""
+    _, port = rebind_bridge
+    host = f"evil.example:{port}"
+    status, body = browser_get(port, path, host)
+    assert status == 403, (status, body[:200])
+    assert host.encode() in body and b"allowed_hosts" in body, body
+
+
+def test_a_dns_rebinding_page_opens_no_websocket(rebind_bridge):
+    """A browser sends the page's Origin with a websocket; Host is checked before it, with or without one."""
+    _, port = rebind_bridge
+    for headers in ({"Host": f"evil.example:{port}"},
+                    {"Host": f"evil.example:{port}", "Origin": f"http://evil.example:{port}"}):
+        with pytest.raises(tornado.httpclient.HTTPClientError) as error:
+            WsClient(f"ws://127.0.0.1:{port}/", headers=headers)
+        assert error.value.code == 403, headers
+
+
+@pytest.mark.parametrize("make_host", [
+    lambda port: f"127.0.0.1:{port}", lambda port: f"localhost:{port}", lambda port: "localhost",
+    lambda port: f"LOCALHOST.:{port}", lambda port: f"[::1]:{port}", lambda port: f"{socket.gethostname()}:{port}",
+    lambda port: f"{socket.gethostname().split('.')[0]}.local:{port}", lambda port: f"app.localhost:{port}",
+    lambda port: "robots.example", lambda port: "Robots.Example:8443", lambda port: "rover1.robots.lan",
+], ids=["127.0.0.1", "localhost", "localhost without port", "localhost.", "[::1]", "host name", "mDNS name",
+        "*.localhost", "allowed_hosts", "allowed_hosts with port", "allowed_hosts pattern"])
+def test_this_machines_names_and_allowed_hosts_still_work(rebind_bridge, make_host):
+    _, port = rebind_bridge
+    host = make_host(port)
+    assert browser_get(port, "/bags/run.bag", host) == (200, BAG_BYTES)
+    client = WsClient(f"ws://127.0.0.1:{port}/", headers={"Host": host})
+    assert ping(client)
+    client.close()
+
+
+def test_a_malformed_host_is_a_bad_request(rebind_bridge):
+    _, port = rebind_bridge
+    status, body = browser_get(port, "/bags/run.bag", "evil.example@localhost")
+    assert status == 400 and b"evil.example@localhost" in body, (status, body)
+
+
+def test_a_request_without_host_is_not_a_browsers_and_is_served(rebind_bridge):
+    """HTTP/1.0 scripts may send no Host; browsers always send one (the page's), so rebinding cannot come so."""
+    _, port = rebind_bridge
+    with socket.create_connection(("127.0.0.1", port), timeout=10) as conn:
+        conn.sendall(b"GET /bags/run.bag HTTP/1.0\r\n\r\n")
+        answer = b""
+        while chunk := conn.recv(65536):
+            answer += chunk
+    assert answer.startswith(b"HTTP/1.1 200") and answer.endswith(BAG_BYTES), answer[:200]
+
+
+def test_a_refused_host_is_logged_once_with_the_launch_arg_that_allows_it(rebind_bridge):
+    proc, port = rebind_bridge
+    for _ in range(3):
+        assert browser_get(port, "/bags", f"once.example:{port}")[0] == 403
+    advice = 'allowed_hosts:="[robots.example, *.robots.lan, once.example]"'
+    proc.wait_output(advice)
+    assert proc.output().count(advice) == 1
+
+
+def test_hosts_that_allowed_origins_allows_are_served(origin_bridge):
+    """A page allowed_origins lists may be served by the bridge under that name (a reverse proxy passing it on)."""
+    for host, status in [("good.example:8080", 200), ("a.robots.lan", 200), ("good.example", 403),
+                         ("a.robots.lan.evil.example", 403)]:
+        assert browser_get(origin_bridge, "/", host)[0] == status, host
 
 
 @pytest.mark.parametrize("path", ["/../../../../etc/passwd", "/%2e%2e/%2e%2e/%2e%2e/etc/passwd",
