@@ -8,7 +8,6 @@ import time
 import tornado.routing
 import tornado.web
 
-from rosbridge.auth import mac_is_valid
 from rosbridge.origins import host_allowed, host_name, origin_allowed, own_names
 from rosbridge.pages import SECURITY_HEADERS
 
@@ -33,13 +32,13 @@ def refusal(bridge, request, what):
                      "(allowed_origins)")
     config = bridge.config
     if config.authenticate:
-        text = _auth_refusal(request.query_arguments, config)
+        text = _auth_refusal(request.query_arguments, config, bridge.url_macs)
         if text is not None:
             return 401, text
     return None
 
 
-def _auth_refusal(args, config):
+def _auth_refusal(args, config, url_macs):
     missing = [name for name in AUTH_FIELDS if not query_text(args, name)]
     if missing:
         return ("authentication required: this bridge runs with authenticate on; give the rosauth fields as "
@@ -49,7 +48,7 @@ def _auth_refusal(args, config):
         auth["t"], auth["end"] = float(auth["t"]), float(auth["end"])
     except ValueError:
         return "authentication failed: t and end must be numbers"
-    if not mac_is_valid(auth, config.auth_secret, time.time(), config.auth_time_delta):
+    if not url_macs.valid(auth, config.auth_secret, time.time()):
         return "authentication failed (bad MAC, or t/end out of time)"
     return None
 

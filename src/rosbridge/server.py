@@ -17,6 +17,7 @@ import tornado.web
 
 from rosbridge import protocol
 from rosbridge.accepting import accept_connections
+from rosbridge.auth import UrlMacs
 from rosbridge.bag_pages import bag_routes
 from rosbridge.bags import Recorder
 from rosbridge.borrowed import handle_connection
@@ -49,6 +50,7 @@ class Bridge:
         self.deflater = EncodingThread(tornado.ioloop.IOLoop.current(), name="rosbridge-deflate")
         self.allowed_origins = allowed_origins  # None: same host only (and clients that send no Origin)
         self.allowed_hosts = allowed_hosts  # None: this machine's names (and allowed_origins' sites)
+        self.url_macs = UrlMacs(config.auth_time_delta)  # the HTTP endpoints' rosauth (http_access.py)
         self.clients = set()
         self._logged = {}
 

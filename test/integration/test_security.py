@@ -556,6 +556,28 @@ def test_a_replayed_mac_is_refused_once_its_time_window_is_over(auth_bridge):
     assert replay.is_closed()
 
 
+def auth_query(frame):
+    return urllib.parse.urlencode({name: frame[name] for name in ("mac", "client", "dest", "rand", "t", "level",
+                                                                  "end")})
+
+
+def test_a_query_string_whose_t_lies_ahead_counts_that_within_its_window(auth_bridge):
+    """A URL (logs, histories and Referer headers keep it) is valid auth_time_delta (5 s) in all: from its t, or
+    from its first use when its t lay ahead of the bridge's clock. Before: t 4 s ahead kept it valid 9 s (up to
+    10). The websocket `auth` op keeps rosauth's rule, |t - now| < auth_time_delta, as the reference's clients
+    expect (a frame inside the connection, not a URL)."""
+    frame = auth_frame(t=time.time() + 4)
+    url = f"http://127.0.0.1:{auth_bridge}/streams?format=json&{auth_query(frame)}"
+    first_use = time.time()
+    assert http(url)[0] == 200
+    time.sleep(max(0.0, first_use + 5.3 - time.time()))
+    assert http(url)[0] == 401
+    op = WsClient(f"ws://127.0.0.1:{auth_bridge}/")
+    op.send(frame)
+    assert op.request(GET_TIME)["result"] is True
+    op.close()
+
+
 def test_without_a_secret_nobody_gets_in(ros):
     proc, port = start_bridge(ros, node_name="security_auth_nosecret_bridge", authenticate="true")
     try:
