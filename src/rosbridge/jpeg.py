@@ -4,7 +4,8 @@
   its pixels): its header stamp, size and encoding, and a view of its data;
 - `Picture`: one frame decoded once (on first use) into a Pillow image, whatever its encoding (ENCODINGS), and
   made a JPEG at any size and quality (`Picture.jpeg`); `output_size` is the size a request's width and height
-  give; `compressed_content_type` says whether a CompressedImage can be sent as it is;
+  give, within MAX_SIDE and MAX_OUTPUT_PIXELS whatever is asked; `compressed_content_type` says whether a
+  CompressedImage can be sent as it is;
 - the adaptation of the `adaptive=1` streams: `Ladder` (the sizes and qualities a viewer steps through),
   `Adaptation` (when one viewer steps, from how long its link took to take each frame) and `FrameInterval` (a
   topic's frame interval, from the frames' arrival times).
@@ -12,6 +13,7 @@
 Decoding and encoding (Picture) is CPU work: streams.py runs it on its encoder thread and says how frames get
 there. Everything else here is cheap and runs on the event loop."""
 import io
+import math
 import struct
 
 from PIL import Image, ImageMath
@@ -34,6 +36,10 @@ _WIDE = {"mono16": 2, "16UC1": 2, "32FC1": 4}
 ENCODINGS = tuple(_DIRECT) + tuple(_WIDE)
 
 MAX_PIXELS = 64_000_000  # a frame larger than this (width x height) is refused, not decoded
+# What a picture is sent at, at most, whatever was asked: 4096 px a side, 8.4 Mpx (4096x2048; 4K UHD fits). A
+# resized picture then holds at most 32 MB (Pillow keeps RGB in 4 bytes), and one JPEG takes at most ~0.1-0.2 s.
+MAX_SIDE = 4096
+MAX_OUTPUT_PIXELS = 4096 * 2048
 
 
 class ImageError(ValueError):
@@ -139,7 +145,9 @@ def compressed_content_type(fmt):
 
 def output_size(source, width=0, height=0, max_side=0):
     """The size a picture of size `source` is sent at: width and height as asked (0: as the source's); with only
-    one of them, the other keeps the source's aspect; then, with max_side, scaled down to fit in it."""
+    one of them, the other keeps the source's aspect; then scaled down, its aspect kept, to fit in max_side (if
+    given), MAX_SIDE a side and MAX_OUTPUT_PIXELS in all, whatever was asked and whatever the source's shape."""
+    _checked_size(*source)
     source_width, source_height = source
     if width and height:
         out = width, height
@@ -149,10 +157,17 @@ def output_size(source, width=0, height=0, max_side=0):
         out = max(1, round(source_width * height / source_height)), height
     else:
         out = source_width, source_height
-    if max_side and max(out) > max_side:
-        scale = max_side / max(out)
-        out = max(1, round(out[0] * scale)), max(1, round(out[1] * scale))
-    return out
+    return _fitted(out, min(max_side, MAX_SIDE) if max_side else MAX_SIDE)
+
+
+def _fitted(size, side):
+    """size scaled down (aspect kept, in integers) to at most `side` a side and MAX_OUTPUT_PIXELS in all."""
+    long, short = max(size), min(size)
+    fitted_long = min(long, side, math.isqrt(MAX_OUTPUT_PIXELS * long // short))
+    if fitted_long == long:
+        return size
+    fitted_short = max(1, min(round(short * fitted_long / long), MAX_OUTPUT_PIXELS // fitted_long))
+    return (fitted_long, fitted_short) if size[0] >= size[1] else (fitted_short, fitted_long)
 
 
 def _checked_size(width, height):
@@ -225,13 +240,14 @@ class Picture:
     """One frame, decoded once for every JPEG made of it. Not thread-safe: one thread at a time (streams.py's
     encoder) may use it."""
     __slots__ = ("frame", "_image", "_decoded_for", "_resized")
-    MAX_SIZES = 4  # resized images kept (several qualities of one size are resized once)
 
     def __init__(self, frame):
         self.frame = frame  # a RawImage or CompressedFrame
         self._image = None
         self._decoded_for = None  # the size a reduced decode (draft) covers; None: full size
-        self._resized = {}  # size -> the decoded image resized to it
+        # (size, the decoded image resized to it) of the last size made: several qualities of one size, asked one
+        # after the other, are resized once
+        self._resized = None
 
     def image(self, at_least=None):
         """The decoded image, at full size or (a JPEG CompressedImage) at least `at_least`."""
@@ -242,24 +258,26 @@ class Picture:
             return self._image
         if self._image is None or (self._decoded_for is not None and (
                 at_least is None or at_least[0] > self._decoded_for[0] or at_least[1] > self._decoded_for[1])):
+            self._image = self._resized = None  # (the old one freed before the new one is made)
             self._image = decode_compressed(frame, at_least)
-            self._decoded_for, self._resized = at_least, {}
+            self._decoded_for = at_least
         return self._image
 
     def resized(self, size):
-        """The picture at `size`: shrunk by averaging (a box filter: OpenCV's INTER_AREA, and a third cheaper
-        than bilinear here), enlarged bilinearly."""
+        """The picture at `size` (at most MAX_SIDE a side and MAX_OUTPUT_PIXELS: output_size's): shrunk by
+        averaging (a box filter: OpenCV's INTER_AREA, and a third cheaper than bilinear here), enlarged
+        bilinearly."""
+        if max(size) > MAX_SIDE or size[0] * size[1] > MAX_OUTPUT_PIXELS:
+            raise ImageError(f"{size[0]}x{size[1]} is larger than a picture is sent ({MAX_SIDE} px a side, "
+                             f"{MAX_OUTPUT_PIXELS} px in all)")
         image = self.image(size)
         if image.size == size:
             return image
-        resized = self._resized.get(size)
-        if resized is None:
+        if self._resized is None or self._resized[0] != size:
+            self._resized = None  # (freed before the next is made)
             shrink = size[0] <= image.width and size[1] <= image.height
-            resized = image.resize(size, Image.Resampling.BOX if shrink else Image.Resampling.BILINEAR)
-            if len(self._resized) >= self.MAX_SIZES:
-                self._resized.clear()
-            self._resized[size] = resized
-        return resized
+            self._resized = size, image.resize(size, Image.Resampling.BOX if shrink else Image.Resampling.BILINEAR)
+        return self._resized[1]
 
     def jpeg(self, size, quality, invert=False):
         """The picture as a JPEG of `size` (width, height) at `quality` (1-100), turned 180 degrees with invert."""

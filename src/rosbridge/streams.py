@@ -44,7 +44,6 @@ from rosbridge.unsent import limit_unsent
 BOUNDARY = "boundarydonotcross"  # web_video_server's
 DEFAULT_QUALITY = 95  # web_video_server's, for a stream that does not adapt
 STREAM_TYPES = ("mjpeg", "ros_compressed")
-MAX_SIDE = 4096  # largest width or height a request may ask for
 SNAPSHOT_TIMEOUT = 5.0  # seconds a snapshot waits for the next frame
 SNAPSHOT_GRACE = 2.0  # then seconds it may take to make the newest frame seen, if one was
 WAIT_POLL = 1.0  # seconds between looks at the master for a topic nobody publishes yet
@@ -82,8 +81,8 @@ class StreamRequest:
                 if self.type in ("vp8", "vp9", "h264", "png") else ""
             raise BadRequest(400, f"stream type {self.type!r} is not supported{video}: use type=mjpeg "
                                   f"(or ros_compressed)")
-        self.width = _integer(args, "width", 0, MAX_SIDE)
-        self.height = _integer(args, "height", 0, MAX_SIDE)
+        self.width = _integer(args, "width", 0, jpeg.MAX_SIDE)
+        self.height = _integer(args, "height", 0, jpeg.MAX_SIDE)
         self.quality = _integer(args, "quality", 1, 100, default=None)
         self.adaptive = _flag(args, "adaptive", absent=False, bare=True)
         self.invert = _flag(args, "invert", absent=False, bare=True)

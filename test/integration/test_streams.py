@@ -1,7 +1,8 @@
 """Camera streams on the bridge's HTTP port (streams.py), web_video_server's endpoints, through real processes: a
 bridge, rospy publishers in this process, and HTTP read from raw sockets (so that a test decides how fast it
 reads): decodable JPEGs at the topic's rate, snapshots, sizes, encodings, the newest frame and never a backlog
-for a slow reader, shared encodes, the list, bad requests, access rules, and no leak."""
+for a slow reader, shared encodes, pictures bounded whatever is asked, the list, bad requests, access rules, and
+no leak."""
 import collections
 import hashlib
 import io
@@ -532,6 +533,31 @@ def test_a_viewer_that_stops_reading_is_dropped(ros, camera):
         stream.close()
     finally:
         proc.stop()
+
+
+# ---- bounds ------------------------------------------------------------------------------------------------------
+def test_a_tall_image_asked_wide_is_scaled_within_the_output_bounds(bridge_proc, node):
+    """A 4x300 mono8 image (1.2 kB) asked 4096 px wide: its aspect alone would make it 4096x307,200 (1.2 GB of
+    pixels: the bridge's memory peaked 1.24 GB higher, then it answered 415). It is scaled to fit 4096 px a side
+    instead, and the bridge's peak memory barely moves."""
+    proc, port = bridge_proc
+    cam = Camera(node, "/streams_test/tall", 10, image_maker([Image.new("L", (4, 300), 128)], "mono8"))
+    stat = ProcStat(proc.pid)
+    try:
+        wait_streaming(port, "/streams_test/tall")
+        stat.reset_peak_rss()
+        rss = stat.rss_mb()
+        status, _, body = get(port, "/snapshot?topic=/streams_test/tall&width=4096&quality=100")
+        stream = Http(port, "/stream?topic=/streams_test/tall&width=4096&adaptive=1")
+        headers, part = stream.part()
+        stream.close()
+        peak = stat.peak_rss_mb()
+    finally:
+        cam.close()
+    print(f"the bridge's peak memory: {peak:.0f} MB, {peak - rss:.0f} MB above its {rss:.0f} MB")
+    assert status == 200 and jpeg_size(body) == (55, 4096), body[:200]
+    assert headers["content-type"] == "image/jpeg" and jpeg_size(part) == (55, 4096)
+    assert peak - rss < 50, f"the bridge peaked {peak - rss:.0f} MB above its {rss:.0f} MB"
 
 
 # ---- the list, the viewer page, bad requests ----------------------------------------------------------------------

@@ -1,9 +1,11 @@
-"""jpeg.py: reading Image and CompressedImage messages in place, every supported encoding made a JPEG, sizes, and
-the adaptive streams' ladder and policy."""
+"""jpeg.py: reading Image and CompressedImage messages in place, every supported encoding made a JPEG, sizes and
+their bounds, and the adaptive streams' ladder and policy."""
 import io
 import struct
+import zlib
 
 import pytest
+from hypothesis import given, strategies as st
 from PIL import Image
 from sensor_msgs.msg import CompressedImage, Image as RosImage
 
@@ -154,6 +156,7 @@ def test_unsupported_encodings_are_named(encoding):
     (4, 4, "rgb8", bytes(48), 8, "step 8 is less than width 4"),
     (0, 0, "rgb8", b"", 0, "empty"),
     (100_000, 100_000, "mono8", b"", 100_000, "too large"),
+    (7000, 7000, "mono8", bytes(10), 7000, "data holds 10 bytes"),  # (its claim alone decodes nothing)
 ])
 def test_inconsistent_images_are_image_errors(width, height, encoding, data, step, match):
     msg = RosImage(width=width, height=height, encoding=encoding, step=step, data=data)
@@ -173,6 +176,66 @@ def test_inconsistent_images_are_image_errors(width, height, encoding, data, ste
 ])
 def test_output_size(width, height, max_side, expected):
     assert jpeg.output_size((640, 480), width, height, max_side) == expected
+
+
+@pytest.mark.parametrize("source, width, height, max_side, expected", [
+    ((4, 300), 4096, 0, 0, (55, 4096)),  # the aspect alone: 4096x307,200 (1.2 GB of pixels)
+    ((4, 3000), 4096, 0, 0, (5, 4096)),  # 4096x3,072,000 (12.6 GB)
+    ((300, 4), 0, 4096, 0, (4096, 55)),
+    ((4, 300), 4096, 0, 800, (11, 800)),
+    ((640, 480), 4096, 0, 0, (3344, 2508)),  # 4096x3072 is 12.6 Mpx: scaled to 8.4, its aspect kept
+    ((640, 480), 4096, 4096, 0, (2896, 2896)),  # (stretched as asked, then scaled)
+    ((640, 480), 4096, 2048, 0, (4096, 2048)),  # the largest there is
+    ((8000, 6000), 0, 0, 0, (3344, 2508)),  # a source larger than a picture is sent
+    ((1, 100_000), 0, 0, 0, (1, 4096)),
+])
+def test_the_output_is_bounded_whatever_the_request_and_the_source(source, width, height, max_side, expected):
+    assert jpeg.output_size(source, width, height, max_side) == expected
+
+
+SOURCE_SIZES = st.integers(1, 100_000).flatmap(  # (of at most MAX_PIXELS: a larger one is refused)
+    lambda width: st.tuples(st.just(width), st.integers(1, min(100_000, jpeg.MAX_PIXELS // width))))
+
+
+@given(SOURCE_SIZES, st.integers(0, jpeg.MAX_SIDE), st.integers(0, jpeg.MAX_SIDE), st.sampled_from([0, 1, 800, 10_000]))
+def test_no_output_size_leaves_the_bounds(source, width, height, max_side):
+    out = jpeg.output_size(source, width, height, max_side)
+    assert min(out) >= 1 and max(out) <= min(max_side or jpeg.MAX_SIDE, jpeg.MAX_SIDE)
+    assert out[0] * out[1] <= jpeg.MAX_OUTPUT_PIXELS
+
+
+def test_an_empty_source_has_no_output_size():
+    with pytest.raises(jpeg.ImageError, match="empty"):
+        jpeg.output_size((0, 480), 320)  # (a ZeroDivisionError before)
+
+
+def test_a_picture_larger_than_the_bounds_is_never_made():
+    """What output_size never gives, the resize refuses too: a 4x3000 image made 4096x3,072,000 allocated 12.6 GB."""
+    picture = picture_of(ros_image(4, 3000, "mono8", bytes(12_000)))
+    for size in ((4096, 3_072_000), (jpeg.MAX_SIDE + 1, 1), (4096, 4096)):
+        with pytest.raises(jpeg.ImageError, match="larger than a picture is sent"):
+            picture.jpeg(size, 90)
+    assert decoded(picture.jpeg(jpeg.output_size((4, 3000), 4096), 90)).size == (5, 4096)
+
+
+def png_claiming(width, height):
+    """A small PNG whose header claims width x height (its data does not hold them)."""
+    out = io.BytesIO()
+    Image.new("L", (8, 8)).save(out, "PNG")
+    data = bytearray(out.getvalue())
+    data[16:24] = struct.pack(">II", width, height)  # IHDR's width and height, then its CRC
+    data[29:33] = struct.pack(">I", zlib.crc32(bytes(data[12:29])))
+    return bytes(data)
+
+
+def test_a_compressed_image_claiming_a_huge_size_is_refused_from_its_header():
+    claim = 9000, 8000  # (72 Mpx: more than MAX_PIXELS, less than Pillow's own bound, which would refuse it first)
+    frame = jpeg.read_frame(jpeg.COMPRESSED, serialized(CompressedImage(format="png", data=png_claiming(*claim))))
+    assert frame.size == claim
+    with pytest.raises(jpeg.ImageError, match="too large"):
+        jpeg.output_size(frame.size, 320)
+    with pytest.raises(jpeg.ImageError, match="too large"):
+        jpeg.Picture(frame).jpeg((320, 320), 90)
 
 
 def gradient(width=64, height=48):
