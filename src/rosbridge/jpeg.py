@@ -246,7 +246,7 @@ class Picture:
         self._image = None
         self._decoded_for = None  # the size a reduced decode (draft) covers; None: full size
         # (size, the decoded image resized to it) of the last size made: several qualities of one size, asked one
-        # after the other, are resized once
+        # after the other, are resized once (forget_resized lets it go)
         self._resized = None
 
     def image(self, at_least=None):
@@ -278,6 +278,10 @@ class Picture:
             shrink = size[0] <= image.width and size[1] <= image.height
             self._resized = size, image.resize(size, Image.Resampling.BOX if shrink else Image.Resampling.BILINEAR)
         return self._resized[1]
+
+    def forget_resized(self):
+        """Lets the resized picture go (up to 32 MB): a frame kept for later viewers keeps its decoded image only."""
+        self._resized = None
 
     def jpeg(self, size, quality, invert=False):
         """The picture as a JPEG of `size` (width, height) at `quality` (1-100), turned 180 degrees with invert."""

@@ -11,7 +11,8 @@ with the websocket clients), the viewers (StreamViewer, SnapshotViewer) and the 
 Each viewer gets the newest frame and never a backlog: one frame is written to it at a time, and while its
 socket has not taken it (the IOStream's write future not done; unsent.limit_unsent keeps the kernel's share
 small), newer frames only replace the one it will get next. Each frame is made at most once per (size, quality,
-invert) for every viewer, and only when a viewer wants it.
+invert) for every viewer, and only when a viewer wants it; what is made is kept with the frame up to
+MAX_VARIANT_BYTES (Frame.trim).
 
 Threads (everything runs on the event loop but the encoding):
 - the loop: the handlers, Streams, every StreamTopic, Frame (its `variants`, what was made of it) and viewer, and
@@ -20,7 +21,11 @@ Threads (everything runs on the event loop but the encoding):
   the frame's Picture (which only the encoder touches; the loop only drops its reference) and a list of keys,
   and its results go back to the loop (IOLoop.add_callback) to be stored in the frame's variants. A topic has at
   most one job in flight: frames arriving meanwhile only replace the topic's newest frame, and the next job takes
-  the newest frame for the viewers still waiting (newest wins), so a busy encoder costs frames, never a backlog;
+  the newest frame for the viewers still waiting (newest wins), so a busy encoder costs frames, never a backlog.
+  Topics take turns: the jobs run in the order they came, a topic's next job comes only once its last is done,
+  and a job is small (at most MAX_KEYS_PER_JOB variants and JOB_PIXELS, or one variant, itself at most
+  jpeg.MAX_OUTPUT_PIXELS), so a topic waits at most one turn of each other busy topic, and one topic's viewers,
+  whatever sizes they ask, take at most the encoder's one core;
 - master look-ups (a topic's type, the image topics) are the backend's /rosapi/topics call, on one of its
   service-call threads; the reply comes back on the loop (TopicTypes shares one look-up between requests)."""
 import functools
@@ -50,7 +55,9 @@ WAIT_POLL = 1.0  # seconds between looks at the master for a topic nobody publis
 LINGER = 5.0  # seconds a topic's subscription outlives its last viewer (a reload or the next snapshot reuses it)
 TYPES_MAX_AGE = 0.5  # seconds the master's topic types answer for
 LOOKUP_TIMEOUT = 5.0
-MAX_KEYS_PER_JOB = 8  # variants one encoding job makes; more wait for the next job
+MAX_KEYS_PER_JOB = 8  # variants one encoding job makes; more wait for the next job (the topic's next turn)
+JOB_PIXELS = 4_000_000  # and pixels in all (one variant at least): a topic's turn at the encoder, ~0.1 s here
+MAX_VARIANT_BYTES = 16 * 1024 * 1024  # the variants a frame keeps, newest first (older ones are made again if asked)
 MAX_DISCARDED = 64 * 1024  # bytes a viewer may send after its request before its stream is closed
 PASS = "pass"  # the key of a CompressedImage sent as it is
 NO_CACHE = "no-cache, no-store, must-revalidate, pre-check=0, post-check=0, max-age=0"
@@ -208,7 +215,8 @@ class TopicTypes:
 # ---- frames and topics -------------------------------------------------------------------------------------------
 class Frame:
     """One message of a topic, and what was made of it for its viewers (on the loop): variants, key -> (content
-    type, bytes) or the jpeg.ImageError that making it raised."""
+    type, bytes) or the jpeg.ImageError that making it raised, oldest first, at most MAX_VARIANT_BYTES of them
+    (trim)."""
     __slots__ = ("seq", "type", "message", "variants", "picture", "_read")
 
     def __init__(self, seq, type_name, message):
@@ -227,6 +235,17 @@ class Frame:
         if isinstance(self._read, jpeg.ImageError):
             raise self._read
         return self._read
+
+    def trim(self):
+        """Forgets the oldest variants beyond MAX_VARIANT_BYTES (the newest too if larger alone, once its viewers
+        have it): a viewer asking one again has it made again."""
+        kept = 0
+        for key in reversed(list(self.variants)):
+            made = self.variants[key]
+            if key != PASS and isinstance(made, tuple):  # (PASS is the message's own bytes, an error is small)
+                kept += len(made[1])
+                if kept > MAX_VARIANT_BYTES:
+                    del self.variants[key]
 
     @property
     def stamp(self):
@@ -253,7 +272,7 @@ class Encoder:
 
 
 def _encode(picture, keys):
-    """On the encoder thread."""
+    """On the encoder thread. keys come sorted by size: each size is resized once."""
     results = {}
     for key in keys:
         size, quality, invert = key
@@ -264,6 +283,7 @@ def _encode(picture, keys):
         except Exception as error:  # a bug (or a picture Pillow chokes on): the viewers are told, and it is logged
             log_bug("encoding a camera frame", error)
             results[key] = jpeg.ImageError(f"the frame could not be encoded ({type(error).__name__})")
+    picture.forget_resized()
     return results
 
 
@@ -368,7 +388,7 @@ class StreamTopic:
         """Starts an encoding job for the waiting viewers, of the newest frame, unless one runs."""
         if self._job is not None or not self._waiting or self.is_closed or self._offering:
             return
-        frame, keys = self.latest, []
+        frame, keys, pixels = self.latest, [], 0
         for viewer in list(self._waiting):
             if viewer not in self._waiting:  # (it left as another was served)
                 continue
@@ -379,9 +399,13 @@ class StreamTopic:
             if key is None:
                 self._waiting.pop(viewer, None)
             elif key not in keys and len(keys) < MAX_KEYS_PER_JOB:
-                keys.append(key)
+                area = key[0][0] * key[0][1]
+                if not keys or pixels + area <= JOB_PIXELS:
+                    keys.append(key)
+                    pixels += area
         if not keys:
             return
+        keys.sort(key=lambda key: key[0])  # (the qualities of one size one after the other: resized once)
         if frame.picture is None:
             frame.picture = jpeg.Picture(frame.read())
         self._job = frame
@@ -397,6 +421,7 @@ class StreamTopic:
         for viewer in list(self._waiting):
             if viewer in self._waiting and frame.seq > viewer.sent_seq and self._serve(viewer, frame) is None:
                 self._waiting.pop(viewer, None)
+        frame.trim()
         self._kick()
 
 

@@ -1,8 +1,8 @@
 """Camera streams on the bridge's HTTP port (streams.py), web_video_server's endpoints, through real processes: a
 bridge, rospy publishers in this process, and HTTP read from raw sockets (so that a test decides how fast it
 reads): decodable JPEGs at the topic's rate, snapshots, sizes, encodings, the newest frame and never a backlog
-for a slow reader, shared encodes, pictures bounded whatever is asked, the list, bad requests, access rules, and
-no leak."""
+for a slow reader, shared encodes, memory and the encoder bounded whatever is asked, the list, bad requests, access
+rules, and no leak."""
 import collections
 import hashlib
 import io
@@ -536,6 +536,33 @@ def test_a_viewer_that_stops_reading_is_dropped(ros, camera):
 
 
 # ---- bounds ------------------------------------------------------------------------------------------------------
+def latched_image(node, topic, picture, encoding="rgb8"):
+    """A latched publisher of one sensor_msgs/Image of `picture` (unregister it after)."""
+    from sensor_msgs.msg import Image as RosImage
+    pub = node.Publisher(topic, RosImage, queue_size=1, latch=True)
+    pub.publish(image_maker([picture], encoding)(0, node.Time.now()))
+    return pub
+
+
+def snapshots_at_once(port, paths, answered=None):
+    """GETs every path at once; [(status, seconds it took, body)] in the paths' order. answered: an Event set at
+    the first answer."""
+    answers = [None] * len(paths)
+
+    def one(index):
+        start = time.monotonic()
+        status, _, body = get(port, paths[index], timeout=30)
+        answers[index] = (status, time.monotonic() - start, body)
+        if answered is not None:
+            answered.set()
+    threads = [threading.Thread(target=one, args=(index,), daemon=True) for index in range(len(paths))]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(40)
+    return answers
+
+
 def test_a_tall_image_asked_wide_is_scaled_within_the_output_bounds(bridge_proc, node):
     """A 4x300 mono8 image (1.2 kB) asked 4096 px wide: its aspect alone would make it 4096x307,200 (1.2 GB of
     pixels: the bridge's memory peaked 1.24 GB higher, then it answered 415). It is scaled to fit 4096 px a side
@@ -558,6 +585,54 @@ def test_a_tall_image_asked_wide_is_scaled_within_the_output_bounds(bridge_proc,
     assert status == 200 and jpeg_size(body) == (55, 4096), body[:200]
     assert headers["content-type"] == "image/jpeg" and jpeg_size(part) == (55, 4096)
     assert peak - rss < 50, f"the bridge peaked {peak - rss:.0f} MB above its {rss:.0f} MB"
+
+
+def test_the_variants_a_latched_frame_keeps_are_bounded_in_bytes(bridge_proc, node):
+    """14 snapshots at once of a latched picture, at 14 sizes of 8.4 Mpx (the largest allowed), quality 100: each
+    is made, and the frame keeps at most streams.MAX_VARIANT_BYTES of them while its topic is watched (the bridge
+    grew by 370 MB of such snapshots before)."""
+    proc, port = bridge_proc
+    stat = ProcStat(proc.pid)
+    sizes = [(4096 - 16 * index, 2048) for index in range(14)]
+    pub = latched_image(node, "/streams_test/latched", camera_pictures(640, 480, 1, noise=0.5)[0])
+    try:
+        rss = stat.rss_mb()
+        answers = snapshots_at_once(port, [f"/snapshot?topic=/streams_test/latched&width={width}&height={height}"
+                                           f"&quality=100" for width, height in sizes])
+        grown = stat.rss_mb() - rss  # (the topic is still watched: it lingers after its last snapshot)
+    finally:
+        pub.unregister()
+    assert [status for status, _, _ in answers] == [200] * len(sizes), [body[:80] for _, _, body in answers]
+    assert [jpeg_size(body) for _, _, body in answers] == sizes
+    assert grown < 70, f"the bridge grew {grown:.0f} MB"
+
+
+def test_a_flood_of_sizes_on_one_topic_does_not_starve_another_topic(bridge, node, camera):
+    """24 snapshots at once of one camera, each of its own 8.4 Mpx size at quality 100 (seconds of encoding), then,
+    once the first of them is answered, a snapshot of another camera: topics take turns at the encoder, so the
+    other one waits about one of the flood's encodes (it waited 8 before: the flood's jobs were of 8 of them)."""
+    wait_streaming(bridge, "/streams_test/cam")
+    flooded = Camera(node, "/streams_test/flooded", 5, image_maker(camera_pictures(640, 480, noise=0.5)))
+    flood, answered = [], threading.Event()
+    try:
+        wait_streaming(bridge, "/streams_test/flooded")
+        flooding = threading.Thread(target=lambda: flood.extend(snapshots_at_once(bridge, [
+            f"/snapshot?topic=/streams_test/flooded&width={4096 - 16 * index}&height=2048&quality=100"
+            for index in range(24)], answered)), daemon=True)
+        flooding.start()
+        assert answered.wait(20), "no answer to the flood"
+        start = time.monotonic()
+        status, _, body = get(bridge, "/snapshot?topic=/streams_test/cam&width=320")
+        waited = time.monotonic() - start
+        flooding.join(40)
+    finally:
+        flooded.close()
+    times = sorted(seconds for status, seconds, _ in flood if status == 200)
+    each = (times[-1] - times[0]) / (len(times) - 1)  # (the flood's encodes take turns with nothing else but one)
+    print(f"the other camera's snapshot waited {waited:.2f} s, {waited / each:.1f} of the flood's encodes "
+          f"({each:.3f} s each; {len(times)} of 24 answered in {times[0]:.2f}-{times[-1]:.2f} s)")
+    assert status == 200 and jpeg_size(body) == (320, 240)
+    assert waited < 4 * each, (waited, each)
 
 
 # ---- the list, the viewer page, bad requests ----------------------------------------------------------------------

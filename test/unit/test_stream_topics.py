@@ -1,6 +1,7 @@
 """streams.py without processes: a topic's frames made once per (frame, size, quality) for all its viewers, only
-when a viewer wants them, one encoding job at a time with the newest frame winning; the requests' parameters and
-which topic a request streams from."""
+when a viewer wants them, one encoding job at a time with the newest frame winning, jobs bounded in pixels and
+topics taking turns, a frame's variants bounded in bytes; the requests' parameters and which topic a request
+streams from."""
 import io
 
 import pytest
@@ -134,6 +135,56 @@ def test_at_most_MAX_KEYS_PER_JOB_variants_a_job_the_rest_in_the_next(topic):
     assert len(encoder(topic).jobs) == 1 and len(encoder(topic).jobs[0][1]) == 3
     encoder(topic).finish()
     assert all(len(viewer.got) == 1 for viewer in viewers)
+
+
+def test_a_job_is_bounded_in_pixels_and_makes_each_size_once(topic):
+    """A job's variants fit in JOB_PIXELS (one at least, up to jpeg.MAX_OUTPUT_PIXELS): a topic's turn at the
+    encoder is short whatever sizes its viewers ask. Its keys come by size, so that a size is resized once."""
+    big = ((4096, 2048), 100, False)  # (8.4 Mpx: the largest there is)
+    small = [((640, 480), quality, False) for quality in (90, 80)] + [((320, 240), 80, False)]
+    viewers = [FakeViewer(topic, key) for key in [big, small[0], ((4000, 2048), 100, False), *small[1:]]]
+    topic.deliver(image_message(1))
+    jobs = []
+    while encoder(topic).jobs:
+        jobs.append(encoder(topic).jobs[0][1])
+        encoder(topic).finish()
+    assert [big] in jobs  # (alone: it is more than JOB_PIXELS)
+    for keys in jobs:
+        assert len(keys) == 1 or sum(width * height for (width, height), _, _ in keys) <= streams.JOB_PIXELS
+        assert [size for size, _, _ in keys] == sorted(size for size, _, _ in keys)
+    assert all(len(viewer.got) == 1 for viewer in viewers)
+
+
+def test_topics_take_turns_at_the_encoder():
+    """Two topics on one encoder: the second waits for one job of the first, however many of the first's viewers
+    ask sizes of their own (it waited for 8 such variants before)."""
+    shared = FakeStreams()
+    flooded, other = (streams.StreamTopic(shared, streams.Source(name, jpeg.IMAGE)) for name in ("/flood", "/cam"))
+    flood = [FakeViewer(flooded, ((4096 - 16 * index, 2048), 100, False)) for index in range(24)]
+    viewer = FakeViewer(other)
+    flooded.deliver(image_message(1))
+    other.deliver(image_message(1))
+    assert [len(keys) for _, keys, _ in shared.encoder.jobs] == [1, 1]
+    shared.encoder.finish()
+    shared.encoder.finish()
+    assert viewer.got and sum(len(v.got) for v in flood) == 1
+
+
+def test_the_variants_a_frame_keeps_are_bounded_in_bytes(topic, monkeypatch):
+    """A frame keeps its newest variants, MAX_VARIANT_BYTES of them at most; every viewer still gets its own, and a
+    viewer asking a forgotten one again has it made again."""
+    monkeypatch.setattr(streams, "MAX_VARIANT_BYTES", 250)
+    keys = [((8 + index, 6), 80, False) for index in range(6)]
+    viewers = [FakeViewer(topic, key) for key in keys]
+    topic.deliver(image_message(1))
+    _, asked, done = encoder(topic).jobs.pop()
+    done({key: ("image/jpeg", bytes(100)) for key in asked})  # (600 bytes made)
+    frame = topic.latest
+    assert list(frame.variants) == keys[-2:]  # (the newest two: 200 bytes)
+    assert all(len(viewer.got) == 1 for viewer in viewers)
+    again = FakeViewer(topic, keys[0])
+    topic.want(again)
+    assert encoder(topic).jobs[0][1] == [keys[0]]
 
 
 def test_one_job_at_a_time_and_the_newest_frame_wins(topic):
