@@ -427,9 +427,10 @@ class StreamTopic:
 
 # ---- viewers -----------------------------------------------------------------------------------------------------
 class Viewer:
-    """One /stream or /snapshot viewer: what it asks, its topic once found, and its adaptation."""
+    """One /stream or /snapshot viewer: what it asks, its topic once found, and its adaptation. until: when (a
+    time.time()) its authentication ends (rosauth's `end`), at which it is ended (401); None: never."""
 
-    def __init__(self, streams, request, topic_name):
+    def __init__(self, streams, request, topic_name, until):
         self.streams, self.request, self.topic_name = streams, request, topic_name
         self.topic = None
         self.pass_mode = None
@@ -441,7 +442,13 @@ class Viewer:
             self.adaptation = jpeg.Adaptation(len(self.ladder))
         self._level = 0  # the level of the last key asked
         self._poll = None
+        self._expiry = None if until is None else streams.loop.call_later(max(0.0, until - time.time()),
+                                                                           self._expired)
         streams.viewers.add(self)
+
+    def _expired(self):
+        self._expiry = None
+        self.fail(401, "authentication expired: the end given (rosauth's end) has passed")
 
     @property
     def writing_since(self):
@@ -513,6 +520,9 @@ class Viewer:
             return
         self.ended = True
         self.streams.viewers.discard(self)
+        if self._expiry is not None:
+            self.streams.loop.remove_timeout(self._expiry)
+            self._expiry = None
         if self._poll is not None:
             self.streams.loop.remove_timeout(self._poll)
             self._poll = None
@@ -523,8 +533,8 @@ class Viewer:
 class StreamViewer(Viewer):
     """A /stream viewer on its own (detached) connection: the multipart response, one frame at a time."""
 
-    def __init__(self, streams, request, topic_name, stream, extra_headers):
-        super().__init__(streams, request, topic_name)
+    def __init__(self, streams, request, topic_name, until, stream, extra_headers):
+        super().__init__(streams, request, topic_name, until)
         self._stream = stream
         self._writing = None  # (when, level) of the frame being written, or None
         self._arrived = 0  # frames that arrived while it was being written
@@ -637,8 +647,8 @@ class SnapshotViewer(Viewer):
     """A /snapshot viewer: the next frame (or, if none comes within SNAPSHOT_TIMEOUT, the newest one seen).
     result: a Future of (frame, (content type, bytes)), or of a BadRequest."""
 
-    def __init__(self, streams, request, topic_name):
-        super().__init__(streams, request, topic_name)
+    def __init__(self, streams, request, topic_name, until):
+        super().__init__(streams, request, topic_name, until)
         self.result = tornado.concurrent.Future()
         self._timer = streams.loop.call_later(SNAPSHOT_TIMEOUT, self._timed_out)
         self._grace = False
@@ -712,6 +722,13 @@ class Streams:
     def refusal(self, request):
         """(status, text) when the request is refused by the origin rules or authentication, else None."""
         return http_access.refusal(self.bridge, request, "a camera stream")
+
+    def auth_end(self, request):
+        """With authenticate, when the authentication of a request refusal() let through ends (its rosauth `end`,
+        a time.time()), else None."""
+        if not self.bridge.config.authenticate:
+            return None
+        return float(http_access.query_text(request.query_arguments, "end"))
 
     def checked_topic(self, request):
         """The request's topic as ROS names it (resolved in the bridge's namespace), if topics_glob allows it."""
@@ -824,7 +841,8 @@ class StreamHandler(_Handler):
         if found is None:
             return
         request, topic, source = found
-        viewer = StreamViewer(self.streams, request, topic, self.detach(), self.allowed_origin_headers())
+        viewer = StreamViewer(self.streams, request, topic, self.streams.auth_end(self.request), self.detach(),
+                              self.allowed_origin_headers())
         viewer.find(source)
 
 
@@ -838,7 +856,7 @@ class SnapshotHandler(_Handler):
         request, topic, source = found
         if source is not None and source.pass_mode == "any":
             source.pass_mode = "jpeg"  # (a snapshot is a JPEG)
-        viewer = self._viewer = SnapshotViewer(self.streams, request, topic)
+        viewer = self._viewer = SnapshotViewer(self.streams, request, topic, self.streams.auth_end(self.request))
         viewer.find(source)
         try:
             frame, (content_type, data) = await viewer.result

@@ -2,7 +2,7 @@
 bridge, rospy publishers in this process, and HTTP read from raw sockets (so that a test decides how fast it
 reads): decodable JPEGs at the topic's rate, snapshots, sizes, encodings, the newest frame and never a backlog
 for a slow reader, shared encodes, memory and the encoder bounded whatever is asked, the list, bad requests, access
-rules, and no leak."""
+rules (a stream ending at its authentication's end), and no leak."""
 import collections
 import hashlib
 import io
@@ -737,36 +737,62 @@ def auth_query(secret=SECRET, **changes):
     return "&".join(f"{name}={value}" for name, value in fields.items())
 
 
-def test_authenticate_requires_the_rosauth_fields(ros, node, camera):
+@pytest.fixture(scope="module")
+def auth_bridge(ros):
+    """The port of a bridge with authenticate on (secret SECRET)."""
     secret_file = make_workdir("streams-auth") / "secret"
     secret_file.write_text(SECRET)
     proc, port = start_bridge(ros, node_name="streams_auth_bridge", authenticate="true",
                               secret_file=str(secret_file), topics_glob=GLOB)
+    yield port
+    proc.stop()
+
+
+def test_authenticate_requires_the_rosauth_fields(auth_bridge, camera):
+    port = auth_bridge
+    status, headers, body = get(port, "/snapshot?topic=/streams_test/cam")
+    assert status == 401 and b"authentication required" in body and b"mac, client, dest, rand, t" in body
+    assert "www-authenticate" in headers
+    for endpoint in ("stream", "stream_viewer", "streams"):
+        assert get(port, f"/{endpoint}?topic=/streams_test/cam")[0] == 401, endpoint
+    for bad in (auth_query(secret="guess"), auth_query(t=int(time.time()) - 60), auth_query(end=1)):
+        status, _, body = get(port, f"/snapshot?topic=/streams_test/cam&{bad}")
+        assert status == 401 and b"authentication failed" in body
+    status, _, body = get(port, f"/snapshot?topic=/streams_test/cam&{auth_query(t='soon')}")
+    assert status == 401 and b"t and end must be numbers" in body
+    good = auth_query()
+    status, headers, body = wait_for(
+        lambda: (answer := get(port, f"/snapshot?topic=/streams_test/cam&{good}"))[0] == 200 and answer, 20,
+        what="an authenticated snapshot")
+    assert jpeg_size(body) == (640, 480)
+    stream = Http(port, f"/stream?topic=/streams_test/cam&width=64&{good}")
+    assert stream.status == 200 and jpeg_size(stream.part()[1]) == (64, 48)
+    stream.close()
+    status, _, body = get(port, f"/streams?format=json&{good}")
+    assert status == 200 and "/streams_test/cam" in body.decode()
+    status, _, body = get(port, f"/streams?{good}")
+    assert "mac=" in body.decode()  # (the links carry the fields)
+
+
+def test_a_stream_ends_at_its_authentications_end(auth_bridge, camera):
+    """A stream authenticated until `end` (rosauth's field, 3-4 s ahead) ends then, its last part saying why (it went
+    on past it before)."""
+    port = auth_bridge
+    end = int(time.time()) + 4
+    stream = Http(port, f"/stream?topic=/streams_test/cam&width=64&{auth_query(end=end)}")
+    assert stream.status == 200
+    parts = []
     try:
-        status, headers, body = get(port, "/snapshot?topic=/streams_test/cam")
-        assert status == 401 and b"authentication required" in body and b"mac, client, dest, rand, t" in body
-        assert "www-authenticate" in headers
-        for endpoint in ("stream", "stream_viewer", "streams"):
-            assert get(port, f"/{endpoint}?topic=/streams_test/cam")[0] == 401, endpoint
-        for bad in (auth_query(secret="guess"), auth_query(t=int(time.time()) - 60), auth_query(end=1)):
-            status, _, body = get(port, f"/snapshot?topic=/streams_test/cam&{bad}")
-            assert status == 401 and b"authentication failed" in body
-        status, _, body = get(port, f"/snapshot?topic=/streams_test/cam&{auth_query(t='soon')}")
-        assert status == 401 and b"t and end must be numbers" in body
-        good = auth_query()
-        status, headers, body = wait_for(
-            lambda: (answer := get(port, f"/snapshot?topic=/streams_test/cam&{good}"))[0] == 200 and answer, 20,
-            what="an authenticated snapshot")
-        assert jpeg_size(body) == (640, 480)
-        stream = Http(port, f"/stream?topic=/streams_test/cam&width=64&{good}")
-        assert stream.status == 200 and jpeg_size(stream.part()[1]) == (64, 48)
-        stream.close()
-        status, _, body = get(port, f"/streams?format=json&{good}")
-        assert status == 200 and "/streams_test/cam" in body.decode()
-        status, _, body = get(port, f"/streams?{good}")
-        assert "mac=" in body.decode()  # (the links carry the fields)
-    finally:
-        proc.stop()
+        while time.time() < end + 5:
+            parts.append(stream.part())
+    except (EOFError, ConnectionError):
+        pass
+    ended = time.time()
+    stream.close()
+    headers, body = parts[-1]
+    assert end <= ended < end + 1.5, ended - end
+    assert headers["content-type"].startswith("text/plain") and b"authentication expired" in body, body
+    assert len(parts) > 10  # (the frames until then)
 
 
 def test_viewers_are_bounded_by_max_clients(ros, camera):
