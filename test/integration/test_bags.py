@@ -102,6 +102,8 @@ def test_the_black_box_keeps_the_last_seconds_and_saves_them(bridge, talker, ros
     (("POST", "/bags/record", {"topics": ["/secret"]}), 400, "topics_glob"),
     (("POST", "/bags/record", {"topics": "nope"}), 400, "list of topic names"),
     (("POST", "/bags/record", {"topics": ["/bags_test/count"], "name": "../escape.bag"}), 400, "not a bag name"),
+    (("POST", "/bags/record", {"topics": ["/bags_test/count"], "name": 5}), 400, "name: not a bag name"),
+    (("POST", "/bags/blackbox/save", {"name": ["box.bag"]}), 400, "name: not a bag name"),
     (("POST", "/bags/stop", {}), 400, "not recording"),
     (("POST", "/bags/blackbox/save", {}), 400, "black box is off"),
     (("GET", "/bags/nothing.bag", None), 404, "no bag"),
@@ -141,3 +143,153 @@ def test_a_recording_stops_at_the_folder_bound_and_says_why(bridge, node):
     finally:
         pub.unregister()
         call(port, "DELETE", "/bags/big.bag")
+
+
+def test_a_symlink_in_the_folder_is_neither_served_listed_nor_deleted(bridge, tmp_path):
+    port, folder = bridge
+    secret = tmp_path / "secret.txt"
+    secret.write_text("outside the bag folder")
+    (folder / "x.bag").symlink_to(secret)
+    (folder / "dangling.bag").symlink_to(tmp_path / "gone.bag")
+    try:
+        status, answer = call(port, "GET", "/bags/x.bag")
+        assert status == 404 and b"outside" not in json.dumps(answer).encode(), answer
+        status, state = call(port, "GET", "/bags")
+        assert status == 200 and not {"x.bag", "dangling.bag"} & {bag["name"] for bag in state["bags"]}, state
+        assert call(port, "DELETE", "/bags/x.bag")[0] == 404 and (folder / "x.bag").is_symlink()
+    finally:
+        (folder / "x.bag").unlink()
+        (folder / "dangling.bag").unlink()
+
+
+# ---- the bounds, counted as the disk counts them (a bridge of its own, with small bounds) ----------------------
+SMALL_FOLDER, SMALL_BOX = 50_000, 30_000  # (a full black box of Empty makes a bag of 15.5 kB)
+EMPTY_RECORD = 58  # an empty message's record and index entry in a bag: its least cost on disk
+
+
+@pytest.fixture(scope="module")
+def small(ros, tmp_path_factory):
+    folder = tmp_path_factory.mktemp("small_bags")
+    proc, port = start_bridge(ros, node_name="small_bags_bridge", bag_folder=str(folder),
+                              bag_max_bytes=SMALL_FOLDER, blackbox_seconds=60, blackbox_max_bytes=SMALL_BOX,
+                              topics_glob="[/bags_test/*]")
+    yield port, folder
+    proc.stop()
+
+
+def on_disk(folder):
+    return sum(path.lstat().st_size for path in folder.iterdir())
+
+
+def empty_publisher(node, topic):
+    """A std_msgs/Empty publisher that writes on each publish (queue_size None), made before the bridge subscribes
+    (which learns the topic's type from the graph)."""
+    from std_msgs.msg import Empty
+    return node.Publisher(topic, Empty, queue_size=None)
+
+
+def flood(pub, seconds):
+    """Publishes Empty as fast as rospy can for `seconds` once the bridge listens; the count sent."""
+    from std_msgs.msg import Empty
+    wait_for(lambda: pub.get_num_connections(), 20, what="the bridge to subscribe")
+    message, sent, end = Empty(), 0, time.monotonic() + seconds
+    while time.monotonic() < end:
+        pub.publish(message)
+        sent += 1
+    return sent
+
+
+def closed_bag_info(ros, path):
+    """`rosbag info --yaml` of the bag at path once it is closed (its index written)."""
+    infos = []
+    wait_for(lambda: infos.append(ros.run(["rosbag", "info", "--yaml", str(path)], check=False)) or
+             infos[-1].returncode == 0, 30, what=f"{path.name} closed")
+    return infos[-1].stdout
+
+
+def test_empty_messages_at_full_rate_keep_the_folder_within_its_bound(small, node, ros):
+    port, folder = small
+    pub = empty_publisher(node, "/bags_test/empty")
+    assert call(port, "POST", "/bags/record", {"topics": ["/bags_test/empty"], "name": "empty.bag"})[0] == 200
+    try:
+        sent = flood(pub, 3)
+        if call(port, "GET", "/bags")[1]["recording"] is not None:  # (it went on: the bound failed)
+            call(port, "POST", "/bags/stop", {})
+        info = closed_bag_info(ros, folder / "empty.bag")
+        state = call(port, "GET", "/bags")[1]
+        written = int(next(line.split()[-1] for line in info.splitlines() if line.startswith("messages:")))
+        # no tolerance: the bound is counted from above (rosbag's record, index and chunk sizes)
+        assert on_disk(folder) <= SMALL_FOLDER, (on_disk(folder), written, sent)
+        assert "bound" in (state["last"]["error"] or ""), state["last"]
+        assert written >= (SMALL_FOLDER - 10_000) // EMPTY_RECORD, (written, sent)  # not counted too high either
+        assert state["used_bytes"] == on_disk(folder), state
+    finally:
+        pub.unregister()
+        call(port, "DELETE", "/bags/empty.bag")
+
+
+def test_the_black_box_bound_counts_each_message_not_only_its_bytes(small, node):
+    port, _ = small
+    pub = empty_publisher(node, "/bags_test/box")
+    assert call(port, "POST", "/bags/blackbox", {"topics": ["/bags_test/box"]})[0] == 200
+    try:
+        sent = flood(pub, 1.5)
+        box = call(port, "GET", "/bags")[1]["blackbox"]
+        assert sent > 2 * SMALL_BOX // EMPTY_RECORD, sent  # (enough to overflow it)
+        assert 0 < box["messages"] <= SMALL_BOX // EMPTY_RECORD and box["bytes"] <= SMALL_BOX, box
+    finally:
+        pub.unregister()
+        call(port, "POST", "/bags/blackbox", {"topics": []})
+
+
+def test_five_saves_at_once_reserve_their_room_before_they_are_accepted(small, node):
+    port, folder = small
+    pub = empty_publisher(node, "/bags_test/box")
+    assert call(port, "POST", "/bags/blackbox", {"topics": ["/bags_test/box"]})[0] == 200
+    answers = [None] * 5
+    try:
+        flood(pub, 1)
+        threads = [threading.Thread(target=lambda i=i: answers.__setitem__(
+            i, call(port, "POST", "/bags/blackbox/save", {"name": f"save{i}.bag"}))) for i in range(5)]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join()
+        accepted = [state for status, state in answers if status == 200]
+        refused = [answer["error"] for status, answer in answers if status != 200]
+        assert 1 <= len(accepted) < 5 and all("bound" in error for error in refused), answers
+        assert on_disk(folder) <= SMALL_FOLDER and len(list(folder.iterdir())) == len(accepted), answers
+    finally:
+        pub.unregister()
+        call(port, "POST", "/bags/blackbox", {"topics": []})
+        for path in folder.iterdir():
+            call(port, "DELETE", f"/bags/{path.name}")
+
+
+def test_a_running_recording_counts_the_saves_made_after_it_started(small, node, ros):
+    from std_msgs.msg import String
+    port, folder = small
+    pub = node.Publisher("/bags_test/text", String, queue_size=100)
+    box = empty_publisher(node, "/bags_test/box")
+    assert call(port, "POST", "/bags/blackbox", {"topics": ["/bags_test/box"]})[0] == 200
+    try:
+        flood(box, 1)
+        assert call(port, "POST", "/bags/record", {"topics": ["/bags_test/text"], "name": "text.bag"})[0] == 200
+        for name in ("later1.bag", "later2.bag"):
+            status, answer = call(port, "POST", "/bags/blackbox/save", {"name": name})
+            assert status == 200, answer
+        wait_for(lambda: pub.get_num_connections(), 20, what="the recorder to subscribe")
+        for _ in range(150):  # 150 kB: over the room the saves left
+            pub.publish(String("x" * 1000))
+            time.sleep(0.002)
+        wait_for(lambda: call(port, "GET", "/bags")[1]["recording"] is None, 20, what="the recording to stop")
+        closed_bag_info(ros, folder / "text.bag")
+        assert on_disk(folder) <= SMALL_FOLDER, {path.name: path.stat().st_size for path in folder.iterdir()}
+    finally:
+        pub.unregister()
+        box.unregister()
+        call(port, "POST", "/bags/blackbox", {"topics": []})
+        if call(port, "GET", "/bags")[1]["recording"] is not None:
+            call(port, "POST", "/bags/stop", {})
+        for path in folder.iterdir():
+            call(port, "DELETE", f"/bags/{path.name}")
