@@ -32,7 +32,7 @@ from rosbridge.ros_side.recovery import MasterWatch
 from rosbridge.rosapi import Rosapi
 from rosbridge.settings import Settings
 from rosbridge.streams import stream_routes
-from rosbridge.websocket import BridgeSocket, DriverLeases
+from rosbridge.websocket import BridgeSocket, DriverLeases, unfinished_bound
 from rosbridge.write_turns import WriteTurns
 
 MAX_LOGGED_KINDS = 1000  # kinds of refusal remembered for rate limiting (refused origins are kinds)
@@ -52,6 +52,7 @@ class Bridge:
         self.allowed_hosts = allowed_hosts  # None: this machine's names (and allowed_origins' sites)
         self.url_macs = UrlMacs(config.auth_time_delta)  # the HTTP endpoints' rosauth (http_access.py)
         self.clients = set()
+        self.unfinished = unfinished_bound(settings)  # what the messages clients have not finished hold, together
         self._logged = {}
 
     def client_opened(self, handler):

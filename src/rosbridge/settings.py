@@ -23,7 +23,9 @@ SETTINGS = (
     Setting("secret_file", str, "", "file holding the rosauth secret, with `authenticate`", ours=True),
     Setting("auth_time_delta", float, 5.0, "seconds `auth`'s `t` may differ from now (negative: no check)",
             ours=True),
-    Setting("fragment_timeout", float, 600.0, "seconds to wait for the rest of a fragmented message"),
+    Setting("fragment_timeout", float, 600.0,
+            "seconds to wait for the rest of a fragmented message: a `fragment` op's, or a websocket message's (its "
+            "frames, from its first byte: the connection is then closed)"),
     Setting("delay_between_messages", float, 0.0, "seconds between frames sent to one client"),
     Setting("max_message_size", int, 8_000_000,
             "bytes; larger frames get a `status` error; 0 = no limit (the reference has none)", ours=True),

@@ -90,13 +90,28 @@ class BridgeSocket(tornado.web.RequestHandler):
         return None
 
 
+def frame_limit(settings):
+    """The bytes a client's message may have on the wire: four times max_message_size, so that the Session
+    refuses the ones between, politely (a status); 1 GB without max_message_size."""
+    return 4 * settings.max_message_size or 1 << 30
+
+
+def unfinished_bound(settings):
+    """What the unfinished messages of all clients may hold together: one message at the frame limit (what
+    the bridge holds for them is about twice that: buffers, and what malloc keeps of their growth)."""
+    return ws.SharedBound(frame_limit(settings))
+
+
 class ClientConnection:
     """One websocket client after the handshake.
 
     Reading: one read of the stream at a time, asked for only when every frame of the last one has been taken,
     so that what waits in the bridge is at most one frame being received and one read. The frames are taken in
     turns with the other clients: after a turn's worth (budget.py), or while the Session holds the client's
-    next requests, the rest waits, and the client's socket with it (backpressure).
+    next requests, the rest waits, and the client's socket with it (backpressure). A compressed message is
+    unpacked a slice at a time, each slice a turn's worth. A message must be whole within fragment_timeout of its
+    first byte (_check_unfinished), and what unfinished messages hold is bounded for all clients together
+    (bridge.unfinished).
 
     Writing: the Session's queued frames go to the stream while it takes them; once the stream is backed up (the
     kernel holds at most unsent.UNSENT_LIMIT unsent), the rest stays in the Session's Outbox, which keeps each
@@ -113,14 +128,16 @@ class ClientConnection:
         self._send_direct = type(stream) is tornado.iostream.IOStream  # (not TLS: _send)
         settings = bridge.settings
         self._loop = tornado.ioloop.IOLoop.current()
-        max_frame = 4 * settings.max_message_size or 1 << 30  # bigger ones are refused by the Session, politely
-        self._reader = ws.FrameReader(max_frame, deflate=window_bits is not None, unmask=borrowed.websocket_mask)
+        self._reader = ws.FrameReader(frame_limit(settings), deflate=window_bits is not None,
+                                      unmask=borrowed.websocket_mask, max_inflated=settings.max_message_size or None,
+                                      shared=bridge.unfinished)
         self.budget = ClientBudget(settings.max_frames_per_second, settings.max_bytes_per_second, time.monotonic)
         self.session = protocol.Session(bridge.backend, bridge.config, time.time, self._loop.call_later,
                                         self._wake, self._close_after_sending, name=peer,
                                         resume_reading=self._resume, off_loop=bridge.encoder.run)
         self._waiting = None  # what reading waits for: "read", "turn" (a timer), "session", or "end"
         self._turn_timer = None
+        self._unfinished_timer = None  # when the message the client is sending must be whole (_check_unfinished)
         self._closing = False  # our close frame is sent: nothing else goes out
         self._close_reason = None  # the Session asked to close once its queue is sent
         self._drop_timer = None
@@ -158,7 +175,7 @@ class ClientConnection:
             self._waiting = "end"
 
     def _received(self, read):
-        if self._reader is None or read.cancelled() or read.exception() is not None:  # closed: see _on_stream_closed
+        if self._waiting == "end" or read.cancelled() or read.exception() is not None:  # (_on_stream_closed, close)
             self._waiting = "end"
             return
         self._last_heard = time.monotonic()
@@ -188,6 +205,8 @@ class ClientConnection:
                 event = reader.next_event()
                 if event is None:
                     self._read()
+                    if self._unfinished_timer is None and reader.unfinished_since is not None:
+                        self._check_unfinished()
                     return
                 kind, payload, size = event
                 if kind == ws.TEXT:
@@ -203,11 +222,30 @@ class ClientConnection:
                     return
         except ws.ProtocolError as error:
             self._waiting = "end"
+            if error.code == ws.TRY_AGAIN:
+                self.bridge.log_refusal("unfinished", f"a client refused: the unfinished messages of all clients "
+                                        f"hold their bound ({self.bridge.unfinished.limit} bytes)")
             self.close(error.code, error.reason, then_drop=True)
         except Exception:  # a bug: this client is dropped, the others go on
             self._waiting = "end"
             log_bug("reading a websocket client's frames")
             self._stream.close()
+
+    def _check_unfinished(self):
+        """The message the client is sending must be whole within fragment_timeout of its first byte (a client
+        that never ends one would hold it for good): checked then, and the connection closed if it is not."""
+        self._unfinished_timer = None
+        since = self._reader.unfinished_since if self._waiting == "read" else None
+        if since is None:  # (whole, or the bridge holds the client's frames back: read again later)
+            return
+        left = since + self.bridge.settings.fragment_timeout - time.monotonic()
+        if left > 0:
+            self._unfinished_timer = self._loop.call_later(left, self._check_unfinished)
+            return
+        self._waiting = "end"
+        self._reader.close()  # (what it held goes now, not once the close is answered)
+        self.close(ws.POLICY, f"message not whole within fragment_timeout ({self.bridge.settings.fragment_timeout} s)",
+                   then_drop=True)
 
     def _handle_other(self, kind, payload):
         if kind == ws.BINARY:
@@ -415,13 +453,14 @@ class ClientConnection:
             self._drop_timer = self._loop.call_later(CLOSE_TIMEOUT, stream.close)
 
     def _on_stream_closed(self):
-        for timer in (self._turn_timer, self._drop_timer):
+        for timer in (self._turn_timer, self._drop_timer, self._unfinished_timer):
             if timer is not None:
                 self._loop.remove_timeout(timer)
         if self._pinger is not None:
             self._pinger.stop()
         self._waiting = "end"
-        self._reader = None  # (what it holds goes now, not with the session)
+        self._reader.close()  # (what it holds goes now, not with the session: its share of the bound too)
+        self._reader = None
         self.session.closed()
         self.bridge.client_closed(self)
 

@@ -11,6 +11,7 @@ A client's frames come out one event per frame, so that whoever reads can weigh 
 import base64
 import hashlib
 import struct
+import time
 import zlib
 
 CONTINUATION, TEXT, BINARY, CLOSE, PING, PONG = 0x0, 0x1, 0x2, 0x8, 0x9, 0xA
@@ -19,6 +20,7 @@ _FIN, _RSV1, _RESERVED, _MASKED = 0x80, 0x40, 0x70, 0x80
 
 # close codes (RFC 6455 section 7.4.1)
 NORMAL, GOING_AWAY, PROTOCOL_ERROR, NO_STATUS, INVALID_DATA, POLICY, TOO_BIG = 1000, 1001, 1002, 1005, 1007, 1008, 1009
+TRY_AGAIN = 1013
 _SENDABLE_CODES = {1000, 1001, 1002, 1003, 1007, 1008, 1009, 1010, 1011, 1012, 1013, 1014}  # and 3000-4999
 
 _GUID = b"258EAFA5-E914-47DA-95CA-C5AB0DC85B11"
@@ -30,6 +32,9 @@ PART_COST = 64  # what a frame of a fragmented message counts beyond its bytes: 
 DEFLATE_LEVEL = 1
 _WINDOW_BITS = range(9, 16)  # the windows zlib writes raw deflate with (RFC 7692 allows 8 to 15)
 CONTEXT_BYTES = 1 << 15  # the largest window: how far back a client's compressed message may point
+INFLATE_SLICE = 1 << 16  # bytes a client's compressed message is unpacked by at a time: well under a millisecond
+OWN_BYTES = 1 << 17  # what a client's unfinished message may hold before it counts against the shared bound: about
+# one read and a frame begun, so that the many clients that are mid-frame for a moment never draw on it
 
 
 class ProtocolError(Exception):
@@ -134,38 +139,66 @@ def xor_mask(mask, data):
     return (int.from_bytes(data, "little") ^ int.from_bytes(key, "little")).to_bytes(count, "little")
 
 
+class SharedBound:
+    """What the unfinished messages of every client hold together, in bytes (each reader's beyond OWN_BYTES):
+    at most `limit`. The client whose message would go beyond is refused (TRY_AGAIN), not the ones holding it."""
+
+    def __init__(self, limit):
+        self.limit, self.held = limit, 0
+
+
 class FrameReader:
     """The frames of one client. `receive(data)` takes what was read; each `next_event()` gives the next frame's
     event, or None until more bytes come:
       (TEXT, str, size)    a whole text message (UTF-8 checked)
       (BINARY, bytes, size) a whole binary message
-      (PART, None, size)   a frame holding part of a message that is not complete yet
+      (PART, None, size)   a frame holding part of a message that is not complete yet, or a slice of a
+                           compressed frame unpacked
       (PING, bytes, size), (PONG, bytes, size)
       (CLOSE, (code, reason), size)    code NO_STATUS if the client gave none
-    size: the frame's payload bytes, or for the last frame of a compressed message what the whole message
-    unpacked to beyond the frames before. A frame that breaks the protocol raises ProtocolError, and so does
-    a message over max_size bytes (TOO_BIG, before its payload is read); the reader is done after that.
+    size: the frame's payload bytes; for a compressed frame, unpacked INFLATE_SLICE bytes at a time, each slice's
+    event weighs what it unpacked (or the compressed bytes it took, if more), so that whoever reads counts the
+    unpacking in the client's budget and serves other clients between slices. A frame that breaks the protocol
+    raises ProtocolError, and so do a message over max_size bytes (TOO_BIG, before its payload is read), a
+    compressed one unpacking to more than max_inflated (TOO_BIG, as soon as it does), and one that would take the
+    unfinished messages of every client beyond their shared bound (TRY_AGAIN); the reader is done after that.
 
     What it holds: at most one incomplete frame (max_size bytes) and the bytes given to it beyond that, which
     the shell keeps small by reading only when next_event() has said None; one message being put together
-    (max_size bytes, each of its frames counted PART_COST more); with deflate, no zlib object between messages,
-    and the end of what the client's compressed messages held, 2 * CONTEXT_BYTES at most (see _inflate)."""
+    (max_size bytes, each of its frames counted PART_COST more; a compressed one max_inflated bytes unpacked,
+    and the zlib object unpacking it); no zlib object between messages, and the end of what the client's
+    compressed messages held, 2 * CONTEXT_BYTES at most (see _start_inflating). While a message is unfinished
+    (unfinished_since), what it holds beyond OWN_BYTES counts against `shared` (a SharedBound, if given)."""
 
-    def __init__(self, max_size, deflate=False, unmask=xor_mask):
+    def __init__(self, max_size, deflate=False, unmask=xor_mask, max_inflated=None, shared=None,
+                 clock=time.monotonic):
         self.max_size, self._unmask = max_size, unmask
+        self.max_inflated = max_size if max_inflated is None else max_inflated
         self._buffer = bytearray()
         self._start = 0  # where the next frame starts in _buffer
-        self._parts = None  # the message being put together from its frames (bytearray), or None
+        self._parts = None  # the message being put together from its frames (bytearray; unpacked), or None
         self._parts_weight = 0  # what those frames count against max_size: their bytes, and PART_COST each
         self._opcode = None  # the opcode of that message
         self._compressed = False  # whether it is compressed
         self._deflate = deflate  # permessage-deflate negotiated: each compressed message inflated on its own
-        self._inflated = bytearray()  # the end of what the client's compressed messages held, for _inflate
+        self._inflater = None  # the zlib object of the compressed message being read
+        self._input = None  # the compressed frame being unpacked (its payload), or None
+        self._input_at = 0  # how much of it was given to the inflater
+        self._final = False  # whether it is the message's last frame
+        self._inflated = bytearray()  # the end of what the client's compressed messages held (_start_inflating)
+        self._shared, self._held, self._clock = shared, 0, clock  # (_held: what this reader counts in _shared)
+        self._since = None  # when the message being received began to arrive
 
     @property
     def buffered(self):
         """Bytes received and not taken yet."""
         return len(self._buffer) - self._start
+
+    @property
+    def unfinished_since(self):
+        """When (by the clock) the first bytes of the message being received came, or None between messages:
+        what the shell expires."""
+        return self._since
 
     def receive(self, data):
         if self._start:
@@ -173,11 +206,18 @@ class FrameReader:
             self._start = 0
         self._buffer += data
 
+    def close(self):
+        """Lets go of what it holds (the connection ended), its part of the shared bound too."""
+        self._hold(0)
+        self._buffer, self._start, self._parts, self._inflater, self._input = bytearray(), 0, None, None, None
+
     def next_event(self):
+        if self._input is not None:
+            return self._inflate_step()
         buf, start = self._buffer, self._start
         available = len(buf) - start
         if available < 2:
-            return None
+            return self._incomplete(available)
         first, second = buf[start], buf[start + 1]
         opcode, length, head = first & 0x0F, second & 0x7F, 2
         if first & _RESERVED and not (first & _RESERVED == _RSV1 and self._deflate and opcode in
@@ -200,18 +240,18 @@ class FrameReader:
             raise ProtocolError(PROTOCOL_ERROR, f"unknown opcode {opcode}")
         if length == 126:
             if available < 4:
-                return None
+                return self._incomplete(available)
             (length,), head = _LENGTH_16.unpack_from(buf, start + 2), 4
         elif length == 127:
             if available < 10:
-                return None
+                return self._incomplete(available)
             (length,), head = _LENGTH_64.unpack_from(buf, start + 2), 10
         if length + (self._parts_weight + PART_COST if opcode == CONTINUATION else 0) > self.max_size:
             raise ProtocolError(TOO_BIG, "message too big")
         payload_at = start + head + 4
         end = payload_at + length
         if len(buf) < end:
-            return None
+            return self._incomplete(available)
         if length:
             with memoryview(buf) as view:
                 payload = self._unmask(view[payload_at - 4:payload_at].tobytes(), view[payload_at:end])
@@ -222,23 +262,46 @@ class FrameReader:
             end = 0
         self._start = end
         if opcode & 0x8:
+            if self._parts is None:
+                self._since = None
             return self._control(opcode, payload)
+        fin = first & _FIN
         if opcode != CONTINUATION:
             self._opcode, self._compressed = opcode, bool(first & _RSV1)
-            if not first & _FIN:
-                self._parts, self._parts_weight = bytearray(payload), length + PART_COST
-                return PART, None, length
-        else:
-            self._parts += payload
-            self._parts_weight += length + PART_COST
-            if not first & _FIN:
-                return PART, None, length
-            payload, self._parts = bytes(self._parts), None
-        size = length
-        if self._compressed:  # weighed as what it unpacks to, less what its earlier frames weighed
-            earlier = len(payload) - length
-            payload = self._inflate(payload)
-            size = max(length, len(payload) - earlier)
+            if self._compressed:
+                self._start_inflating()
+            elif fin:  # (a whole message in one frame: the usual case, kept short)
+                return self._message(payload, length)
+            else:
+                self._parts, self._parts_weight = bytearray(), 0
+        self._parts_weight += length + PART_COST
+        if self._compressed:
+            self._input, self._input_at, self._final = payload + _DEFLATE_TAIL if fin else payload, 0, fin
+            return self._inflate_step()
+        self._parts += payload
+        if not fin:
+            return self._part(length)
+        payload, self._parts = bytes(self._parts), None
+        return self._message(payload, length)
+
+    def _incomplete(self, available):
+        """None: the next frame is not all here yet; what it holds so far belongs to an unfinished message."""
+        if available:
+            if self._since is None:
+                self._since = self._clock()
+            self._hold(available + (len(self._parts) if self._parts is not None else 0))
+        return None
+
+    def _part(self, size):
+        if self._since is None:
+            self._since = self._clock()
+        self._hold(len(self._parts))
+        return PART, None, size
+
+    def _message(self, payload, size):
+        self._since = None
+        if self._held:
+            self._hold(0)
         if self._opcode == TEXT:
             try:
                 return TEXT, payload.decode(), size
@@ -246,33 +309,61 @@ class FrameReader:
                 raise ProtocolError(INVALID_DATA, "text message is not valid UTF-8") from None
         return BINARY, payload, size
 
-    def _inflate(self, payload):
-        """A compressed message unpacked by an inflater of its own, dropped after it: the client keeps no context
+    def _hold(self, count):
+        """Counts `count` bytes held for the unfinished message (beyond OWN_BYTES) against the shared bound."""
+        shared = self._shared
+        if shared is None:
+            return
+        count = max(0, count - OWN_BYTES)
+        if count > self._held and shared.held + count - self._held > shared.limit:
+            raise ProtocolError(TRY_AGAIN, f"unfinished messages of all clients at their bound ({shared.limit} "
+                                           "bytes): try again later")
+        shared.held += count - self._held
+        self._held = count
+
+    def _start_inflating(self):
+        """A compressed message begins: an inflater of its own, dropped after it, since the client keeps no context
         between its messages either (client_no_context_takeover, in our answer). Some clients keep it anyway
-        (Tornado 6.2's parser drops the answer's parameters that have no value): a message that points back
-        before its start is unpacked again from the end of what the client's earlier compressed messages held,
-        kept here as bytes (a client's requests are small; 2 * CONTEXT_BYTES at most)."""
-        try:
-            data = self._unpack(payload)
-        except zlib.error as error:
-            if not self._inflated:
-                raise ProtocolError(INVALID_DATA, f"compressed message cannot be unpacked ({error})") from None
+        (Tornado 6.2's parser drops the answer's parameters that have no value), and their messages point back
+        before their start: the inflater is given the end of what the client's earlier compressed messages held
+        (kept here, 2 * CONTEXT_BYTES at most) as its dictionary, which changes nothing for a message that does
+        not point back."""
+        context = self._inflated[-CONTEXT_BYTES:]
+        self._inflater = zlib.decompressobj(-15, zdict=context) if context else zlib.decompressobj(-15)
+        self._parts, self._parts_weight = bytearray(), 0
+
+    def _inflate_step(self):
+        """Unpacks the next INFLATE_SLICE bytes of the compressed frame being read (its compressed bytes given
+        INFLATE_SLICE at a time too, so that what zlib leaves unconsumed stays small): a PART, or the message
+        once its last frame is all unpacked."""
+        inflater, parts, packed = self._inflater, self._parts, self._input
+        if inflater.eof:  # (a final block ended the message: what follows it is not part of it)
+            data, fed, self._input_at = b"", len(packed) - self._input_at, len(packed)
+        else:
+            source, fed = inflater.unconsumed_tail, 0
+            if not source:
+                source = packed[self._input_at:self._input_at + INFLATE_SLICE]
+                fed = len(source)
+                self._input_at += fed
+            asked = min(INFLATE_SLICE, self.max_inflated + 1 - len(parts))
             try:
-                data = self._unpack(payload, bytes(self._inflated[-CONTEXT_BYTES:]))
+                data = inflater.decompress(source, asked)
             except zlib.error as error:
                 raise ProtocolError(INVALID_DATA, f"compressed message cannot be unpacked ({error})") from None
-        inflated = self._inflated
-        inflated += data[-CONTEXT_BYTES:]
-        if len(inflated) > 2 * CONTEXT_BYTES:  # (trimmed once per CONTEXT_BYTES taken: a byte copied per byte)
-            del inflated[:-CONTEXT_BYTES]
-        return data
-
-    def _unpack(self, payload, context=b""):
-        inflater = zlib.decompressobj(-15, zdict=context) if context else zlib.decompressobj(-15)
-        data = inflater.decompress(payload + _DEFLATE_TAIL, self.max_size + 1)
-        if len(data) > self.max_size or inflater.unconsumed_tail:
-            raise ProtocolError(TOO_BIG, "message too big (unpacked)")
-        return data
+            if len(parts) + len(data) > self.max_inflated:
+                raise ProtocolError(TOO_BIG, "message too big (unpacked)")
+            parts += data
+            inflated = self._inflated
+            inflated += data[-CONTEXT_BYTES:]
+            if len(inflated) > 2 * CONTEXT_BYTES:  # (trimmed once per CONTEXT_BYTES taken: a byte copied per byte)
+                del inflated[:-CONTEXT_BYTES]
+            if len(data) == asked or inflater.unconsumed_tail or self._input_at < len(packed):
+                return self._part(max(fed, len(data)))  # (more to unpack from this frame)
+        self._input = None
+        if not self._final:
+            return self._part(max(fed, len(data)))
+        payload, self._parts, self._inflater = bytes(parts), None, None
+        return self._message(payload, max(fed, len(data)))
 
     def _control(self, opcode, payload):
         if opcode != CLOSE:

@@ -6,6 +6,7 @@ bridge, not with the measuring client, for the CPU and the GIL):
 Each abuse runs for at most SECONDS (or until done) and the process exits; it prints one line of what it did.
 `measure` runs one beside a well-behaved Victim (used by test_isolation.py and bench/suite.py)."""
 import asyncio
+import itertools
 import json
 import socket
 import struct
@@ -13,6 +14,7 @@ import sys
 import threading
 import time
 import urllib.parse
+import zlib
 
 from tornado.websocket import WebSocketClosedError, websocket_connect
 
@@ -74,15 +76,34 @@ async def auth_flood(ws, seconds):
     return f"{sent} auth frames"
 
 
+def raw_connect(url, extensions=""):
+    """A raw socket after the websocket handshake (sent, its answer not read), offering `extensions`."""
+    parts = urllib.parse.urlparse(url)
+    sock = socket.create_connection((parts.hostname, parts.port))
+    offer = f"Sec-WebSocket-Extensions: {extensions}\r\n" if extensions else ""
+    sock.sendall(f"GET / HTTP/1.1\r\nHost: {parts.hostname}:{parts.port}\r\nUpgrade: websocket\r\n"
+                 "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+                 f"Sec-WebSocket-Version: 13\r\n{offer}\r\n".encode())
+    return sock
+
+
+def raw_frame(payload, opcode=0x1, fin=True, rsv1=False):
+    """A client frame with the mask key 0 (its payload as is)."""
+    first = (0x80 if fin else 0) | (0x40 if rsv1 else 0) | opcode
+    if len(payload) < 126:
+        head = struct.pack("!BB", first, 0x80 | len(payload))
+    elif len(payload) < 1 << 16:
+        head = struct.pack("!BBH", first, 0x80 | 126, len(payload))
+    else:
+        head = struct.pack("!BBQ", first, 0x80 | 127, len(payload))
+    return head + bytes(4) + payload
+
+
 def pings_never_read(url, seconds):
     """A raw socket: the handshake, then small masked pings as fast as the bridge takes them, never reading the
     pongs."""
-    parts = urllib.parse.urlparse(url)
-    sock = socket.create_connection((parts.hostname, parts.port))
-    sock.sendall(f"GET / HTTP/1.1\r\nHost: {parts.hostname}:{parts.port}\r\nUpgrade: websocket\r\n"
-                 "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
-                 "Sec-WebSocket-Version: 13\r\n\r\n".encode())
-    pings = (struct.pack("!BB", 0x89, 0x80 | 4) + bytes(4) + b"ping") * 10_000  # mask key 0: as is
+    sock = raw_connect(url)
+    pings = raw_frame(b"ping", opcode=0x9) * 10_000
     sock.settimeout(1.0)
     sent, end = 0, time.monotonic() + seconds
     while time.monotonic() < end:
@@ -92,6 +113,72 @@ def pings_never_read(url, seconds):
         except OSError:  # the bridge closed us (or our send buffer stays full)
             break
     return f"{sent} pings of 4 bytes"
+
+
+def on_connections(count, url, seconds, extensions, abuse):
+    """Runs abuse(sock, end) on `count` raw connections at once, each on a new connection whenever the bridge
+    closes its last one, until `seconds` have passed; returns how many connections were made and what the abuses
+    returned, added up."""
+    end, totals = time.monotonic() + seconds, []
+
+    def run():
+        connections = done = 0
+        while time.monotonic() < end:
+            sock = raw_connect(url, extensions)
+            connections += 1
+            try:
+                done += abuse(sock, end)
+            except OSError:  # the bridge closed it
+                pass
+            finally:
+                sock.close()
+        totals.append((connections, done))
+    threads = [threading.Thread(target=run) for _ in range(count)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    return tuple(map(sum, zip(*totals)))
+
+
+def inflate_bombs(url, seconds):
+    """Four connections that offer permessage-deflate, each sending a 30 kB compressed text message that unpacks
+    to 31 MB, again and again as fast as the bridge takes them."""
+    compressor = zlib.compressobj(9, zlib.DEFLATED, -15)
+    packed = (compressor.compress(bytes(31_000_000)) + compressor.flush(zlib.Z_SYNC_FLUSH))[:-4]
+    bomb = raw_frame(packed, rsv1=True)
+
+    def send(sock, end):
+        sent = 0
+        try:
+            while time.monotonic() < end:
+                sock.settimeout(max(0.1, end - time.monotonic()))
+                sock.sendall(bomb)
+                sent += 1
+        except OSError:  # the bridge closed it
+            pass
+        return sent
+    connections, sent = on_connections(4, url, seconds, "permessage-deflate", send)
+    return f"{sent} bombs of {len(bomb)} bytes (31 MB unpacked) on {connections} connections"
+
+
+def unfinished_messages(url, seconds):
+    """Five connections, each starting a text message of 30 MB in frames of 1 MB (FIN=0) that it never
+    finishes, then waiting."""
+    part = bytes(1_000_000)
+    message = raw_frame(part, fin=False) + raw_frame(part, opcode=0x0, fin=False) * 29
+
+    def hold(sock, end):
+        sock.sendall(message)
+        sock.settimeout(max(0.0, end - time.monotonic()))
+        try:
+            while sock.recv(65536):  # (until the bridge closes it)
+                pass
+        except socket.timeout:
+            pass
+        return 1
+    connections, _ = on_connections(5, url, seconds, "", hold)
+    return f"{connections} unfinished messages of 30 MB"
 
 
 ABUSES_IN_PROCESS = {f.__name__: f for f in (flood, subscribe_many, advertise_many, publish_unknown, huge_throttle,
@@ -122,11 +209,12 @@ async def main(url, abuse, seconds):
 
 
 class Victim:
-    """A well-behaved client on a thread of its own: the largest gap between poses, the slowest get_time."""
+    """A well-behaved client on a thread of its own: the largest gap between poses, the slowest get_time, the
+    round trips of its websocket pings."""
 
     def __init__(self, url, auth=None):
         self.url, self.auth = url, auth
-        self.arrivals, self.call_times, self.own_stalls = [], [], []
+        self.arrivals, self.call_times, self.own_stalls, self.ping_times = [], [], [], []
         self.ready, self._stop = threading.Event(), threading.Event()
         self._thread = threading.Thread(target=lambda: asyncio.run(self._run()), daemon=True)
         self._thread.start()
@@ -137,7 +225,12 @@ class Victim:
         if self.auth is not None:
             await ws.write_message(json.dumps(self.auth))
         await ws.write_message(json.dumps({"op": "subscribe", "topic": "/turtle1/pose", "type": "turtlesim/Pose"}))
-        calls = {}
+        calls, pings = {}, {}
+
+        def pong(data):
+            if data in pings:
+                self.ping_times.append(time.monotonic() - pings.pop(data))
+        ws.on_pong = pong
 
         async def reader():
             while True:
@@ -155,7 +248,12 @@ class Victim:
                 before = time.monotonic()
                 await asyncio.sleep(0.01)
                 self.own_stalls.append((before, time.monotonic() - before - 0.01))
-        reading, ticking = asyncio.ensure_future(reader()), asyncio.ensure_future(ticker())
+        async def pinger():  # a websocket ping every 50 ms: answered by the bridge as soon as it reads it
+            for k in itertools.count():
+                pings[b"%d" % k] = time.monotonic()
+                ws.ping(b"%d" % k)
+                await asyncio.sleep(0.05)
+        tasks = [asyncio.ensure_future(task()) for task in (reader, ticker, pinger)]
         n = 0
         while not self._stop.is_set():
             n += 1
@@ -163,9 +261,10 @@ class Victim:
             await ws.write_message(json.dumps({"op": "call_service", "service": "/rosapi/get_time", "id": n}))
             await asyncio.sleep(0.25)
         self.unanswered = [time.monotonic() - sent for sent in calls.values()]
+        self.ping_times += [time.monotonic() - sent for sent in pings.values()]
         ws.close()
-        reading.cancel()
-        ticking.cancel()
+        for task in tasks:
+            task.cancel()
 
     def largest_gap(self, since):
         """The largest gap between poses after `since`, where it began (seconds after `since`) and this
@@ -180,32 +279,37 @@ class Victim:
         self._thread.join(10)
 
 
-ABUSES = [*ABUSES_IN_PROCESS, "pings_never_read"]
+RAW_ABUSES = {f.__name__: f for f in (pings_never_read, inflate_bombs, unfinished_messages)}
+ABUSES = [*ABUSES_IN_PROCESS, *RAW_ABUSES]
 
 
 def measure(ros, url, server, abuse, seconds, auth=None):
     """Runs `abuse` for `seconds` beside a Victim (sending `auth` first if given) on the bridge at `url` whose
     server process is `server` (a ProcStat); returns what the attacker did and what the victim saw (times in
-    seconds from the attacker's start: `attacked`, when it ended; `gap_at`, when the largest gap began; and
-    `victims_own_stall`, the victim's own loop's longest stall in that gap, which the bridge did not cause)."""
+    seconds from the attacker's start: `attacked`, when it ended; `gap_at`, when the largest gap began;
+    `victims_own_stall`, the victim's own loop's longest stall in that gap, which the bridge did not cause; its
+    pings' round trips; the bridge's memory growth after the attack and at its peak)."""
     victim = Victim(url, auth)
     time.sleep(1.0)
     rss_before, started = server.rss_mb(), time.monotonic()
+    server.reset_peak_rss()
     attacker = ros.spawn([sys.executable, __file__, url, abuse, str(seconds)], f"hostile_{abuse}")
     code = attacker.popen.wait(seconds + 90)
     attacked = time.monotonic() - started
     time.sleep(0.5)
     victim.stop()
     gap, gap_at, own_stall = victim.largest_gap(started)
+    pings = sorted(victim.ping_times) or [float("inf")]
     return {"attacker": attacker.output().strip(), "attacker_exit": code, "attacked": attacked,
             "gap": gap, "gap_at": gap_at, "victims_own_stall": own_stall,
             "slowest_call": max(victim.call_times + victim.unanswered, default=float("inf")),
-            "rss_growth": server.rss_mb() - rss_before}
+            "ping_p50": pings[len(pings) // 2], "ping_p95": pings[len(pings) * 95 // 100], "slowest_ping": pings[-1],
+            "rss_growth": server.rss_mb() - rss_before, "peak_rss_growth": server.peak_rss_mb() - rss_before}
 
 
 if __name__ == "__main__":
     url, abuse, seconds = sys.argv[1], sys.argv[2], float(sys.argv[3])
-    if abuse == "pings_never_read":
-        print(pings_never_read(url, seconds), flush=True)
+    if abuse in RAW_ABUSES:
+        print(RAW_ABUSES[abuse](url, seconds), flush=True)
     else:
         print(asyncio.run(main(url, abuse, seconds)), flush=True)

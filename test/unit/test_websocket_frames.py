@@ -195,7 +195,8 @@ def test_deflated_messages_are_unpacked_and_weighed_as_unpacked():
     got = events(reader)
     assert [(kind, payload) for kind, payload, _ in got] == [
         (ws.TEXT, text.decode()), (ws.PART, None), (ws.TEXT, text.decode()), (ws.TEXT, "plain")]
-    assert got[0][2] == len(text) and got[1][2] + got[2][2] == len(text)
+    # (each event weighs what it unpacked, or the compressed bytes it took if more)
+    assert got[0][2] == len(text) and len(text) <= got[1][2] + got[2][2] <= len(text) + len(second) + 4
 
 
 def test_a_client_that_keeps_its_context_after_agreeing_not_to_is_still_understood():
@@ -208,7 +209,7 @@ def test_a_client_that_keeps_its_context_after_agreeing_not_to_is_still_understo
     reader = ws.FrameReader(1 << 20, deflate=True)
     for text in texts:
         reader.receive(client_frame(client_deflated(text, compressor), rsv1=True))
-        assert reader.next_event()[1] == text.decode()
+        assert events(reader)[-1][1] == text.decode()
     assert len(reader._inflated) <= 2 * ws.CONTEXT_BYTES
 
 
@@ -254,13 +255,27 @@ def test_any_deflated_messages_in_any_cuts_read_back(keeps_context, messages, cu
     assert got == expected
 
 
-def test_a_small_deflated_message_that_unpacks_over_the_limit_is_refused():
-    bomb = client_deflated(b"0" * 2_000_000)  # a few kilobytes on the wire
-    reader = ws.FrameReader(1_000_000, deflate=True)
+def test_a_small_deflated_message_is_unpacked_a_slice_at_a_time_and_refused_once_over_its_limit():
+    """A 30 kB message that unpacks to 31 MB: the reader unpacks it INFLATE_SLICE bytes per event, each weighing
+    that (the shell's budget counts them and serves the other clients between them), and stops as soon as it has
+    more than max_inflated (not the frames' bound, four times that)."""
+    bomb = client_deflated(bytes(31_000_000))
+    assert len(bomb) < 31_000
+    reader = ws.FrameReader(4_000_000, deflate=True, max_inflated=1_000_000)
     reader.receive(client_frame(bomb, rsv1=True))
-    with pytest.raises(ws.ProtocolError) as refused:
-        reader.next_event()
+    slices = []
+    tracemalloc.start()
+    try:
+        with pytest.raises(ws.ProtocolError) as refused:
+            while True:
+                slices.append(reader.next_event())
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
     assert refused.value.code == ws.TOO_BIG
+    assert all(kind == ws.PART and size == ws.INFLATE_SLICE for kind, _, size in slices)
+    assert len(slices) == 1_000_000 // ws.INFLATE_SLICE
+    assert peak < 2_500_000, peak  # (1 MB unpacked, and the message's copy of it, at most)
 
 
 @pytest.mark.parametrize("parts", [(b"",), (b"x",), (os.urandom(1000),), (b'{"op":"publish"}' * 1000,),
@@ -396,9 +411,68 @@ def test_after_a_client_ends_its_deflate_stream_its_next_messages_still_unpack()
     assert [payload for _, payload, _ in events(reader)] == ['{"op":"a"}', '{"op":"b"}']
 
 
+def test_what_follows_a_final_block_within_its_message_is_passed_over():
+    final = zlib.compressobj(9, zlib.DEFLATED, -15)
+    ended = final.compress(b'{"op":"a"}') + final.flush(zlib.Z_FINISH)
+    reader = ws.FrameReader(1 << 22, deflate=True)
+    reader.receive(client_frame(ended, fin=False, rsv1=True) + client_frame(os.urandom(300_000), ws.CONTINUATION,
+                                                                            fin=False)
+                   + client_frame(b"more", ws.CONTINUATION) + client_frame(client_deflated(b'{"op":"b"}'), rsv1=True))
+    assert [payload for kind, payload, _ in events(reader) if kind != ws.PART] == ['{"op":"a"}', '{"op":"b"}']
+
+
 def test_deflated_data_that_cannot_be_unpacked_is_the_clients_error():
     reader = ws.FrameReader(1 << 20, deflate=True)
     reader.receive(client_frame(b"\xff\xff\xff", rsv1=True))
     with pytest.raises(ws.ProtocolError) as refused:
         reader.next_event()
     assert refused.value.code == ws.INVALID_DATA
+
+
+def unfinished(reader, data):
+    reader.receive(data)
+    return events(reader)
+
+
+def test_a_message_still_arriving_is_unfinished_from_its_first_byte_until_its_last_frame():
+    clock = [10.0]
+    reader = ws.FrameReader(1 << 20, clock=lambda: clock[0])
+    assert unfinished(reader, client_frame(b"whole")) == [(ws.TEXT, "whole", 5)]
+    assert reader.unfinished_since is None
+    first = client_frame(b"one ", fin=False)
+    assert unfinished(reader, first[:3]) == [] and reader.unfinished_since == 10.0  # (a frame begun)
+    clock[0] = 11.0
+    assert unfinished(reader, first[3:]) == [(ws.PART, None, 4)]
+    assert unfinished(reader, client_frame(b"", ws.PING)) == [(ws.PING, b"", 0)]  # (a ping in between)
+    assert reader.unfinished_since == 10.0
+    assert unfinished(reader, client_frame(b"two", ws.CONTINUATION)) == [(ws.TEXT, "one two", 3)]
+    assert reader.unfinished_since is None
+    clock[0] = 12.0
+    assert unfinished(reader, client_frame(b"", ws.PING) + client_frame(b"x" * 1000)[:500])[0][0] == ws.PING
+    assert reader.unfinished_since == 12.0
+
+
+def test_unfinished_messages_of_every_client_share_one_bound():
+    """Beyond OWN_BYTES each, what readers hold of their unfinished messages (parts, or a frame being received)
+    counts against a SharedBound: the reader whose message would go beyond it is refused, and a reader closed
+    (its connection gone) or done with its message gives its share back."""
+    shared = ws.SharedBound(900_000)
+    part = client_frame(bytes(300_000), fin=False)
+    holding, frame_begun, refused = (ws.FrameReader(1 << 22, shared=shared) for _ in range(3))
+    assert unfinished(holding, part + client_frame(bytes(300_000), ws.CONTINUATION, fin=False)) == [
+        (ws.PART, None, 300_000)] * 2
+    assert shared.held == 600_000 - ws.OWN_BYTES
+    big = client_frame(bytes(2_000_000), ws.BINARY)
+    assert unfinished(frame_begun, big[:400_000]) == []
+    held = 1_000_000 - 2 * ws.OWN_BYTES
+    assert shared.held == held
+    with pytest.raises(ws.ProtocolError) as refusal:
+        unfinished(refused, part)
+    assert refusal.value.code == ws.TRY_AGAIN
+    unfinished(ws.FrameReader(1 << 22, shared=shared), client_frame(bytes(ws.OWN_BYTES - 100), fin=False))
+    assert shared.held == held  # (within its own bytes: nothing)
+    holding.close()
+    assert unfinished(frame_begun, big[400_000:]) == [(ws.BINARY, bytes(2_000_000), 2_000_000)]
+    assert shared.held == 0
+    again = ws.FrameReader(1 << 22, shared=shared)
+    assert unfinished(again, part)[0][0] == ws.PART
