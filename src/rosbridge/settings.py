@@ -11,7 +11,10 @@ class Setting:
     default: object
     meaning: str
     ours: bool = False  # not a setting of the ROS 1 rosbridge_server, or a different default
+    check: tuple = None  # (test, what it asks): a value that fails the test is refused at start
 
+
+ABOVE_ZERO, NOT_NEGATIVE = (lambda value: value > 0, "above 0"), (lambda value: value >= 0, "0 or more")
 
 SETTINGS = (
     Setting("port", int, 9090, "0 = pick a free port, written to the `~actual_port` param"),
@@ -25,7 +28,7 @@ SETTINGS = (
             ours=True),
     Setting("fragment_timeout", float, 600.0,
             "seconds to wait for the rest of a fragmented message: a `fragment` op's, or a websocket message's (its "
-            "frames, from its first byte: the connection is then closed)"),
+            "frames, from its first byte: the connection is then closed)", check=ABOVE_ZERO),
     Setting("delay_between_messages", float, 0.0, "seconds between frames sent to one client"),
     Setting("max_message_size", int, 8_000_000,
             "bytes; larger frames get a `status` error; 0 = no limit (the reference has none)", ours=True),
@@ -57,8 +60,10 @@ SETTINGS = (
             "is measured slow (under 8 MB/s): its messages of 64 kB and more (a camera frame, a map) go deflated, "
             "made once for every such client; false = only with `use_compression`. See \"Deflated on a slow link\"",
             ours=True),
-    Setting("websocket_ping_interval", float, 0.0, "seconds between keep-alive pings; 0 = none"),
-    Setting("websocket_ping_timeout", float, 30.0, "seconds without a pong before the connection is closed (and a camera stream whose frame has not left)"),
+    Setting("websocket_ping_interval", float, 0.0, "seconds between keep-alive pings; 0 = none",
+            check=NOT_NEGATIVE),
+    Setting("websocket_ping_timeout", float, 30.0, "seconds without a pong before the connection is closed (and a camera stream whose frame has not left)",
+            check=ABOVE_ZERO),
     Setting("topics_glob", str, "", 'topics clients may use, e.g. `"[/turtle1/*, /rosout]"`; empty = all'),
     Setting("services_glob", str, "", "services clients may call or provide; empty = all"),
     Setting("params_glob", str, "", "parameters clients may read or write; empty = all"),
@@ -107,7 +112,11 @@ class Settings:
     def __init__(self, get=lambda name: None):
         """get(name) -> the configured value or None (then the default holds)."""
         for setting in SETTINGS:
-            setattr(self, setting.name, convert(setting, get(setting.name)))
+            given = get(setting.name)
+            value = convert(setting, given)
+            if setting.check is not None and not setting.check[0](value):
+                raise SettingError(f"setting {setting.name}: must be {setting.check[1]}, got {given!r}")
+            setattr(self, setting.name, value)
 
 
 def markdown_table():

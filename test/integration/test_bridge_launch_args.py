@@ -241,3 +241,18 @@ def test_pings_keep_alive_and_drop_a_silent_peer(ros):
             assert time.monotonic() - started >= 1.5  # kept until the timeout ran out, not dropped at once
     finally:
         proc.stop()
+
+
+@pytest.mark.parametrize("setting, value, must", [
+    ("websocket_ping_timeout", "0", "above 0"),  # (it stopped the bridge with PeriodicCallback's ValueError)
+    ("websocket_ping_timeout", "-1", "above 0"),
+    ("websocket_ping_interval", "-1", "0 or more"),  # (each client's connection failed with that ValueError)
+    ("fragment_timeout", "0", "above 0"),  # (every websocket message not whole in one read would be dropped)
+])
+def test_a_setting_out_of_its_range_stops_the_node_at_start_naming_it(ros, setting, value, must):
+    node_name = f"bad_{setting}{value}".replace("-", "minus")
+    for name, given in {"port": 0, "address": "127.0.0.1", setting: value}.items():
+        ros.master().setParam(f"/{node_name}/{name}", given)
+    proc = ros.spawn(["rosrun", "turtlesim", "rosbridge_websocket", f"__name:={node_name}"], node_name)
+    assert proc.popen.wait(30) != 0
+    assert f"setting {setting}: must be {must}, got '{value}'" in proc.output(), proc.output()[-2000:]
