@@ -48,3 +48,17 @@ def test_rospy_node_handler_asks_its_protocol_handlers_in_order():
     assert "self.protocol_handlers" in inspect.getsource(rospy.impl.masterslave.ROSHandler.__init__)
     assert "handler" in inspect.signature(rospy.impl.registration.RegManager.__init__).parameters
     assert isinstance(rospy.impl.registration.get_registration_listeners().listeners, list)
+
+
+def test_rosbag_keeps_an_index_entry_per_message_written_that_can_be_cleared(tmp_path):
+    import rosbag
+    from std_msgs.msg import Empty
+    with rosbag.Bag(str(tmp_path / "a.bag"), "w") as bag:
+        for _ in range(3):
+            bag.write("/empty", Empty())
+        assert sum(map(len, bag._connection_indexes.values())) == 3
+        borrowed.forget_read_index(bag)
+        assert not bag._connection_indexes
+        bag.write("/empty", Empty())
+    with rosbag.Bag(str(tmp_path / "a.bag")) as bag:  # the file's own index is whole
+        assert bag.get_message_count() == 4
