@@ -39,8 +39,9 @@ def shot(page, name, scroll=".console"):
 
 
 def small_controls(page, panel):
-    """The shown controls of a tab smaller than a finger (44 px), unless a label of that size holds them."""
-    return page.js("""return [...document.querySelectorAll(`#tab-${arguments[0]} :is(button, input, select)`)]
+    """The shown controls of a tab (links included) smaller than a finger (44 px), unless a label of that size holds
+    them."""
+    return page.js("""return [...document.querySelectorAll(`#tab-${arguments[0]} :is(button, input, select, a[href])`)]
         .filter(e => e.getClientRects().length)
         .filter(e => e.getBoundingClientRect().height < 44 && !(e.closest('label')?.getBoundingClientRect().height >= 44))
         .map(e => e.outerHTML.slice(0, 80))""", panel)
@@ -131,14 +132,21 @@ def test_a_recording_that_stops_by_itself_says_why(ros, open_page, tmp_path):
 
 
 @pytest.mark.parametrize("screen", ["desktop", "phone"])
-def test_bags_screenshots(open_page, screen):
+def test_bags_screenshots(open_page, bag_folder, screen):
+    """On a phone every control is a finger's size, the bags' download links too (a link of 190x17 px was the only
+    way to download a bag)."""
+    if not list(bag_folder.glob("*.bag")):  # (a bag to list, when this test runs alone)
+        (bag_folder / "listed.bag").write_bytes(b"#ROSBAG V2.0\n")
     page = open_page(screen)
     page.tab("bags")
     page.click('#tab-bags input[type=checkbox][value="/turtle1/pose"]')
-    wait_for(lambda: text_of(page, "#tab-bags .bag-list tbody"), 10, what="the bags listed")
+    wait_for(lambda: bag_rows(page), 10, what="the bags listed")
     shot(page, f"tools-bags-{screen}")
     if screen == "phone":
+        shot(page, "tools-bags-list-phone", "#tab-bags .bag-list")
         assert small_controls(page, "bags") == []
+        assert min(page.js("return [...document.querySelectorAll('#tab-bags a.bag-download')]"
+                           ".map(a => a.getBoundingClientRect().height)")) >= 44
     assert page.console_errors() == []
 
 
@@ -266,6 +274,13 @@ def goal_items(page):
         text: g.querySelector('.goal-text').textContent}))""")
 
 
+def send_is_after_the_fields(page):
+    """Whether Send goal is below every field of the goal's form (it was above them, beside the server's list)."""
+    return page.js("""const send = document.querySelector('#tab-actions .action-go').getBoundingClientRect();
+        const fields = [...document.querySelectorAll('#tab-actions .action-form input')];
+        return fields.length > 0 && fields.every(f => send.top >= f.getBoundingClientRect().bottom);""")
+
+
 def send_goal(page, path, value):
     """Types value into the goal form's field at `path` and clicks Send goal."""
     field = page.driver.find_element(By.CSS_SELECTOR, f"#tab-actions .action-form input[data-path={path}]")
@@ -303,6 +318,7 @@ def test_send_a_goal_see_feedback_and_result_and_cancel_another(open_page, fibon
     open_action(page, fibonacci)
     assert "action=%2Ftools_fibonacci" in page.driver.current_url
     assert "actionlib/TestGoal" in text_of(page, "#tab-actions .action-form")
+    assert send_is_after_the_fields(page)
     send_goal(page, "goal", "10")
     # live feedback while it runs (10 steps of 0.1 s), then the result: F(10) = 55
     wait_for(lambda: goal_items(page) and goal_items(page)[0]["state"] == "active", 10, what="the goal active")
@@ -327,6 +343,7 @@ def test_send_a_goal_see_feedback_and_result_and_cancel_another(open_page, fibon
 def test_actions_on_a_phone(open_page, fibonacci):
     page = open_page("phone")
     open_action(page, fibonacci)
+    assert send_is_after_the_fields(page)
     send_goal(page, "goal", "5")
     wait_for(lambda: goal_items(page) and goal_items(page)[0]["result"], 15, what="the result")
     shot(page, "tools-actions-phone", "#tab-actions")

@@ -1,7 +1,7 @@
 // Actions (actionlib's axclient): every action server (a namespace with the five topics goal, cancel, status,
 // feedback and result); for the one chosen, a form made from its goal type (messages.js's, as Publish makes
-// one); Send sends a goal, whose status, latest feedback and result are shown live; Cancel cancels it. The
-// address keeps the server (?action=/fibonacci).
+// one), with Send goal after the fields; Send sends a goal, whose status, latest feedback and result are shown
+// live; Cancel cancels it. The address keeps the server (?action=/fibonacci).
 import { readAddress, keepInAddress } from '../address.js';
 import { messageForm, messageTree } from './messages.js';
 import { ListPanel, fillSelect } from './panel.js';
@@ -23,10 +23,10 @@ export class ActionsPanel extends ListPanel {
       <p class="panel-status error" role="status"></p>
       <form class="action-send" novalidate>
         <div class="row"><label for="action-server" class="sr-only">Action server</label>
-          <select id="action-server" class="action-server"></select>
-          <button type="submit" class="primary action-go">Send goal</button></div>
+          <select id="action-server" class="action-server"></select></div>
         <p class="action-info muted" role="status"></p>
         <div class="action-form service-form"></div>
+        <div class="row"><button type="submit" class="primary action-go">Send goal</button></div>
       </form>
       <p class="action-status" role="status" aria-live="polite"></p>
       <ol class="action-goals"></ol>`;
