@@ -22,8 +22,9 @@ MAX_CALL_TIME = 1.0
 
 # MB; what the bridge may hold for a client that does not read its pongs is bounded by far less
 MAX_RSS_GROWTH = {"pings_never_read": 8}  # (its pongs wait one at a time: 0 MB; 9-103 MB when each waited)
-# MB at the peak: five unfinished messages of 30 MB took 153 MB; all clients' together are bounded at 32 MB now
-MAX_PEAK_RSS_GROWTH = {"unfinished_messages": 90}
+# MB at the peak: five unfinished messages of 30 MB took 153 MB; all clients' together are bounded at 32 MB now,
+# which the bridge holds about twice of (their frames' buffers, and what malloc keeps of them): 65-76 MB seen
+MAX_PEAK_RSS_GROWTH = {"unfinished_messages": 100}
 # s: the victim's websocket pings (p95) while four clients send messages that unpack to 31 MB each: they took
 # 0.5 s (p50) to 1.1 s (p95) when each message was unpacked at once, on the loop
 MAX_PING_P95 = {"inflate_bombs": 0.05}
