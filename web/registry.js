@@ -7,8 +7,11 @@
 //
 // A viewer draws the messages of one topic, offered for the message `types` it declares wherever that topic is
 // opened (the Topics panel). Its shape, the whole of it:
-//   new Viewer(element, { topic, type, onChange })  fills element (empty, its own) for that topic; onChange() is
-//                                         for the viewer to call when what it asks of the subscription changes;
+//   new Viewer(element, { topic, type, onChange, onDrawn })  fills element (empty, its own) for that topic;
+//                                         onChange() is for the viewer to call when what it asks of the
+//                                         subscription changes; onDrawn({ stamp, bytes, noun, via }) for one that
+//                                         draws what it fetches itself (a cloud by /cloud, a picture by its
+//                                         stream): each thing drawn, whose rate and age the topic then shows;
 //   viewer.draw(message)                  each message, as the subscription delivers it;
 //   viewer.close()                        it is taken away: stop its timers;
 //   static subscription (optional)        what it asks of the topic's subscription while shown (e.g. binary CBOR);

@@ -3,6 +3,7 @@ Chromium against real publishers: the demo's laser and TF nodes, and rospy publi
 odd messages included (NaN and infinite ranges, empty arrays, a 4000x4000 map, 50 TF frames at 100 Hz, a 300k-point
 cloud). What a person sees is asserted: pixels of the canvas, rows of a table, numbers."""
 import math
+import time
 import urllib.request
 from array import array
 
@@ -53,6 +54,12 @@ def pixels(page, canvas_selector, colour=None, tolerance=60):
           if (colour ? near(i, colour) : !near(i, background)) n++;
         }
         return n;""", canvas_selector, list(colour) if colour else None, list(BACKGROUND), tolerance)
+
+
+def seconds_of(text):
+    """The age in a line like 'newest cloud drawn: 120 ms old (by its stamp)', in seconds."""
+    value, unit = text.split(": ")[1].split(" ")[:2]
+    return float(value) / (1000 if unit == "ms" else 1)
 
 
 def shot(page, area, name):
@@ -551,9 +558,19 @@ def test_the_cloud_viewer_draws_the_decimated_cloud_from_above(open_page, cloud_
     assert 12 * 20000 <= received <= 12 * 20000 * (paints + 2)
     assert pixels(page, f"{area} canvas") > 5000
     shot(page, area, "cloud")
-    # the host's own subscription (its tree) takes one whole cloud in 30 s, by CBOR
-    wait_for(lambda: "the bridge sends this page one every 30000 ms" in
-             text_of(page, '.open-topic[data-topic="/test/cloud"] .stats'), 10, what="the host's throttled subscription")
+    # The topic's rate and age lines are the drawing's (the clouds fetched by /cloud, 2 Hz here), not those of the
+    # tree's subscription, which takes one whole cloud in 30 s (by CBOR): they read "1.7 s old" and grew to 30 s.
+    opened = '.open-topic[data-topic="/test/cloud"]'
+    wait_for(lambda: "Hz · " in text_of(page, f"{opened} .stats"), 10, what="the drawing's rate")
+    ages = []
+    for _ in range(10):
+        ages.append(text_of(page, f"{opened} .age"))
+        time.sleep(0.5)
+    assert all(age.startswith("newest cloud drawn: ") and age.endswith("old (by its stamp)") for age in ages)
+    assert max(seconds_of(age) for age in ages) < 2.0, ages
+    stats = text_of(page, f"{opened} .stats")  # (over the last 5 s)
+    assert "clouds drawn, fetched by /cloud; the tree's messages: one every 30000 ms" in stats
+    assert 1.0 <= float(stats.split("average rate: ")[1].split(" Hz")[0]) <= 2.6, stats
     assert page.console_errors() == []
 
 

@@ -136,7 +136,7 @@ class OpenTopic {
     this.plot = plot;
     this.type = type;
     this.paused = false;
-    this.arrivals = [];  // [time s, bytes]
+    this.arrivals = [];  // [time s, bytes]: of the messages, or of what the viewer drew (drawing)
     this.latest = null;
     this.openBranches = new Set();
     this.subscription = null;
@@ -148,7 +148,8 @@ class OpenTopic {
     this.frame = null;  // the animation frame that will show the newest message
     this.drawn = null;  // the message the tree shows
     this.tree = null;  // { shape, leaves: the value elements }: what the tree shows, to change in place
-    this.newest = null;  // { arrived (ms), age at arrival (s, from its header.stamp) or null }
+    this.newest = null;  // { arrived (ms), age at arrival (s, from its stamp) or null, noun (of a drawing) }
+    this.drawing = null;  // { noun, via } once the viewer says what it draws (it fetches it itself: onDrawn)
     this.element = document.createElement('article');
     this.element.className = 'open-topic';
     this.element.dataset.topic = name;
@@ -236,8 +237,11 @@ class OpenTopic {
     area.hidden = !row;
     if (row) {
       const onChange = () => this.session && this.subscribe();
-      this.viewer = { row, viewer: new row.Viewer(area, { topic: this.name, type: this.type, onChange }) };
-      if (this.session) this.viewer.viewer.attach?.(this.session);
+      let made = null;
+      const onDrawn = drawn => this.viewer?.viewer === made && this.countDrawn(drawn);
+      made = new row.Viewer(area, { topic: this.name, type: this.type, onChange, onDrawn });
+      this.viewer = { row, viewer: made };
+      if (this.session) made.attach?.(this.session);
     }
     for (const button of this.element.querySelectorAll('button.view')) {
       button.setAttribute('aria-pressed', String(button.dataset.viewer === row?.name));
@@ -247,6 +251,7 @@ class OpenTopic {
 
   subscribe() {
     this.subscription?.close();
+    this.drawing = null;
     const viewer = this.viewer?.viewer;
     const options = { ...(this.throttled ? { throttle_rate: THROTTLE_MS, queue_length: 1 } : {}),
       ...(viewer && 'subscription' in viewer ? viewer.subscription : this.viewer?.row.Viewer.subscription) };
@@ -264,15 +269,17 @@ class OpenTopic {
 
   receive(message) {
     const now = performance.now();
-    this.arrivals.push([now / 1000, sizeOf(message)]);
-    while (this.arrivals.length && this.arrivals[0][0] < now / 1000 - WINDOW_S) this.arrivals.shift();
+    if (!this.drawing) {
+      this.arrivals.push([now / 1000, sizeOf(message)]);
+      this.forgetOld(now);
+      const stamp = message.header?.stamp;
+      this.newest = { arrived: now, age: stamp ? this.session?.ageOf(stamp) ?? null : null };
+    }
     if (this.latest === null) {  // the first: subscribed by now (this page is among the subscribers), and the
       this.showInfo();           // stats no longer say "waiting" while the age already shows
       if (this.visible) this.showStats();
     }
     this.latest = message;
-    const stamp = message.header?.stamp;
-    this.newest = { arrived: now, age: stamp ? this.session?.ageOf(stamp) ?? null : null };
     this.plot.push(this.name, message);
     if (!this.paused) this.viewer?.viewer.draw(message);
     if (!this.throttled && this.arrivals.length >= FAST_SAMPLES && this.hz() > FAST_HZ) {  // too fast to show
@@ -280,6 +287,21 @@ class OpenTopic {
       this.subscribe();
     }
     this.scheduleRender();
+  }
+
+  // Something the viewer drew that it fetched itself (e.g. a cloud by /cloud, a picture by its stream): the rate,
+  // bandwidth and age shown are the drawing's, not those of the tree's messages (which then come seldom).
+  countDrawn({ stamp, bytes, noun, via }) {
+    const now = performance.now();
+    if (!this.drawing) this.arrivals = [];
+    this.drawing = { noun, via };
+    this.arrivals.push([now / 1000, bytes]);
+    this.forgetOld(now);
+    this.newest = { arrived: now, age: stamp ? this.session?.ageOf(stamp) ?? null : null, noun };
+  }
+
+  forgetOld(now) {
+    while (this.arrivals.length && this.arrivals[0][0] < now / 1000 - WINDOW_S) this.arrivals.shift();
   }
 
   // The newest message is shown at the next animation frame (one per frame, and none while its tab is hidden).
@@ -299,7 +321,7 @@ class OpenTopic {
 
   rateText() {
     if (this.arrivals.length < 2) return '';
-    return `${this.throttle ? '≥ ' : ''}${this.hz().toFixed(1)} Hz`;
+    return `${this.throttle && !this.drawing ? '≥ ' : ''}${this.hz().toFixed(1)} Hz`;
   }
 
   tick() {
@@ -313,14 +335,16 @@ class OpenTopic {
     if (this.visible && this.ticks % STATS_EVERY === 0) this.showStats();
   }
 
-  // How old the newest message is now: by its header.stamp (the bridge's clock, RosSession.ageOf) when it has
-  // one, else since it arrived.
+  // How old the newest message (or drawing) is now: by its stamp (the bridge's clock, RosSession.ageOf) when it
+  // has one, else since it arrived.
   showAge() {
     const newest = this.newest;
     if (!newest) return;
     const since = (performance.now() - newest.arrived) / 1000;
-    const text = newest.age === null ? `newest message: ${formatAge(since)} since it arrived (it has no header.stamp)`
-      : `newest message: ${formatAge(newest.age + since)} old (by its header.stamp)`;
+    const what = newest.noun ? `newest ${newest.noun} drawn` : 'newest message';
+    const stamp = newest.noun ? 'stamp' : 'header.stamp';  // (a drawing's: its header's, else when the bridge got it)
+    const text = newest.age === null ? `${what}: ${formatAge(since)} since it arrived (it has no ${stamp})`
+      : `${what}: ${formatAge(newest.age + since)} old (by its ${stamp})`;
     const element = this.$('.age');
     if (element.textContent !== text) element.textContent = text;
   }
@@ -330,11 +354,14 @@ class OpenTopic {
     if (!a.length) return;
     const seconds = Math.max(performance.now() / 1000 - a[0][0], 1e-3);
     const bytes = a.reduce((sum, [, size]) => sum + size, 0);
+    const drawing = this.drawing;
     const why = this.throttled ? 'fast topic: ' : this.viewer ? `for the ${this.viewer.row.title.toLowerCase()} ` +
       'view: ' : '';
-    const note = this.throttle ? ` (${why}the bridge sends this page one every ${this.throttle} ms)` : '';
-    this.$('.stats').textContent = `average rate: ${this.rateText() || '—'} · bandwidth: ` +
-      `${formatBytes(bytes / seconds)}/s · ${a.length} messages in the last ${WINDOW_S} s${note}`;
+    const note = drawing ? ` (the ${drawing.noun}s drawn, ${drawing.via}; the tree's messages: one every ` +
+      `${this.throttle} ms)` : this.throttle ? ` (${why}the bridge sends this page one every ${this.throttle} ms)` : '';
+    const bandwidth = a.length < 2 ? '—' : `${formatBytes(bytes / seconds)}/s`;  // (not one message's bytes in 1 ms)
+    this.$('.stats').textContent = `average rate: ${this.rateText() || '—'} · bandwidth: ${bandwidth} · ` +
+      `${a.length} ${drawing ? `${drawing.noun}s` : 'messages'} in the last ${WINDOW_S} s${note}`;
   }
 
   togglePause() {

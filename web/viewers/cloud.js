@@ -10,18 +10,21 @@ const MAX_POINTS = 20000;
 const RETRY_MS = 1000;
 
 export class PointCloudViewer {
-  // The host's own subscription (its tree and rate) takes one cloud in 30 s, binary: the points come by /cloud,
-  // and a whole 300k-point cloud is 4.8 MB (once a second that would be 5 MB/s to a phone).
+  // The host's own subscription (its tree) takes one cloud in 30 s, binary: the points come by /cloud, and a
+  // whole 300k-point cloud is 4.8 MB (once a second that would be 5 MB/s to a phone). Its rate and age lines are
+  // the drawing's (onDrawn).
   static subscription = { compression: 'cbor', throttle_rate: 30000, queue_length: 1 };
 
-  constructor(element, { topic }) {
+  // onDrawn (registry.js): each cloud drawn, so that its topic's rate and age lines tell the drawing's.
+  constructor(element, { topic, onDrawn = () => {} }) {
     this.topic = topic;
+    this.onDrawn = onDrawn;
     element.innerHTML = '<canvas class="plane" role="img" aria-label="The point cloud from above"></canvas>' +
       '<p class="viewer-stats" aria-live="off">waiting for a cloud…</p>';
     this.stats = element.querySelector('.viewer-stats');
     this.plane = new Plane(element.querySelector('canvas'), (context, width, height) => this.paint(context, width,
       height));
-    this.cloud = null;  // { points: Float32Array of triples, kept, total, third, frame, bytes }
+    this.cloud = null;  // { points: Float32Array of triples, kept, total, third, frame, bytes, stamp (s) or null }
     this.seq = 0;
     this.asked = null;  // the AbortController of the request in flight
     this.session = null;
@@ -60,7 +63,8 @@ export class PointCloudViewer {
         this.seq = Number(header('x-seq')) || this.seq + 1;
         this.cloud = { points: new Float32Array(buffer), kept: Number(header('x-points')),
           total: Number(header('x-points-total')), third: header('x-third') || 'none',
-          frame: header('x-frame-id') || '', bytes: buffer.byteLength };
+          frame: frameId(header('x-frame-id') || ''), bytes: buffer.byteLength,
+          stamp: Number.parseFloat(header('x-timestamp')) || null };
         this.problem = null;
         await new Promise(resolve => {  // the next one once this one is drawn
           this.drawnOnce = resolve;
@@ -127,6 +131,9 @@ export class PointCloudViewer {
         `${formatMetres((view.width / view.scale))} across`;
       if (!this.problem && this.stats.textContent !== text) this.stats.textContent = text;
     }
+    if (done && cloud) {
+      this.onDrawn({ stamp: cloud.stamp, bytes: cloud.bytes, noun: 'cloud', via: 'fetched by /cloud' });
+    }
     done?.();
   }
 
@@ -134,5 +141,14 @@ export class PointCloudViewer {
     this.detach();
     this.plane.close();
     this.drawnOnce?.();
+  }
+}
+
+// X-Frame-Id is the frame id percent-encoded (its UTF-8), so that any frame id fits in a header.
+function frameId(text) {
+  try {
+    return decodeURIComponent(text);
+  } catch {
+    return text;  // (not percent-encoded: a bridge from before it was)
   }
 }

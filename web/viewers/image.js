@@ -24,10 +24,12 @@ const BESIDE_A_STREAM = { compression: 'cbor', throttle_rate: 1000, queue_length
 export class ImageViewer {
   static subscription = { compression: 'cbor', throttle_rate: FRAME_MS, queue_length: 1 };
 
-  constructor(element, { topic, type, onChange = () => {} }) {
+  // onDrawn (registry.js): each picture drawn that came by the stream, not by the host's subscription.
+  constructor(element, { topic, type, onChange = () => {}, onDrawn = () => {} }) {
     this.topic = topic;
     this.type = type;
     this.onChange = onChange;
+    this.onDrawn = onDrawn;
     element.innerHTML = '<canvas class="camera" width="320" height="240" role="img" aria-label="Camera picture">' +
       '</canvas><p class="camera-stats ok" aria-live="off"></p>';
     [this.canvas, this.stats] = element.children;
@@ -83,7 +85,8 @@ export class ImageViewer {
     this.stream = session.stream(this.topic, STREAM_PARAMS, {
       onFrame: ({ bytes, type, stamp, size }) => {
         this.retryMs = RETRY_MS;
-        this.arrived({ decode: () => createImageBitmap(new Blob([bytes], { type })), stamp, size, via: 'JPEG stream' });
+        this.arrived({ decode: () => createImageBitmap(new Blob([bytes], { type })), stamp, size, via: 'JPEG stream',
+          streamed: true });
       },
       onEnd: error => {
         if (session !== this.session) return;
@@ -141,6 +144,9 @@ export class ImageViewer {
         this.problem = null;
         // Each frame drawn, with its age then, for whoever measures the page.
         this.canvas.dispatchEvent(new CustomEvent('frame', { detail: { age } }));
+        if (frame.streamed) {
+          this.onDrawn({ stamp: frame.stamp, bytes: frame.size, noun: 'picture', via: "by the bridge's JPEG stream" });
+        }
       } catch (error) {
         this.problem = error.message;
       }
