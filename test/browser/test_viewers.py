@@ -56,6 +56,12 @@ def pixels(page, canvas_selector, colour=None, tolerance=60):
         return n;""", canvas_selector, list(colour) if colour else None, list(BACKGROUND), tolerance)
 
 
+def received(page):
+    """The bytes the page has received so far: its link health's count (websocket messages and HTTP bodies as the
+    page reads them), updated each second."""
+    return int(page.js("return Number(document.getElementById('link').dataset.received || 0)"))
+
+
 def seconds_of(text):
     """The age in a line like 'newest cloud drawn: 120 ms old (by its stamp)', in seconds."""
     value, unit = text.split(": ")[1].split(" ")[:2]
@@ -370,12 +376,28 @@ def test_the_map_with_the_turtle_placed_by_tf(open_page, node, demo_sensors, pub
 
 
 def test_a_4000x4000_map(open_page, node, publishers):
+    """Its topic opened, the 16 MB map is not fetched until the Map viewer is chosen: the tree shows the type's
+    definition instead (the tree's subscription took it whole, as JSON text, before); the viewer then draws it."""
     from nav_msgs.msg import OccupancyGrid
     big = grid(4000, 4000, 0.01, origin=(-20.0, -20.0), frame="big_map")
     publishers(node, "/test/big_map", OccupancyGrid, lambda n: big, 0.2, latch=True)
     page = open_page()
+    wait_for(lambda: received(page) > 0, 10, what="the page's count of bytes received")
+    before = received(page)
+    open_topic(page, "/test/big_map")
+    opened = '.open-topic[data-topic="/test/big_map"]'
+    wait_for(lambda: "int8[] data" in page.js(f"return document.querySelector('{opened} .definition pre').textContent"),
+             15, what="the map's definition read")
+    time.sleep(8)  # (the latched map would have come whole by now)
+    assert received(page) - before < 1_000_000
+    assert "Not followed: a nav_msgs/OccupancyGrid may be megabytes (data: int8[])" in text_of(page, f"{opened} .summary")
+    assert "Choose a viewer (Map)" in text_of(page, f"{opened} .summary")
+    shot(page, f"{opened} .summary", "map-4000-not-followed")
+    chosen = received(page)
     area = open_viewer(page, "/test/big_map", "map")
     wait_for(lambda: "4000×4000 cells of 1 cm" in text_of(page, f"{area} .viewer-stats"), 60, what="the big map drawn")
+    wait_for(lambda: received(page) - chosen > 16_000_000, 5, what="the map counted as received (binary, 16 MB)")
+    assert "data: (16000000 bytes)" in text_of(page, f"{opened} .message")  # the viewer's message in the tree
     assert "no transform from big_map" in text_of(page, f"{area} .viewer-stats")
     canvas = f"{area} canvas"
     total = page.js(f"const c = document.querySelector('{canvas}'); return c.width * c.height")
@@ -386,6 +408,85 @@ def test_a_4000x4000_map(open_page, node, publishers):
     publishers(node, "/test/empty_map", OccupancyGrid, lambda n: empty, 1)
     area = open_viewer(page, "/test/empty_map", "map")
     wait_for(lambda: text_of(page, f"{area} .viewer-stats") == "an empty map", 15, what="the empty map said")
+    assert page.console_errors() == []
+
+
+def test_the_fields_that_may_make_a_message_megabytes(open_page):
+    """web/panels/messages.js's bulkArrays: variable-length arrays of bytes, nested ones too; not fixed-length ones
+    (a uuid's 16 bytes), nor arrays of numbers or strings (a scan's ranges, a joint state)."""
+    page = open_page()
+    def typedef(name, fields):
+        return {"type": name, "fieldnames": [f[0] for f in fields], "fieldtypes": [f[1] for f in fields],
+                "fieldarraylen": [f[2] for f in fields], "constnames": [], "constvalues": []}
+    typedefs = [typedef("test/Pair", [("header", "std_msgs/Header", -1), ("id", "uint8", 16),
+                                      ("images", "sensor_msgs/Image", 0), ("ranges", "float32", 0),
+                                      ("names", "string", 0), ("raw", "char", 0)]),
+                typedef("std_msgs/Header", [("seq", "uint32", -1), ("frame_id", "string", -1)]),
+                typedef("sensor_msgs/Image", [("encoding", "string", -1), ("data", "uint8", 0)])]
+    found = page.driver.execute_async_script("""const done = arguments[arguments.length - 1];
+        import('/panels/messages.js').then(m => done(m.bulkArrays(arguments[0])), e => done(String(e)));""", typedefs)
+    assert found == ["images[].data: uint8[]", "raw: char[]"]
+
+
+def test_a_topic_whose_messages_turn_out_big_is_not_followed_but_one_is_fetched_on_request(open_page, node,
+                                                                                            publishers):
+    """A type without arrays of bytes, whose messages are big all the same (about 2 MB of JSON text, twice a second):
+    the tree's subscription stops at the first message above 1 MB (before, it took them all, 4 MB/s), and Fetch one
+    message fetches one, binary."""
+    from std_msgs.msg import Float32MultiArray
+    values = [float(i) for i in range(300_000)]
+    publishers(node, "/test/big_array", Float32MultiArray, lambda n: Float32MultiArray(data=values), 2)
+    page = open_page()
+    open_topic(page, "/test/big_array")
+    opened = '.open-topic[data-topic="/test/big_array"]'
+    wait_for(lambda: "newest message" in text_of(page, f"{opened} .age"), 20, what="the first message")
+    time.sleep(1.5)  # (a message on its way meanwhile has come)
+    before = received(page)
+    time.sleep(4)
+    assert received(page) - before < 500_000
+    assert "Not followed: its messages are " in text_of(page, f"{opened} .summary")
+    page.click(f"{opened} .summary button.fetch")
+    wait_for(lambda: "one message fetched on request: 1.20 MB" in text_of(page, f"{opened} .stats"), 15,
+             what="one message fetched")
+    assert "data: (1200000 bytes)" in text_of(page, f"{opened} .message")  # (its float32[] as bytes: CBOR)
+    time.sleep(1.5)
+    before = received(page)
+    time.sleep(3)
+    assert received(page) - before < 500_000  # one, not followed
+    assert page.console_errors() == []
+
+
+@pytest.mark.parametrize("screen", ["desktop", "phone"])
+def test_an_open_viewer_takes_the_room_of_the_screen(open_page, node, publishers, screen):
+    """At 1280x800 an open viewer was 480x480 px in the left half of the console, the right half empty: it now
+    takes the console's width, its canvas as large as the window leaves room for and the topic's text beside it.
+    On a phone it is as wide as the screen allows, nothing wider. Screenshots: viewer-room-<screen>.png."""
+    from nav_msgs.msg import OccupancyGrid
+    publishers(node, "/test/room_map", OccupancyGrid, lambda n: grid(400, 400, 0.05), 0.5, latch=True)
+    page = open_page(screen)
+    area = open_viewer(page, "/test/room_map", "map")
+    wait_for(lambda: "400×400 cells of 5 cm" in text_of(page, f"{area} .viewer-stats"), 20, what="the map drawn")
+    box = page.js("""const area = document.querySelector(arguments[0]);
+        const rect = e => { const r = e.getBoundingClientRect();
+          return { left: r.left, right: r.right, top: r.top, width: r.width, height: r.height }; };
+        const canvas = area.querySelector('canvas');
+        return { canvas: rect(canvas), pixels: [canvas.width, canvas.height], area: rect(area),
+          topic: rect(area.closest('.open-topic')), topics: rect(area.closest('.open-topics')),
+          tree: rect(area.closest('.open-topic').querySelector('.message')), ratio: devicePixelRatio,
+          window: [innerWidth, innerHeight], page: document.documentElement.scrollWidth };""", area)
+    canvas = box["canvas"]
+    # drawn at the size shown, at the screen's pixels
+    assert box["pixels"] == [round(canvas["width"] * box["ratio"]), round(canvas["height"] * box["ratio"])]
+    assert box["page"] <= box["window"][0]  # nothing wider than the screen
+    assert canvas["height"] <= box["window"][1] - 100  # seen whole below the header
+    if screen == "desktop":
+        assert box["topic"]["width"] >= 0.95 * box["topics"]["width"]  # the console's width, not its left half
+        assert canvas["width"] >= 700 and canvas["height"] >= 600  # (480 x 480 before)
+        assert box["tree"]["left"] >= canvas["right"]  # the topic's text and tree beside the viewer
+    else:
+        assert canvas["width"] >= 0.95 * box["area"]["width"] and canvas["right"] <= box["window"][0]
+        assert canvas["height"] == pytest.approx(canvas["width"], abs=1)  # square
+    shot(page, area, f"room-{screen}")
     assert page.console_errors() == []
 
 

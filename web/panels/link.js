@@ -85,6 +85,7 @@ export class LinkPanel extends Panel {
     const now = performance.now();
     const [then, received] = this.counted;
     this.counted = [now, session.received];
+    this.root.dataset.received = String(session.received);  // (the bytes so far, for whoever measures the page)
     this.parts.rate.textContent = `${formatBytes((session.received - received) / ((now - then) / 1000))}/s`;
     if (this.waiting !== null && now - this.waiting > PING_MS) {
       this.parts.rtt.textContent = `> ${formatAge((now - this.waiting) / 1000)}`;

@@ -6,6 +6,7 @@
 const PRIMITIVES = new Set(['bool', 'int8', 'uint8', 'int16', 'uint16', 'int32', 'uint32', 'int64', 'uint64',
   'float32', 'float64', 'string', 'time', 'duration', 'byte', 'char']);
 const INTEGERS = /^u?int(8|16|32|64)$|^byte$|^char$/;
+const BYTES = new Set(['int8', 'uint8', 'byte', 'char']);
 const LONGEST_LEAF = 200;  // characters of a text shown in a message tree
 
 export function typedefMap(typedefs) {
@@ -32,6 +33,23 @@ export function definitionText(typedefs, type = typedefs[0]?.type) {
   };
   walk(type, '');
   return lines.join('\n');
+}
+
+// The fields that may make a message of this type megabytes: its variable-length arrays of bytes (a picture's,
+// a map's or a cloud's data), nested ones included, as e.g. ['data: int8[]', 'images[].data: uint8[]'].
+export function bulkArrays(typedefs, type = typedefs[0]?.type) {
+  const byType = typedefMap(typedefs);
+  const found = [];
+  const walk = (typeName, prefix) => {
+    const def = byType.get(typeName);
+    def?.fieldnames.forEach((name, i) => {
+      const [fieldType, length] = [def.fieldtypes[i], def.fieldarraylen[i]];
+      if (length === 0 && BYTES.has(fieldType)) found.push(`${prefix}${name}: ${fieldType}[]`);
+      else if (!PRIMITIVES.has(fieldType)) walk(fieldType, `${prefix}${name}${length === -1 ? '' : '[]'}.`);
+    });
+  };
+  walk(type, '');
+  return found;
 }
 
 // A live message as nested <details>; leaves show `name: value`. onLeaf(path, element) lets a panel make

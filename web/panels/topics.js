@@ -1,13 +1,14 @@
 // Topics (rostopic list / info / echo / hz / bw, rosmsg show): the list with types, publisher and subscriber
 // counts; an opened topic shows its info, its definition and its latest message as a live tree (pausable),
 // with its rate and bandwidth and the age of its newest message, and offers the viewers of its type
-// (registry.js) beside the tree. Several can be open; closing one unsubscribes.
+// (registry.js) beside the tree; one whose messages may be big shows its definition instead, until a viewer is
+// chosen (OpenTopic). Several can be open; closing one unsubscribes.
 //
 // A message is shown at the next animation frame after it arrives (the newest, if several came in between), and
 // only its changed values are written when its shape is the tree's.
 import { readAddress, keepInAddress } from '../address.js';
 import { formatAge, formatBytes } from '../format.js';
-import { definitionText, messageTree, treeShape } from './messages.js';
+import { bulkArrays, definitionText, messageTree, treeShape } from './messages.js';
 import { ListPanel, showName } from './panel.js';
 import { Plot } from './plot.js';
 
@@ -19,6 +20,8 @@ const FAST_SAMPLES = 50;  // arrivals needed before a topic is judged fast (mess
 const TICK_MS = 250;  // the newest message's age is shown again this often
 const STATS_EVERY = 4;  // ticks between two showings of the rate and bandwidth
 const INFO_EVERY = 12;  // ticks between two askings of who publishes and subscribes
+const TREE_MAX_BYTES = 1e6;  // a bigger message stops the tree's subscription (a viewer's is not bounded)
+const ONE_MESSAGE = { compression: 'cbor', queue_length: 1 };  // one fetched on request: its arrays as bytes
 const TOPIC_PARAM = 'topic';  // ?topic=/turtle1/pose&topic=/odom: the open topics, kept in the page's address
 const VIEW_PARAM = 'view';  // ?view=/turtle1/pose:turtle: the viewers shown in them
 
@@ -130,11 +133,17 @@ export class TopicsPanel extends ListPanel {
 
 // One opened topic. viewers: the registry's rows for its type, offered as buttons; shown: the one to show at
 // once, if any; onView(row or null) when the person shows or hides one; onClose() when closed.
+//
+// Its tree follows the topic unless its messages may be big: a type with a variable-length array of bytes (an
+// image's, a map's or a cloud's data: megabytes, which no client can ask the bridge for in part) is not
+// subscribed to until a viewer is chosen, and a message that turns out bigger than TREE_MAX_BYTES stops the
+// tree's subscription. Such a topic shows its definition instead, and fetches one message (binary) on request.
 class OpenTopic {
   constructor(name, type, plot, viewers, { shown, onView, onClose }) {
     this.name = name;
     this.plot = plot;
     this.type = type;
+    this.viewers = viewers;
     this.paused = false;
     this.arrivals = [];  // [time s, bytes]: of the messages, or of what the viewer drew (drawing)
     this.latest = null;
@@ -149,6 +158,10 @@ class OpenTopic {
     this.drawn = null;  // the message the tree shows
     this.tree = null;  // { shape, leaves: the value elements }: what the tree shows, to change in place
     this.newest = null;  // { arrived (ms), age at arrival (s, from its stamp) or null, noun (of a drawing) }
+    this.bulk = null;  // the definition's arrays of bytes (bulkArrays), once read this session
+    this.tooBig = 0;  // the size of a message that stopped the tree's subscription (bytes)
+    this.fetching = false;  // one message asked for, not followed
+    this.fetched = '';  // what the stats say of it
     this.drawing = null;  // { noun, via } once the viewer says what it draws (it fetches it itself: onDrawn)
     this.element = document.createElement('article');
     this.element.className = 'open-topic';
@@ -157,16 +170,22 @@ class OpenTopic {
       <header><h3><code class="name"></code> <small class="type"></small></h3>
         <div class="buttons"><button type="button" class="pause">Pause</button>
           <button type="button" class="close" aria-label="Close">Close</button></div></header>
-      <p class="stats" aria-live="off">waiting for a message…</p>
-      <p class="age" aria-live="off"></p>
-      <p class="info muted"></p>
-      <details class="definition"><summary>Definition <small>(rosmsg show)</small></summary><pre></pre></details>
       <div class="viewer" hidden></div>
-      <div class="message"></div>`;
-    this.$ = selector => this.element.querySelector(selector);
-    this.$('.name').textContent = name;
-    this.$('.type').textContent = type;
-    this.$('.pause').before(...viewers.map(row => {
+      <div class="topic-text">
+        <p class="stats" aria-live="off">waiting for a message…</p>
+        <p class="age" aria-live="off"></p>
+        <div class="summary" hidden><p></p>
+          <button type="button" class="fetch">Fetch one message</button></div>
+        <p class="info muted"></p>
+        <details class="definition"><summary>Definition <small>(rosmsg show)</small></summary><pre></pre></details>
+        <div class="message"></div>
+      </div>`;
+    // its parts, found before a viewer is put in (whose own elements may have the same classes)
+    this.$ = Object.fromEntries(['name', 'type', 'pause', 'close', 'viewer', 'stats', 'age', 'summary', 'fetch', 'info',
+      'definition', 'message'].map(part => [part, this.element.querySelector(`.${part}`)]));
+    this.$.name.textContent = name;
+    this.$.type.textContent = type;
+    this.$.pause.before(...viewers.map(row => {
       const button = document.createElement('button');
       button.type = 'button';
       button.className = 'view';
@@ -182,14 +201,15 @@ class OpenTopic {
       return button;
     }));
     if (shown) this.showViewer(shown);
-    this.$('.pause').addEventListener('click', () => this.togglePause());
+    this.$.pause.addEventListener('click', () => this.togglePause());
+    this.$.fetch.addEventListener('click', () => this.fetchOne());
     // on the container, at pointerdown: the tree is redrawn several times a second, so a leaf may be replaced
     // between a press and its release
-    this.$('.message').addEventListener('pointerdown', event => {
+    this.$.message.addEventListener('pointerdown', event => {
       const leaf = event.target.closest('li.plottable');
       if (leaf) this.plot.add(this.name, JSON.parse(leaf.dataset.path));
     });
-    this.$('.close').addEventListener('click', () => {
+    this.$.close.addEventListener('click', () => {
       this.detach();
       this.viewer?.viewer.close();
       onClose();
@@ -200,8 +220,10 @@ class OpenTopic {
 
   attach(session) {
     this.session = session;
+    this.bulk = null;
     this.viewer?.viewer.attach?.(session);
-    this.subscribe();
+    if (this.viewer) this.subscribe();  // (a viewer's messages need no definition; the tree's wait for it)
+    this.readDefinition(session);
     this.showInfo();
   }
 
@@ -210,20 +232,33 @@ class OpenTopic {
     if (visible) this.scheduleRender();
   }
 
+  // The definition (rosmsg show), which also says whether the tree may follow the topic; then the tree's
+  // subscription, unless a viewer's is there already.
+  async readDefinition(session) {
+    let typedefs = [];
+    try {
+      ({ typedefs } = await session.rosapi('message_details', { type: this.type }));
+    } catch (error) {
+      if (session === this.session) this.$.info.textContent = `Could not read the type: ${error.message}`;
+    }
+    if (session !== this.session) return;
+    this.$.definition.querySelector('pre').textContent = definitionText(typedefs);
+    this.bulk = bulkArrays(typedefs);
+    if (!this.viewer) this.subscribe();
+  }
+
   // Who publishes and subscribes changes (this page's own subscription appears a moment after opening).
   async showInfo() {
     const session = this.session;
     if (!session) return;
     try {
-      const [pubs, subs, details] = await Promise.all([
-        session.rosapi('publishers', { topic: this.name }), session.rosapi('subscribers', { topic: this.name }),
-        session.rosapi('message_details', { type: this.type })]);
-      this.$('.info').textContent = `Publishers: ${pubs.publishers.join(', ') || 'none'} · ` +
-        `Subscribers: ${subs.subscribers.join(', ') || 'none'}`;
+      const [pubs, subs] = await Promise.all([session.rosapi('publishers', { topic: this.name }),
+        session.rosapi('subscribers', { topic: this.name })]);
       if (session !== this.session) return;
-      this.$('.definition pre').textContent = definitionText(details.typedefs);
+      this.$.info.textContent = `Publishers: ${pubs.publishers.join(', ') || 'none'} · ` +
+        `Subscribers: ${subs.subscribers.join(', ') || 'none'}`;
     } catch (error) {
-      this.$('.info').textContent = `Could not read the topic's details: ${error.message}`;
+      this.$.info.textContent = `Could not read the topic's details: ${error.message}`;
     }
   }
 
@@ -232,10 +267,13 @@ class OpenTopic {
   showViewer(row) {
     this.viewer?.viewer.close();
     this.viewer = null;
-    const area = this.$('.viewer');
+    const area = this.$.viewer;
     area.replaceChildren();
     area.hidden = !row;
+    this.element.classList.toggle('with-viewer', Boolean(row));
     if (row) {
+      this.fetching = false;  // (the viewer's messages come instead)
+      this.fetched = '';
       const onChange = () => this.session && this.subscribe();
       let made = null;
       const onDrawn = drawn => this.viewer?.viewer === made && this.countDrawn(drawn);
@@ -249,15 +287,48 @@ class OpenTopic {
     if (this.session) this.subscribe();
   }
 
+  // Why the tree does not follow the topic: a text, '' when it does, null while its definition is unknown.
+  notFollowed() {
+    if (this.viewer) return '';
+    if (this.bulk === null) return null;
+    if (this.bulk.length) return `a ${this.type} may be megabytes (${this.bulk.join(', ')})`;
+    return this.tooBig ? `its messages are ${formatBytes(this.tooBig)}` : '';
+  }
+
   subscribe() {
     this.subscription?.close();
+    this.subscription = null;
     this.drawing = null;
-    const viewer = this.viewer?.viewer;
-    const options = { ...(this.throttled ? { throttle_rate: THROTTLE_MS, queue_length: 1 } : {}),
-      ...(viewer && 'subscription' in viewer ? viewer.subscription : this.viewer?.row.Viewer.subscription) };
+    const why = this.notFollowed();
+    this.showSummary(why);
+    if (why === null || (why && !this.fetching)) return;
+    const viewer = this.viewer;
+    const options = why ? ONE_MESSAGE : { ...(this.throttled ? { throttle_rate: THROTTLE_MS, queue_length: 1 } : {}),
+      ...(viewer && ('subscription' in viewer.viewer ? viewer.viewer.subscription : viewer.row.Viewer.subscription)) };
     if ((options.throttle_rate ?? null) !== this.throttle) this.arrivals = [];  // (another rate to measure)
     this.throttle = options.throttle_rate ?? null;
     this.subscription = this.session.subscribe(this.name, this.type, message => this.receive(message), options);
+  }
+
+  // Instead of a tree that follows the topic: why, the definition opened, and one message on request.
+  showSummary(why) {
+    const summary = this.$.summary;
+    const definition = this.$.definition;
+    if (!why && !summary.hidden) definition.open = false;  // (opened for the summary; the tree takes its place)
+    summary.hidden = !why;
+    if (!why) return;
+    definition.open = true;
+    const titles = this.viewers.map(row => row.title).join(', ');
+    summary.firstChild.textContent = `Not followed: ${why}. ${titles ? `Choose a viewer (${titles}) to watch it, or ` +
+      'fetch' : 'Fetch'} one message for its tree.`;
+    this.showStats();
+  }
+
+  fetchOne() {
+    if (!this.session || this.fetching || !this.notFollowed()) return;
+    this.fetching = true;
+    this.fetched = 'fetching one message…';
+    this.subscribe();
   }
 
   detach() {
@@ -269,8 +340,9 @@ class OpenTopic {
 
   receive(message) {
     const now = performance.now();
+    const size = sizeOf(message);
     if (!this.drawing) {
-      this.arrivals.push([now / 1000, sizeOf(message)]);
+      this.arrivals.push([now / 1000, size]);
       this.forgetOld(now);
       const stamp = message.header?.stamp;
       this.newest = { arrived: now, age: stamp ? this.session?.ageOf(stamp) ?? null : null };
@@ -282,7 +354,15 @@ class OpenTopic {
     this.latest = message;
     this.plot.push(this.name, message);
     if (!this.paused) this.viewer?.viewer.draw(message);
-    if (!this.throttled && this.arrivals.length >= FAST_SAMPLES && this.hz() > FAST_HZ) {  // too fast to show
+    if (this.fetching && !this.viewer) {  // the one asked for
+      this.fetching = false;
+      this.fetched = `one message fetched on request: ${formatBytes(size)}`;
+      this.subscribe();
+    } else if (!this.viewer && size > TREE_MAX_BYTES) {
+      this.tooBig = size;
+      this.fetched = '';
+      this.subscribe();
+    } else if (!this.throttled && this.arrivals.length >= FAST_SAMPLES && this.hz() > FAST_HZ) {  // too fast
       this.throttled = true;
       this.subscribe();
     }
@@ -320,7 +400,7 @@ class OpenTopic {
   }
 
   rateText() {
-    if (this.arrivals.length < 2) return '';
+    if (this.arrivals.length < 2 || this.notFollowed()) return '';
     return `${this.throttle && !this.drawing ? '≥ ' : ''}${this.hz().toFixed(1)} Hz`;
   }
 
@@ -345,11 +425,16 @@ class OpenTopic {
     const stamp = newest.noun ? 'stamp' : 'header.stamp';  // (a drawing's: its header's, else when the bridge got it)
     const text = newest.age === null ? `${what}: ${formatAge(since)} since it arrived (it has no ${stamp})`
       : `${what}: ${formatAge(newest.age + since)} old (by its ${stamp})`;
-    const element = this.$('.age');
+    const element = this.$.age;
     if (element.textContent !== text) element.textContent = text;
   }
 
   showStats() {
+    const stats = this.$.stats;
+    if (this.notFollowed()) {
+      stats.textContent = this.fetched;
+      return;
+    }
     const a = this.arrivals;
     if (!a.length) return;
     const seconds = Math.max(performance.now() / 1000 - a[0][0], 1e-3);
@@ -360,13 +445,13 @@ class OpenTopic {
     const note = drawing ? ` (the ${drawing.noun}s drawn, ${drawing.via}; the tree's messages: one every ` +
       `${this.throttle} ms)` : this.throttle ? ` (${why}the bridge sends this page one every ${this.throttle} ms)` : '';
     const bandwidth = a.length < 2 ? '—' : `${formatBytes(bytes / seconds)}/s`;  // (not one message's bytes in 1 ms)
-    this.$('.stats').textContent = `average rate: ${this.rateText() || '—'} · bandwidth: ${bandwidth} · ` +
+    stats.textContent = `average rate: ${this.rateText() || '—'} · bandwidth: ${bandwidth} · ` +
       `${a.length} ${drawing ? `${drawing.noun}s` : 'messages'} in the last ${WINDOW_S} s${note}`;
   }
 
   togglePause() {
     this.paused = !this.paused;
-    this.$('.pause').textContent = this.paused ? 'Resume' : 'Pause';
+    this.$.pause.textContent = this.paused ? 'Resume' : 'Pause';
     if (!this.paused) this.render();
   }
 
@@ -382,7 +467,7 @@ class OpenTopic {
       });
     } else {
       const leaves = [];
-      this.$('.message').replaceChildren(messageTree(message, {
+      this.$.message.replaceChildren(messageTree(message, {
         open: this.openBranches,
         leaves,
         onLeaf: (path, item, value) => {
@@ -394,7 +479,7 @@ class OpenTopic {
       }));
       this.tree = { shape, leaves };
     }
-    if (!this.$('.age').textContent) this.showAge();  // (then every TICK_MS, not at every frame)
+    if (!this.$.age.textContent) this.showAge();  // (then every TICK_MS, not at every frame)
   }
 }
 

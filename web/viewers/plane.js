@@ -2,20 +2,21 @@
 // pixels, drawn at an animation frame only when something new came (invalidate()), a view of metres (x right,
 // y up, as ROS's top-down) fitted to a box, a grid with a scale bar, and a colour map.
 
-// A canvas sized to its element's width at devicePixelRatio (height: width * aspect); paint(context, width,
-// height) is called at the next animation frame after invalidate(), once per frame at most.
+// A canvas of the size its CSS box has (style.css: as wide as its place, square but no taller than the window
+// leaves room for), at devicePixelRatio; paint(context, width, height) is called at the next animation frame after
+// invalidate(), once per frame at most.
 export class Plane {
-  constructor(canvas, paint, { aspect = 1 } = {}) {
+  constructor(canvas, paint) {
     this.canvas = canvas;
     this.context = canvas.getContext('2d');
     this.paint = paint;
-    this.aspect = aspect;
     this.frame = null;
     this.paints = 0;
     this.closed = false;
     this.sizer = new ResizeObserver(entries => {
-      const width = Math.max(1, Math.round(entries[0].contentRect.width * devicePixelRatio));
-      const height = Math.max(1, Math.round(width * this.aspect));
+      const box = entries[0].contentRect;
+      const width = Math.max(1, Math.round(box.width * devicePixelRatio));
+      const height = Math.max(1, Math.round(box.height * devicePixelRatio));
       if (width === canvas.width && height === canvas.height) return;
       canvas.width = width;
       canvas.height = height;
