@@ -7,6 +7,8 @@ import threading
 import time
 from array import array
 
+CAMERA = "/turtle_camera/image_raw"  # the demo camera's topic (rosrun turtlesim turtle_camera)
+
 
 def quaternion(roll=0.0, pitch=0.0, yaw=0.0):
     """(x, y, z, w) of the rotation roll, pitch, yaw (radians), as tf writes it."""

@@ -12,6 +12,7 @@ from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
 
 from harness import start_bridge, wait_for
+from sensor_messages import CAMERA
 
 SCREENS = {"desktop": {"width": 1280, "height": 800, "pixelRatio": 1},
            "phone": {"width": 390, "height": 844, "pixelRatio": 3}}
@@ -166,6 +167,18 @@ def sim(ros):
         proc.wait_output("Spawning turtle [turtle1]", timeout=60)
         yield proc
     finally:  # (the next module's turtle1 must be its own)
+        proc.stop()
+
+
+
+@pytest.fixture(scope="module")
+def camera(ros, sim):
+    """The demo camera (turtle_camera) publishing CAMERA and its compressed twin."""
+    proc = ros.spawn(["rosrun", "turtlesim", "turtle_camera"], "turtle_camera")
+    try:
+        wait_for(lambda: CAMERA in dict(ros.master().getTopicTypes()), 30, what="the camera")
+        yield proc
+    finally:
         proc.stop()
 
 

@@ -11,11 +11,10 @@ from selenium.webdriver.common.keys import Keys
 from selenium.webdriver.support.ui import Select
 
 from harness import ARTIFACTS, wait_for
-from sensor_messages import Publishing
+from sensor_messages import CAMERA, Publishing
 
 pytestmark = pytest.mark.alone  # (they time what a driver sees: tools/test runs them with nothing beside them)
 
-CAMERA = "/turtle_camera/image_raw"
 
 
 def text_of(page, selector):
@@ -26,13 +25,6 @@ def text_of(page, selector):
 def options(page, select_id):
     return page.js(f"return [...document.getElementById('{select_id}').options].map(o => o.value)")
 
-
-@pytest.fixture(scope="module")
-def camera(ros, sim):
-    proc = ros.spawn(["rosrun", "turtlesim", "turtle_camera"], "turtle_camera")
-    wait_for(lambda: CAMERA in dict(ros.master().getTopicTypes()), 30, what="the camera")
-    yield
-    proc.stop()
 
 
 def show_camera(page, topic=CAMERA):

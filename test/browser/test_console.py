@@ -8,7 +8,7 @@ from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import Select
 
 from harness import ARTIFACTS, wait_for
-from sensor_messages import Publishing
+from sensor_messages import CAMERA, Publishing
 
 
 
@@ -206,16 +206,9 @@ def test_publish_any_type_from_its_generated_form(open_page, listen):
     assert received.count() <= count + 1
 
 
-@pytest.fixture(scope="module")
-def camera(ros, sim):
-    proc = ros.spawn(["rosrun", "turtlesim", "turtle_camera"], "turtle_camera")
-    wait_for(lambda: "/turtle_camera/image_raw" in dict(ros.master().getTopicTypes()), 30, what="the camera")
-    yield
-    proc.stop()
-
 
 @pytest.mark.alone  # (its frame rate: 3 fps of 10 once, with two other workers and a benchmark beside it)
-@pytest.mark.parametrize("topic", ["/turtle_camera/image_raw", "/turtle_camera/image_raw/compressed"])
+@pytest.mark.parametrize("topic", [CAMERA, f"{CAMERA}/compressed"])
 def test_the_camera_panel_shows_the_demo_camera_live(open_page, camera, topic):
     page = open_page()
     select = Select(page.el("camera-topic"))

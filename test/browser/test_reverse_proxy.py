@@ -16,8 +16,8 @@ from std_srvs.srv import Empty
 from turtlesim.msg import Pose
 
 from harness import ARTIFACTS, REPO, Proc, free_port, start_bridge, wait_for
+from sensor_messages import CAMERA
 
-CAMERA = "/turtle_camera/image_raw"
 CENTRE = 5.544444561004639
 PUBLIC = "robots.example"
 NGINX_CONFIG = """daemon off;
@@ -69,13 +69,6 @@ def bridge_url(ros, sim, bag_folder):
     yield f"http://127.0.0.1:{port}/"
     proc.stop()
 
-
-@pytest.fixture(scope="module")
-def camera(ros, sim):
-    proc = ros.spawn(["rosrun", "turtlesim", "turtle_camera"], "turtle_camera")
-    wait_for(lambda: CAMERA in dict(ros.master().getTopicTypes()), 30, what="the camera")
-    yield
-    proc.stop()
 
 
 @pytest.fixture(scope="module")
