@@ -119,11 +119,12 @@ def test_a_bridge_without_recorder_says_how_to_turn_it_on(ros, open_page):
 
 
 def test_a_recording_that_stops_by_itself_says_why(ros, open_page, tmp_path):
-    proc, port = start_bridge(ros, node_name="rosbridge_smallbags", bag_folder=str(tmp_path), bag_max_bytes=3000)
+    # 15,000 bytes: a bag's header and records (about 5 kB, bag_bounds.py) and about 2 s of poses (78 bytes each)
+    proc, port = start_bridge(ros, node_name="rosbridge_smallbags", bag_folder=str(tmp_path), bag_max_bytes=15_000)
     try:
         page = open_page(url=f"http://127.0.0.1:{port}/?tab=bags&bag=/turtle1/pose")
         wait_for(lambda: "Folder:" in text_of(page, "#tab-bags .bag-used"), 10, what="the recorder's state")
-        page.click("#tab-bags .bag-start")  # 3000 bytes: about 2 s of poses
+        page.click("#tab-bags .bag-start")
         wait_for(lambda: "reached its bound" in text_of(page, "#tab-bags .bag-last"), 15, what="why it stopped")
         assert "error" in page.js("return document.querySelector('#tab-bags .bag-last').className")
         assert not page.el("tab-bags").find_element(By.CSS_SELECTOR, ".bag-stop").is_displayed()
