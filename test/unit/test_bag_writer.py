@@ -2,7 +2,6 @@
 bytes each) cannot pile up hundreds of thousands of jobs behind a slow disk; and what a bag being written holds in
 memory (bags.write_message)."""
 import threading
-import time
 import tracemalloc
 
 import genpy
@@ -10,30 +9,9 @@ import pytest
 import rosbag
 from std_msgs.msg import Empty
 
+from fakes import Loop
 from rosbridge.bag_bounds import MESSAGE
 from rosbridge.bags import WRITER_QUEUE_BYTES, WRITER_QUEUE_JOBS, Writer, raw, write_message
-
-
-class Loop:
-    """What Writer uses of the IOLoop: add_callback, whose calls run here when the test says."""
-
-    def __init__(self):
-        self._calls, self._lock = [], threading.Lock()
-
-    def add_callback(self, function, *args):
-        with self._lock:
-            self._calls.append((function, args))
-
-    def run(self, count, timeout=10):
-        """Runs the callbacks once `count` of them came."""
-        end = time.monotonic() + timeout
-        while len(self._calls) < count and time.monotonic() < end:
-            time.sleep(0.01)
-        with self._lock:
-            calls, self._calls = self._calls, []
-        for function, args in calls:
-            function(*args)
-        return len(calls)
 
 
 @pytest.fixture
@@ -53,10 +31,10 @@ def test_the_queue_is_bounded_in_jobs_as_well_as_in_bytes(held):
     assert accepted == WRITER_QUEUE_JOBS - 1 and MESSAGE * offered < WRITER_QUEUE_BYTES  # (the bytes alone: all)
     assert writer.submit(lambda: None)  # an open, close or save is never refused
     go.set()
-    assert loop.run(accepted + 2) == accepted + 2
+    assert loop.run_callbacks(accepted + 2) == accepted + 2
     assert writer.waiting_jobs == writer.waiting_bytes == 0
     assert writer.submit(lambda: None, MESSAGE)
-    assert loop.run(1) == 1
+    assert loop.run_callbacks(1) == 1
 
 
 def test_a_big_message_fills_it_by_its_bytes(held):
@@ -64,7 +42,7 @@ def test_a_big_message_fills_it_by_its_bytes(held):
     assert writer.submit(lambda: None, WRITER_QUEUE_BYTES - 10)
     assert not writer.submit(lambda: None, 11) and writer.submit(lambda: None, 10)
     go.set()
-    assert loop.run(3) == 3
+    assert loop.run_callbacks(3) == 3
 
 
 def test_a_bag_being_written_does_not_hold_an_index_entry_per_message(tmp_path):

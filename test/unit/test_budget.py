@@ -1,14 +1,8 @@
 """The per-client budget: a turn every few frames (or bytes), waits beyond the rates, a burst of one second."""
 import pytest
 
+from fakes import Clock
 from rosbridge.budget import BYTES_PER_TURN, FRAMES_PER_TURN, ClientBudget
-
-
-class Clock:
-    now = 0.0
-
-    def __call__(self):
-        return self.now
 
 
 def test_unlimited_rates_still_take_turns():

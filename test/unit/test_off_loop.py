@@ -3,22 +3,9 @@ import queue
 import threading
 import time
 
+from fakes import Loop
 from rosbridge.off_loop import CallThreads
 from rosbridge.ros_side.services import ServiceCalls
-
-
-class Loop:
-    """What ServiceCalls asks of Tornado's IOLoop: add_callback from any thread, run here by `run_one`."""
-
-    def __init__(self):
-        self.callbacks = queue.SimpleQueue()
-
-    def add_callback(self, fn, *args):
-        self.callbacks.put((fn, args))
-
-    def run_one(self):
-        fn, args = self.callbacks.get(timeout=5)
-        fn(*args)
 
 
 class Rosapi:

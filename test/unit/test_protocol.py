@@ -9,6 +9,7 @@ import tracemalloc
 import pytest
 from std_msgs.msg import Int32, String
 
+from fakes import OffLoop
 from rosbridge import protocol
 from rosbridge.frames import SplicedFrame, TopicMessage, Utf8Text
 from rosbridge.backend import Backend
@@ -259,21 +260,6 @@ def test_slow_client_drops_oldest_whole_messages_and_is_told_at_the_default_leve
     assert replies[0]["op"] == "status" and replies[0]["level"] == "error"
     assert "dropped 7 whole message(s)" in replies[0]["msg"] and "/t 7" in replies[0]["msg"]
     assert [r["msg"]["data"] for r in replies[1:]] == [7, 8, 9]
-
-
-class OffLoop:
-    """Jobs for the encoding thread, run when the test says (run_all); counts them."""
-    def __init__(self):
-        self.jobs, self.count = [], 0
-
-    def __call__(self, fn, then):
-        self.jobs.append((fn, then))
-        self.count += 1
-
-    def run_all(self):
-        jobs, self.jobs = self.jobs, []
-        for fn, then in jobs:
-            then(fn())
 
 
 def test_a_big_message_is_encoded_off_the_loop_once_and_the_topic_keeps_its_order():

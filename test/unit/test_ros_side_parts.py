@@ -1,4 +1,5 @@
 """The rospy-free parts of the ROS side: who holds what, and the early replay's thread rules."""
+from fakes import Clock
 from rosbridge.ros_side.holders import Holders
 from rosbridge.ros_side.publishers import REPLAY_WINDOW, EarlyReplay
 
@@ -23,16 +24,8 @@ def test_names_of_a_holder():
     assert sorted(holders.names_of("x")) == ["/a", "/b"]
 
 
-class Clock:
-    def __init__(self):
-        self.now = 100.0
-
-    def __call__(self):
-        return self.now
-
-
 def test_early_messages_are_replayed_to_a_subscriber_within_the_window():
-    clock = Clock()
+    clock = Clock(100.0)
     replay = EarlyReplay(10, clock)
     replay.record("m1")
     replay.record("m2")
@@ -43,7 +36,7 @@ def test_early_messages_are_replayed_to_a_subscriber_within_the_window():
 
 
 def test_no_replay_once_a_subscriber_left():
-    replay = EarlyReplay(10, Clock())
+    replay = EarlyReplay(10, Clock(100.0))
     replay.record("m1")
     replay.end()
     replay.record("m2")
@@ -51,7 +44,7 @@ def test_no_replay_once_a_subscriber_left():
 
 
 def test_early_replay_keeps_the_newest_messages():
-    replay = EarlyReplay(2, Clock())
+    replay = EarlyReplay(2, Clock(100.0))
     for n in range(5):
         replay.record(n)
     assert replay.replay() == (3, 4)

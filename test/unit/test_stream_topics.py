@@ -7,26 +7,9 @@ import io
 import pytest
 from sensor_msgs.msg import Image as RosImage
 
+from fakes import Loop
 from rosbridge import jpeg, streams
 from rosbridge.frames import TopicMessage
-
-
-class FakeLoop:
-    def __init__(self):
-        self.timers = []
-
-    def call_later(self, delay, fn):
-        handle = [delay, fn]
-        self.timers.append(handle)
-        return handle
-
-    def remove_timeout(self, handle):
-        self.timers.remove(handle)
-
-    def run_timers(self):
-        timers, self.timers = self.timers, []
-        for _, fn in timers:
-            fn()
 
 
 class FakeEncoder:
@@ -53,7 +36,7 @@ class FakeBackend:
 
 class FakeStreams:
     def __init__(self):
-        self.loop, self.encoder, self.backend = FakeLoop(), FakeEncoder(), FakeBackend()
+        self.loop, self.encoder, self.backend = Loop(), FakeEncoder(), FakeBackend()
         self.topics = {}
 
 

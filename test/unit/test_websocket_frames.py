@@ -11,6 +11,7 @@ import zlib
 import pytest
 from hypothesis import given, settings, strategies as st
 
+from fakes import OffLoop
 from rosbridge import frames
 from rosbridge import websocket_frames as ws
 from rosbridge.budget import FRAMES_PER_TURN, ClientBudget
@@ -299,20 +300,6 @@ def test_a_cameras_base64_deflates_to_well_under_its_size():
 
 
 # ---- one deflated payload for every client that sends a frame compressed (frames.deflated_payload) ----------
-class OffLoop:
-    """off_loop(fn, then) as the bridge's thread does it, run when the test says."""
-
-    def __init__(self):
-        self.jobs = []
-
-    def __call__(self, fn, then):
-        self.jobs.append((fn, then))
-
-    def run(self):
-        jobs, self.jobs = self.jobs, []
-        for fn, then in jobs:
-            then(fn())
-
 
 @pytest.mark.parametrize("frame", [
     frames.Utf8Text(b'{"op":"publish","msg":"' + b"ab" * 50_000 + b'"}'),
@@ -323,12 +310,12 @@ def test_a_big_frame_is_deflated_once_for_every_client_and_kept_with_it(frame):
     for client in range(3):
         assert frames.deflated_payload(frame, 15, off_loop, got.append) is None
     assert len(off_loop.jobs) == 1
-    off_loop.run()
+    off_loop.run_all()
     assert len(got) == 3 and got[0] is got[1] is got[2]
     assert zlib.decompressobj(-15).decompress(got[0] + b"\x00\x00\xff\xff") == bytes(frame)
     assert frames.deflated_payload(frame, 15, off_loop, got.append) is got[0] and not off_loop.jobs  # a later client
     assert frames.deflated_payload(frame, 10, off_loop, got.append) is None  # another window: made for it
-    off_loop.run()
+    off_loop.run_all()
     assert zlib.decompressobj(-10).decompress(got[-1] + b"\x00\x00\xff\xff") == bytes(frame)
 
 
@@ -382,7 +369,6 @@ def test_a_flood_is_taken_in_turns_and_nothing_more_is_read_meanwhile():
             turns += 1
     assert pongs == 100_000 and turns == 100_000 // FRAMES_PER_TURN
     assert most_held < read_size + 6  # (one read, and the start of a 6-byte frame)
-
 
 
 def test_a_message_in_many_empty_parts_costs_constant_time_per_part_and_is_bounded():

@@ -1,0 +1,87 @@
+"""Stand-ins for time and Tornado's IOLoop in the unit tests of pure parts: what a test moves by hand. Only the
+clock and the loop are faked; everything else the tests touch is the real code."""
+import queue
+import time
+
+
+class Clock:
+    """A clock(): the seconds `now`, which the test sets or advances."""
+
+    def __init__(self, now=0.0):
+        self.now = now
+
+    def __call__(self):
+        return self.now
+
+    def advance(self, seconds):
+        self.now += seconds
+
+
+class Loop:
+    """What the parts ask of the IOLoop, each run when the test says:
+    - add_callback(fn, *args), from any thread: run_callbacks() or run_one();
+    - call_soon(fn) (WriteTurns' hand-off): next_turn();
+    - call_later(delay, fn) and remove_timeout(handle): run_timers() runs every timer set, whatever its delay."""
+
+    def __init__(self):
+        self._callbacks = queue.SimpleQueue()
+        self.soon, self.timers = [], []
+
+    def add_callback(self, fn, *args):
+        self._callbacks.put((fn, args))
+
+    def run_one(self, timeout=5.0):
+        """Waits for the next callback (from another thread) and runs it."""
+        fn, args = self._callbacks.get(timeout=timeout)
+        fn(*args)
+
+    def run_callbacks(self, count=0, timeout=10.0):
+        """Runs the callbacks added so far, once at least `count` have come (waiting up to `timeout` s for them);
+        returns how many ran."""
+        ran, end = 0, time.monotonic() + timeout
+        while True:
+            try:
+                wait = max(0.0, end - time.monotonic()) if ran < count else 0
+                fn, args = self._callbacks.get(timeout=wait) if wait else self._callbacks.get_nowait()
+            except queue.Empty:
+                return ran
+            fn(*args)
+            ran += 1
+
+    def call_soon(self, fn):
+        self.soon.append(fn)
+
+    def next_turn(self):
+        soon, self.soon = self.soon, []
+        for fn in soon:
+            fn()
+
+    def call_later(self, delay, fn):
+        handle = [delay, fn]
+        self.timers.append(handle)
+        return handle
+
+    def remove_timeout(self, handle):
+        self.timers.remove(handle)
+
+    def run_timers(self):
+        timers, self.timers = self.timers, []
+        for _, fn in timers:
+            fn()
+
+
+class OffLoop:
+    """off_loop(fn, then), as an EncodingThread runs it: fn's result handed to then, when the test says
+    (run_all); `count` of jobs given."""
+
+    def __init__(self):
+        self.jobs, self.count = [], 0
+
+    def __call__(self, fn, then):
+        self.jobs.append((fn, then))
+        self.count += 1
+
+    def run_all(self):
+        jobs, self.jobs = self.jobs, []
+        for fn, then in jobs:
+            then(fn())
