@@ -11,6 +11,7 @@ import datetime
 import errno
 import os
 import socket
+import time
 
 import rosgraph.network
 import rospy
@@ -25,6 +26,7 @@ from rosbridge.borrowed import (INBOUND, OUTBOUND, ProtocolHandler, Transport, g
                                 get_topic_manager, handle_connection, node_protocol_handlers)
 from rosbridge.accepting import accept_connections
 from rosbridge.outgoing import FrameQueue
+from rosbridge.read_pace import ReadPace
 
 TCPROS = "TCPROS"
 CONNECT_TIMEOUT = 10.0  # seconds for a publisher to accept the bridge's connection and answer its header
@@ -69,9 +71,9 @@ class Link(Transport):
 
 class InboundLink(Link):
     """The bridge subscribed to one publisher of a topic. A plain non-blocking socket watched by the loop: each
-    time it is readable, one read, and the messages completed go to deliver(messages, latched_by) (this link if the
-    publisher latches, else None) - no future or coroutine step per message, which a topic at a fixed rate would
-    pay on every message."""
+    time it is readable (or once a millisecond while the publisher keeps sending fast: read_pace.py), one read, and
+    the messages completed go to deliver(messages, latched_by) (this link if the publisher latches, else None) - no
+    future or coroutine step per message, which a topic at a fixed rate would pay on every message."""
 
     def __init__(self, loop, topic, cls, publisher_uri, family, address, deliver):
         super().__init__(loop, INBOUND, topic)
@@ -82,6 +84,7 @@ class InboundLink(Link):
         self._retry = None  # the timer of the next try to connect
         self._deadline = None  # the timer of the try under way
         self._sock = None
+        self._poll = None  # the timer of the next read while the socket is polled, not watched
 
     def start(self):
         """On the loop: connect, send our header, then read."""
@@ -92,6 +95,7 @@ class InboundLink(Link):
         self._sending = True  # until our header is written; then reading
         self._reader = tcpros.FrameReader(max_size=tcpros.MAX_HEADER)  # (the first frame is the reply header)
         self._latching = None  # the publisher's answer: None until its header is read
+        self._pace = ReadPace()
         try:
             self._sock = socket.socket(self._family, socket.SOCK_STREAM)
             self._sock.setblocking(False)
@@ -111,9 +115,26 @@ class InboundLink(Link):
             if self._sending:
                 self._send_header()
             else:
-                self._read()
+                self._paced(*self._read())
         except (OSError, tcpros.TcprosError) as error:
             self._fail(error)
+
+    def _paced(self, messages, more):
+        """After a read: the next when the socket is readable, or in a while (read_pace.py), unwatched meanwhile."""
+        if self.done or self._sock is None:
+            return
+        was_polling = self._pace.polling
+        wait = self._pace.after_read(time.monotonic(), messages, more)
+        if wait is not None:
+            if not was_polling:
+                self._loop.update_handler(self._sock, 0)
+            self._poll = self._loop.call_later(wait, self._polled)
+        elif was_polling:
+            self._loop.update_handler(self._sock, self._loop.READ)
+
+    def _polled(self):
+        self._poll = None
+        self._on_events(None, None)
 
     def _send_header(self):
         sock = self._sock
@@ -132,6 +153,8 @@ class InboundLink(Link):
             self._loop.update_handler(sock, self._loop.READ)
 
     def _read(self):
+        """One read: (the complete messages it brought, whether more may be waiting: it filled its chunk, or a big
+        message is on its way)."""
         space = self._reader.into()
         try:
             if space is not None:  # the rest of a big message: straight into its buffer
@@ -140,7 +163,7 @@ class InboundLink(Link):
                 chunk = self._sock.recv(READ_CHUNK)
                 count = len(chunk)
         except BlockingIOError:
-            return
+            return 0, False
         finally:
             if space is not None:
                 space.release()
@@ -148,19 +171,20 @@ class InboundLink(Link):
             if self._latching is None:
                 raise ConnectionResetError("the publisher closed the connection before answering")
             self.close()
-            return
+            return 0, False
         self.stat_bytes += count
         if space is not None:
             messages = self._reader.received(count)
         elif self._latching is None:
             if not self._read_reply(chunk):
-                return
+                return 0, False
             messages = self._reader.feed(b"")  # (what came with the answer)
         else:
             messages = self._reader.feed(chunk)
         if messages and not self.done:
             self.stat_num_msg += len(messages)
             self._deliver(messages, self if self._latching else None)
+        return len(messages), space is not None or count == READ_CHUNK
 
     def _read_reply(self, chunk):
         """The publisher's header, the first frame it sends: True once it is read and accepts us."""
@@ -193,10 +217,10 @@ class InboundLink(Link):
         self._tries += 1
 
     def _close_socket(self):
-        for timer in (self._deadline, self._retry):
+        for timer in (self._deadline, self._retry, self._poll):
             if timer is not None:
                 self._loop.remove_timeout(timer)
-        self._deadline = self._retry = None
+        self._deadline = self._retry = self._poll = None
         if self._sock is not None:
             self._loop.remove_handler(self._sock)
             self._sock.close()
