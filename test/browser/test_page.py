@@ -212,11 +212,11 @@ def test_mouse_on_the_joystick_drives_and_letting_go_stops(open_page, world, lis
     stick = page.el("joystick")
     drag = ActionChains(page.driver)
     drag.move_to_element(stick).click_and_hold().move_by_offset(0, -50).perform()  # up = forward
-    wait_for(lambda: world.last.linear_velocity > 0, 10, what="turtle1 moving")
+    # (held until it has gone some way: released at its first pose in motion, it moved 0.04 m on a loaded machine)
+    wait_for(lambda: world.last.linear_velocity > 0 and world.last.x > CENTRE + 0.1, 10, what="turtle1 driven ahead")
     drag.release().perform()
     wait_for(lambda: commands.last.linear.x == 0 and commands.last.angular.z == 0, 10, what="the zero Twist")
     wait_for(lambda: world.last.linear_velocity == 0, 10, what="turtle1 at rest")
-    assert world.last.x > CENTRE + 0.1
 
 
 def test_touch_joystick_on_a_phone(open_page, world, listen):
