@@ -1,5 +1,5 @@
 """rosbridge.codec.ros_to_json against genpy: for every message type on this machine, random messages serialized by genpy give
-exactly the JSON text the bridge wrote before (genpy deserialization, convert.to_json, convert.dumps)."""
+exactly the JSON text the bridge wrote before (genpy deserialization, json_values.to_json, json_values.dumps)."""
 import base64
 import gc
 import math
@@ -286,3 +286,15 @@ def test_a_map_costs_about_its_text_in_memory_and_the_tenth_as_much_as_the_first
     assert size > 2000 * 2000 * 2
     assert peaks[0] < size * 1.1 + 2_000_000, (peaks[0], size)
     assert max(peaks) < peaks[0] * 1.1 and max(kept) < 100_000, (peaks, kept)
+
+
+def test_a_traceback_through_a_generated_reader_shows_its_source_lines():
+    import traceback
+    from geometry_msgs.msg import Twist
+    from rosbridge.codec.ros_to_json import json_parts
+    with pytest.raises(struct.error) as raised:
+        json_parts(Twist)(bytes(10))  # 48 bytes of doubles expected
+    generated = [frame for frame in traceback.extract_tb(raised.value.__traceback__)
+                 if frame.filename.startswith("<rosbridge generated")]
+    assert generated and all(frame.line for frame in generated)
+    assert "geometry_msgs/Twist" in generated[0].filename

@@ -59,7 +59,7 @@ _cbor_encoder_for = encoder_factory(_cbor_leaf_encoder)
 
 
 def to_cbor_value(msg):
-    """The message as Python values for cbor2: like convert.to_json, but uint8[]/char[] as bytes, other
+    """The message as Python values for cbor2: like json_values.to_json, but uint8[]/char[] as bytes, other
     numeric arrays (fixed or variable) as RFC 8746 little-endian typed arrays, and NaN/Inf kept."""
     return _cbor_encoder_for(type(msg))(msg)
 

@@ -1,15 +1,17 @@
 """Parsed JSON (what a client publishes) straight to ROS wire bytes, with no genpy message in between.
 
 `packer(cls)` gives a function (json_value, now) -> the bytes genpy would serialize for
-`convert.from_json(cls, json_value, now)`, generated from the message's fields once and cached. It takes the
+`json_values.from_json(cls, json_value, now)`, generated from the message's fields once and cached. It takes the
 common road itself: every field present or with a constant default, numbers of the field's own kind in range,
 base64 for uint8[], times as {"secs", "nsecs"}. Anything else (a float 2.0 for an int, null for NaN, a list of
-ints for uint8[], a missing header stamp, any error) goes the long way through convert.from_json, so the result
+ints for uint8[], a missing header stamp, any error) goes the long way through json_values.from_json, so the result
 and every error message stay exactly convert's; the tests compare the two on random and junk input."""
 import base64
 import io
 import struct
+from collections.abc import Callable
 
+from rosbridge.codec.generated import define
 from rosbridge.codec.fields import DEFAULTS, STRUCT_CODES as _CODES, TIME_PART_CODES as _TIME_CODES
 from rosbridge.codec.json_values import (from_json,
                                parse_slot_type)
@@ -20,7 +22,7 @@ _KINDS = {"bool": "_BOOL", "float32": "_NUMBER", "float64": "_NUMBER"}
 
 
 class _LongWay(Exception):
-    """The value is not on the common road: convert.from_json decides."""
+    """The value is not on the common road: json_values.from_json decides."""
 
 
 def _check(ok):
@@ -84,7 +86,7 @@ class _Generator:
         name = self._packers.get(cls)
         if name is None:
             name = self._packers[cls] = f"pack_{len(self._packers)}"
-            exec(self._source(name, cls), self.namespace)
+            define(self._source(name, cls), self.namespace, f"{name}: {cls._type} from JSON")
         return name
 
     def _source(self, name, cls):
@@ -147,7 +149,7 @@ class _Generator:
 
 
 def _json_default(base, is_array, size):
-    """The JSON value convert.from_json takes for a missing field (the same value, as the client could send it)."""
+    """The JSON value json_values.from_json takes for a missing field (the same value, as the client could send it)."""
     if is_array:
         if size is None:
             return "" if base == "uint8" else []
@@ -157,11 +159,11 @@ def _json_default(base, is_array, size):
     return DEFAULTS.get(base, {})
 
 
-_cache = {}
+_cache: dict[type, Callable] = {}  # message class -> its converter
 
 
 def packer(cls):
-    """A function (json_value, now=None) -> the ROS wire bytes of convert.from_json(cls, json_value, now)."""
+    """A function (json_value, now=None) -> the ROS wire bytes of json_values.from_json(cls, json_value, now)."""
     pack = _cache.get(cls)
     if pack is None:
         generator = _Generator()

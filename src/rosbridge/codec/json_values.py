@@ -26,9 +26,11 @@ import keyword
 import math
 import reprlib
 import struct
+from collections.abc import Callable
 
 import genpy
 
+from rosbridge.codec.generated import define
 from rosbridge.codec.fields import BUILTIN_TYPES, DEFAULTS, FLOAT_TYPES, INT_RANGES, TIME_TYPES, parse_slot_type
 from rosbridge.errors import ClientError
 from rosbridge.types import message_class
@@ -105,7 +107,7 @@ def _record_encoder(fields):
             namespace[f"convert{index}"] = converter
             value = f"convert{index}({value})"
         items.append(f"{name!r}: {value}")
-    exec(f"def encode(msg):\n    return {{{', '.join(items)}}}\n", namespace)
+    define(f"def encode(msg):\n    return {{{', '.join(items)}}}\n", namespace, "a message's JSON encoder")
     return namespace["encode"]
 
 
@@ -325,7 +327,7 @@ def _field_default(base, is_array, size, decode):
     return lambda now=None: decode(json_default, now)
 
 
-_decoders = {}
+_decoders: dict[type, Callable] = {}  # message class -> its converter
 
 
 def _stamp_default(now=None):

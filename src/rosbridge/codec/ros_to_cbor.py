@@ -13,6 +13,7 @@ they are in the message, and uint8[]/char[] a byte string of them. A big one (BI
 message's bytes, which cbor.cbor_parts writes by reference: a 16 MB map or a 5 MB point cloud is not copied at all
 on its way to the socket."""
 import struct
+from collections.abc import Callable
 
 from cbor2 import CBORTag
 from genpy.rostime import _canon
@@ -125,7 +126,7 @@ class _Generator(Generator):
         return value
 
 
-_cache = {}
+_cache: dict[type, Callable] = {}  # message class -> its converter
 
 
 def cbor_value(cls):

@@ -3,7 +3,7 @@ and no Python dict in between.
 
 The bytes come from the bridge's own TCPROS links (rosbridge.ros_side.links).
 `json_text(cls)` gives a function bytes -> text for one message type, generated from its fields once and cached
-(as genpy generates its deserializers). The text is exactly `convert.dumps(convert.to_json(msg))` for the message
+(as genpy generates its deserializers). The text is exactly `json_values.dumps(json_values.to_json(msg))` for the message
 genpy would deserialize from those bytes; the tests compare the two for every message type on the machine.
 `json_parts(cls)` gives the same text with each big base64 string (an image's data) left out, so that the frame
 can carry those bytes as they are instead of copying them into one text.
@@ -20,9 +20,11 @@ import itertools
 import json
 import struct
 import sys
+from collections.abc import Callable
 
 from genpy.rostime import _canon
 
+from rosbridge.codec.generated import define
 from rosbridge.codec.fields import BUILTIN_TYPES, STRUCT_CODES as _CODES, TIME_PART_CODES as _TIME_CODES, parse_slot_type
 from rosbridge.codec import BIG_BYTES
 from rosbridge.types import message_class
@@ -34,7 +36,7 @@ SPLICE_MARK = "\x00"
 
 
 def _finite(x):
-    """A float as JSON writes it: NaN and +-Inf are null (as convert.to_json sends them)."""
+    """A float as JSON writes it: NaN and +-Inf are null (as json_values.to_json sends them)."""
     return x if x - x == 0 else "null"
 
 
@@ -249,7 +251,7 @@ class Generator:
         name = self._readers.get((cls, top))
         if name is None:
             name = self._readers[cls, top] = f"read_{len(self._readers)}"
-            exec(self._source(name, cls, top), self.namespace)
+            define(self._source(name, cls, top), self.namespace, f"{name}: {cls._type} read")
         return name
 
 
@@ -346,7 +348,7 @@ class _Generator(Generator):
         reader.text("]")
 
 
-_cache = {}
+_cache: dict[type, Callable] = {}  # message class -> its converter
 
 
 def json_parts(cls):
