@@ -7,16 +7,16 @@ MAX_REMEMBERED = 10_000  # MACs whose t lay ahead that UrlMacs remembers (only v
 
 
 def mac_is_valid(auth, secret, now, time_delta):
-    """rosauth's check: mac == hex(sha512(secret+client+dest+rand+int(t)+level+int(end))), t within
-    time_delta seconds of now (a negative delta skips that check) and end still in the future."""
+    """rosauth's check: mac == hex(sha512(secret+client+dest+rand+int(t)+level+int(end))), int(t)
+    within time_delta seconds of now (a negative delta skips that check) and int(end) still in the future."""
     if secret is None or not (math.isfinite(auth["t"]) and math.isfinite(auth["end"])):
         return False
-    if time_delta >= 0 and abs(auth["t"] - now) >= time_delta:
+    t, end = int(auth["t"]), int(auth["end"])  # what the MAC signs: a t of T.999 must not last a second longer
+    if time_delta >= 0 and abs(t - now) >= time_delta:
         return False
-    if auth["end"] <= now:
+    if end <= now:
         return False
-    text = "".join((secret, auth["client"], auth["dest"], auth["rand"], str(int(auth["t"])), auth["level"],
-                    str(int(auth["end"]))))
+    text = "".join((secret, auth["client"], auth["dest"], auth["rand"], str(t), auth["level"], str(end)))
     expected = hashlib.sha512(text.encode()).hexdigest()
     return hmac.compare_digest(expected.encode(), auth["mac"].lower().encode())
 
@@ -37,9 +37,9 @@ class UrlMacs:
         mac = auth["mac"].lower()
         if mac in self._first_seen:
             return now - self._first_seen[mac][0] < self.time_delta
-        if self.time_delta >= 0 and auth["t"] > now:
+        if self.time_delta >= 0 and int(auth["t"]) > now:
             self._forget(now)
-            self._first_seen[mac] = (now, auth["t"])
+            self._first_seen[mac] = (now, int(auth["t"]))
         return True
 
     def _forget(self, now):

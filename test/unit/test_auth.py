@@ -49,3 +49,12 @@ def test_what_is_remembered_is_forgotten_once_refused_anyway_and_is_bounded(monk
     assert len(macs._first_seen) == 3
     assert macs.valid(auth(NOW + 20, rand="later"), SECRET, NOW + 16)  # the others' t + delta has passed
     assert len(macs._first_seen) == 1
+
+
+def test_t_and_end_count_as_the_whole_seconds_the_mac_signs():
+    """The MAC signs int(t) and int(end): a t of T.99999 is the MAC of T, valid delta seconds from T, not T + 1."""
+    late, macs = auth(NOW + 0.99999), UrlMacs(DELTA)
+    assert mac_is_valid(late, SECRET, NOW + DELTA - 0.01, DELTA) and macs.valid(late, SECRET, NOW + DELTA - 0.01)
+    assert not mac_is_valid(late, SECRET, NOW + DELTA, DELTA) and not macs.valid(late, SECRET, NOW + DELTA + 0.5)
+    ending = auth(NOW, end=NOW + 10.9)  # (a delta of 20: only end decides)
+    assert mac_is_valid(ending, SECRET, NOW + 9.9, 20) and not mac_is_valid(ending, SECRET, NOW + 10.5, 20)
