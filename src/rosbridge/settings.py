@@ -1,6 +1,7 @@
 """Every setting of the bridge, in one table: its name (the launch arg and the node's private parameter), type,
 default and meaning. The launch file, `server.main`, `protocol.Config` and the README's table all come from or
 are checked against this table (test_settings.py)."""
+import math
 from dataclasses import dataclass
 
 
@@ -11,7 +12,7 @@ class Setting:
     default: object
     meaning: str
     ours: bool = False  # not a setting of the ROS 1 rosbridge_server, or a different default
-    check: tuple = None  # (test, what it asks): a value that fails the test is refused at start
+    check: tuple = None  # (test, what it asks): a value that fails the test (or a float not finite) is refused
 
 
 ABOVE_ZERO, NOT_NEGATIVE = (lambda value: value > 0, "above 0"), (lambda value: value >= 0, "0 or more")
@@ -114,6 +115,8 @@ class Settings:
         for setting in SETTINGS:
             given = get(setting.name)
             value = convert(setting, given)
+            if setting.check is not None and isinstance(value, float) and not math.isfinite(value):
+                raise SettingError(f"setting {setting.name}: must be a finite number, got {given!r}")
             if setting.check is not None and not setting.check[0](value):
                 raise SettingError(f"setting {setting.name}: must be {setting.check[1]}, got {given!r}")
             setattr(self, setting.name, value)

@@ -30,3 +30,10 @@ def test_values_from_launch_text_are_typed_and_bad_ones_named():
         settings.Settings({"max_queue": "many"}.get)
     with pytest.raises(settings.SettingError, match="setting ssl: expected bool"):
         settings.Settings({"ssl": "yes please"}.get)
+
+
+@pytest.mark.parametrize("name", [s.name for s in settings.SETTINGS if s.kind is float and s.check is not None])
+@pytest.mark.parametrize("value", ["inf", "-inf", "nan", float("inf")])
+def test_a_float_setting_with_a_check_refuses_what_is_not_finite(name, value):
+    with pytest.raises(settings.SettingError, match=f"setting {name}: must be a finite number, got"):
+        settings.Settings({name: value}.get)
