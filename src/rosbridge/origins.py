@@ -15,14 +15,19 @@ import re
 import socket
 import urllib.parse
 
-HOST = re.compile(r"(\[[0-9a-f:.]+\]|[^\s:/@\[\]]+)(:[0-9]*)?")  # a name or address (IPv6 in brackets), a port
+NAME = re.compile(r"[a-z0-9_-]+(\.[a-z0-9_-]+)*")  # a host name (or an IPv4 address), lowercase: no empty label
+HOST = re.compile(r"(\[[0-9a-f:.]+\]|[a-z0-9_.-]+)(:[0-9]*)?")  # a name or address (IPv6 in brackets), a port
 
 
 def host_name(host):
     """The name or address a Host header names, lowercase, without port, brackets or a final dot
     ("Robots.Example.:8443" -> "robots.example", "[::1]:9090" -> "::1"); None when it is not a host."""
     match = HOST.fullmatch(host.lower())
-    return match and match[1].strip("[]").rstrip(".") or None
+    if not match:
+        return None
+    name = match[1].strip("[]")
+    name = name[:-1] if name.endswith(".") else name
+    return name if match[1].startswith("[") or NAME.fullmatch(name) else None
 
 
 def host_allowed(host, patterns, host_patterns):
@@ -66,21 +71,22 @@ def origin_allowed(origin, host, peer, patterns, host_patterns=None):
 
 def is_this_machine(host):
     """localhost and its subdomains (RFC 6761: browsers take them as loopback), this machine's names (own_names),
-    or one of its addresses (loopback included). `host`: lowercase."""
-    host = host.rstrip(".")
-    if host == "localhost" or host.endswith(".localhost") or host in own_names():
-        return True
+    or one of its own unicast addresses (loopback included). `host`: lowercase."""
     try:
         address = ipaddress.ip_address(host)
     except ValueError:
-        return False
+        name = host[:-1] if host.endswith(".") else host
+        return bool(NAME.fullmatch(name)) and (name == "localhost" or name.endswith(".localhost")
+                                               or name in own_names())
     address = getattr(address, "ipv4_mapped", None) or address  # ::ffff:a.b.c.d from a dual-stack socket
-    if address.is_loopback:
-        return True
+    if address.is_unspecified or address.is_multicast:  # (both bind: "every address", a group)
+        return False
     family = socket.AF_INET if address.version == 4 else socket.AF_INET6
     with socket.socket(family, socket.SOCK_DGRAM) as probe:
         try:
-            probe.bind((str(address), 0))  # only this machine's own addresses can be bound
+            if not address.is_loopback:
+                probe.bind((str(address), 0))  # only this machine's own addresses can be bound
+            probe.connect((str(address), 9))  # (sends nothing) a broadcast address refuses it: EACCES
         except OSError:
             return False
     return True

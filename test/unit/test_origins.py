@@ -1,6 +1,7 @@
 """The bridge's origin and Host policy (which browser pages may open a websocket, which names a request may be
 addressed to), as pure functions."""
 import socket
+import subprocess
 
 import pytest
 
@@ -100,3 +101,24 @@ def test_allowed_hosts_and_allowed_origins_allow_more_names():
     for host in ("good.example:8443", "laptop.lan", "evil.example"):
         assert not host_allowed(host, origins, None), host
     assert host_allowed("anything.example:1", None, ["*"])
+
+
+@pytest.mark.parametrize("host", ["0.0.0.0", "::", "0", "224.0.0.1", "ff02::1", "255.255.255.255", "127.255.255.255",
+                                  "::ffff:0.0.0.0", "::ffff:224.0.0.1", "localhost..", ".localhost", "a..localhost",
+                                  "localhost%00.evil.example", "localhost,evil.example", "local\u0127host", "-"])
+def test_unspecified_multicast_and_broadcast_addresses_and_malformed_names_are_not_this_machine(host):
+    """Each of these binds (0.0.0.0 is every address, 224.0.0.1 a group, 255.255.255.255 a broadcast) or was read as
+    localhost once its dots were stripped, yet no page of this machine is addressed by it."""
+    assert not is_this_machine(host)
+    assert not host_allowed(host if ":" not in host else f"[{host}]", None, None)
+
+
+def test_the_broadcast_addresses_of_this_machines_networks_are_not_this_machine():
+    """They bind like its own addresses (`ip` lists them as brd)."""
+    out = subprocess.run(["ip", "-o", "-4", "addr", "show"], capture_output=True, text=True, check=True).stdout
+    found = [(fields[3].split("/")[0], fields[fields.index("brd") + 1]) for fields in map(str.split, out.splitlines())
+             if "brd" in fields]
+    if not found:
+        pytest.skip("no network with a broadcast address here")
+    for own, broadcast in found:
+        assert is_this_machine(own) and not is_this_machine(broadcast), (own, broadcast)
