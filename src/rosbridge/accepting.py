@@ -1,10 +1,21 @@
 """Accepting connections without failing in a loop when file descriptors run short: used for the websocket
-clients (server.py) and for the subscribers of the bridge's topics (ros_side/links.py)."""
+clients (server.py) and for the subscribers of the bridge's topics (ros_side/links.py); and the bounds of the
+HTTP server (BoundedHTTPServer: request bodies, connections per address)."""
 import errno
+import http
 import os
 import resource
 
+import tornado.gen
+import tornado.httpserver
+import tornado.httputil
+import tornado.ioloop
+import tornado.iostream
+
 FDS_KEPT_FREE = 64  # file descriptors kept for what is not accepted here (rospy's, service calls)
+BODY_TIMEOUT = 10.0  # seconds a request's body may take to come, from its headers
+LINGER = 2.0  # seconds a refused body is read and dropped, at most, before its connection is closed
+SWEEP_EVERY = 1000  # connections accepted between two sweeps of the addresses that have none open
 
 
 def accept_connections(handle_connection, sockets, log, loop):
@@ -43,3 +54,105 @@ def accept_connections(handle_connection, sockets, log, loop):
 
     for sock in sockets:
         loop.add_handler(sock, lambda fd, events, sock=sock: accept(sock), loop.READ)
+
+
+class BoundedHTTPServer(tornado.httpserver.HTTPServer):
+    """Tornado's HTTPServer held to what an endpoint open to the network can afford (Tornado's defaults take bodies
+    of 100 MB, read whole before any handler sees them, with no time limit):
+
+    - a request whose Content-Length is over max_body is answered 413 at its headers, none of its body kept (what
+      the client sends meanwhile is read and dropped for up to LINGER seconds, so that it reads the answer); a body
+      sent in chunks stops at max_body too (Tornado's 400), and a body must be whole within BODY_TIMEOUT;
+    - one address holds at most per_address connections at once (HTTP requests, websockets and streams alike; and
+      a quarter of the file descriptors at most), so that one peer cannot take them all: beyond, a connection is
+      answered 503 and closed at once.
+    log(kind, text): a refusal, to be logged at most now and then."""
+
+    def initialize(self, app, max_body, per_address, log, **options):
+        super().initialize(_BodyBound(app, max_body, log), max_body_size=max_body, body_timeout=BODY_TIMEOUT,
+                           **options)
+        soft_limit = resource.getrlimit(resource.RLIMIT_NOFILE)[0]
+        if soft_limit != resource.RLIM_INFINITY:  # (and a quarter of the descriptors at most)
+            per_address = min(per_address, max(1, (soft_limit - FDS_KEPT_FREE) // 4))
+        self.per_address, self._log = per_address, log
+        self._open = {}  # address -> its streams (the closed ones dropped as the address connects again)
+        self._accepted = 0
+
+    def handle_stream(self, stream, address):
+        peer = address[0] if isinstance(address, tuple) else str(address)
+        streams = [open_stream for open_stream in self._open.get(peer, ()) if not open_stream.closed()]
+        self._accepted += 1
+        if self._accepted % SWEEP_EVERY == 0:  # (addresses that have left)
+            self._open = {other: kept for other, kept in self._open.items()
+                          if any(not open_stream.closed() for open_stream in kept)}
+        if len(streams) >= self.per_address:
+            self._open[peer] = streams
+            self._log(("connections", peer), f"Refused a connection from {peer}: it has {len(streams)} open "
+                      "already, the most one address may hold (max_connections_per_address)")
+            if not isinstance(stream, tornado.iostream.SSLIOStream):  # (a TLS answer would need a handshake)
+                stream.write(_answer(503, f"too many connections from {peer} at once (at most {self.per_address}: "
+                                     "max_connections_per_address)"))
+            stream.close()
+            return
+        self._open[peer] = [*streams, stream]
+        super().handle_stream(stream, address)
+
+
+class _BodyBound(tornado.httputil.HTTPServerConnectionDelegate):
+    """The application's requests, each refused at its headers when its Content-Length is over max_body."""
+
+    def __init__(self, app, max_body, log):
+        self.app, self.max_body, self.log = app, max_body, log
+
+    def start_request(self, server_conn, request_conn):
+        return _BodyBoundRequest(self.app.start_request(server_conn, request_conn), request_conn, self)
+
+    def on_close(self, server_conn):
+        self.app.on_close(server_conn)
+
+
+class _BodyBoundRequest(tornado.httputil.HTTPMessageDelegate):
+    def __init__(self, delegate, connection, bound):
+        self.delegate, self.connection, self.bound = delegate, connection, bound
+
+    def headers_received(self, start_line, headers):
+        length = headers.get("Content-Length", "")
+        if not (length.isdigit() and int(length) > self.bound.max_body):
+            return self.delegate.headers_received(start_line, headers)
+        peer = self.connection.context.remote_ip
+        self.bound.log(("body", peer), f"Refused a request body of {length} bytes from {peer} for "
+                       f"{start_line.path[:200]}: no endpoint takes more than {self.bound.max_body}")
+        stream = self.connection.detach()  # (Tornado then reads nothing more of this request)
+        tornado.ioloop.IOLoop.current().add_callback(_refuse, stream, _answer(
+            413, f"request body too large: {length} bytes, at most {self.bound.max_body} are taken"))
+        return None
+
+    def data_received(self, chunk):
+        return self.delegate.data_received(chunk)
+
+    def finish(self):
+        self.delegate.finish()
+
+    def on_connection_close(self):
+        self.delegate.on_connection_close()
+
+
+async def _refuse(stream, answer):
+    """Writes answer, then reads and drops what the client still sends (until it stops, at most LINGER seconds)
+    before closing: closed with unread data, the connection would be reset, the answer lost with it."""
+    try:
+        await stream.write(answer)
+        deadline = tornado.ioloop.IOLoop.current().time() + LINGER
+        while True:
+            await tornado.gen.with_timeout(deadline, stream.read_bytes(1 << 16, partial=True))
+    except (tornado.iostream.StreamClosedError, tornado.gen.TimeoutError):
+        pass
+    finally:
+        stream.close()
+
+
+def _answer(status, text):
+    """A whole HTTP answer that closes the connection, of plain text."""
+    body = (text + "\n").encode()
+    return (f"HTTP/1.1 {status} {http.HTTPStatus(status).phrase}\r\nContent-Type: text/plain; charset=UTF-8\r\n"
+            f"Content-Length: {len(body)}\r\nConnection: close\r\n\r\n").encode() + body

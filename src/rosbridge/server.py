@@ -10,15 +10,14 @@ from pathlib import Path
 import rosgraph
 import rospkg
 import rospy
-import tornado.httpserver
 import tornado.ioloop
 import tornado.netutil
 import tornado.web
 
 from rosbridge import protocol
-from rosbridge.accepting import accept_connections
+from rosbridge.accepting import BoundedHTTPServer, accept_connections
 from rosbridge.auth import UrlMacs
-from rosbridge.bag_pages import bag_routes
+from rosbridge.bag_pages import MAX_BODY, bag_routes
 from rosbridge.bags import Recorder
 from rosbridge.borrowed import handle_connection
 from rosbridge.cloud_pages import cloud_routes
@@ -145,8 +144,8 @@ def main():
     ssl_options = {"certfile": current.certfile, "keyfile": current.keyfile} if current.ssl else None
     sockets = tornado.netutil.bind_sockets(current.port, current.address or None)
     # a connection that sends no request within IDLE_TIMEOUT is closed: idle sockets must not hold descriptors
-    server = tornado.httpserver.HTTPServer(app, ssl_options=ssl_options,
-                                           idle_connection_timeout=IDLE_TIMEOUT)
+    server = BoundedHTTPServer(app, MAX_BODY, current.max_connections_per_address, bridge.log_refusal,
+                               ssl_options=ssl_options, idle_connection_timeout=IDLE_TIMEOUT)
     accept_connections(handle_connection(server), sockets, lambda text: bridge.log_refusal("fds", text), loop)
     port = sockets[0].getsockname()[1]
     rospy.set_param("~actual_port", port)

@@ -36,6 +36,10 @@ SETTINGS = (
     Setting("max_queue", int, 1000,
             "frames waiting for one slow client before the oldest whole messages are dropped (the client is told)", ours=True),
     Setting("max_clients", int, 1000, "clients connected at once; more get HTTP 503", ours=True),
+    Setting("max_connections_per_address", int, 256,
+            "connections one address may hold at once (HTTP requests, websockets and streams; at most a quarter of "
+            "the file descriptors); more get HTTP 503. Behind a reverse proxy every client comes from its "
+            "address: raise it to the proxy's own bound", ours=True, check=ABOVE_ZERO),
     Setting("max_frames_per_second", int, 20000,
             "frames one client may send per second (a burst of one second); beyond it its next frames wait "
             "in its socket; 0 = no limit. Clients are served in turns whatever this is", ours=True),

@@ -16,7 +16,7 @@ import roslibpy
 import tornado.httpclient
 
 from bridge_client import WsClient, ping
-from harness import make_workdir, start_bridge, wait_for
+from harness import ProcStat, make_workdir, node_pid, start_bridge, wait_for
 from sensor_messages import big_cloud
 
 SECRET = "fuzz-and-security-secret"
@@ -645,3 +645,85 @@ def test_a_frame_over_max_message_size_gets_an_error_and_the_connection_goes_on(
         assert ping(client)
     finally:
         client.close()
+
+
+# ---- HTTP bounds: request bodies, connections per address ------------------------------------------------------
+def post_head(path, length, host="localhost"):
+    return (f"POST {path} HTTP/1.1\r\nHost: {host}\r\nContent-Type: application/json\r\n"
+            f"Content-Length: {length}\r\n\r\n").encode()
+
+
+def answer_head(sock, timeout):
+    """What the bridge answers on sock within timeout seconds (its head, some of its text), or b"" if nothing."""
+    sock.settimeout(timeout)
+    try:
+        return sock.recv(1000)
+    except OSError:
+        return b""
+
+
+def test_a_body_larger_than_any_endpoint_takes_is_refused_at_its_headers_and_never_kept(ros, default_bridge):
+    """Before: bodies of up to 100 MB were read whole before any check, with no time limit (six stalled POSTs of 95
+    MB to a name not the bridge's held 600 MB); here five of 20 MB each took 100 MB."""
+    stat = ProcStat(node_pid(ros, "/security_default_origin_bridge"))
+    rss_before = stat.rss_mb()
+    stat.reset_peak_rss()
+    stalled = []
+    for path, host in [("/bags/record", "localhost"), ("/nothing", "evil.example"), ("/", "localhost")] * 2:
+        sock = socket.create_connection(("127.0.0.1", default_bridge), timeout=10)
+        stalled.append(sock)
+        try:
+            sock.sendall(post_head(path, 100_000_000, host) + bytes(20_000_000))
+        except OSError:  # (the bridge closed it, once it had dropped what came for a while)
+            pass
+    time.sleep(1)
+    assert stat.peak_rss_mb() - rss_before < 20, f"the bridge grew {stat.peak_rss_mb() - rss_before:.0f} MB"
+    with socket.create_connection(("127.0.0.1", default_bridge), timeout=10) as sock:
+        sock.sendall(post_head("/bags/record", 10_000_000) + bytes(65536))
+        answer = answer_head(sock, 2)  # (at once: before, it waited for the rest of the body)
+    assert answer.startswith(b"HTTP/1.1 413") and b"at most 65536" in answer, answer
+    # a client that sends the whole body before it reads (as Python's do) reads the answer too
+    status, answer = urllib_post(default_bridge, "/bags/record", bytes(10_000_000))
+    assert status == 413 and "request body too large: 10000000 bytes" in answer, (status, answer)
+    for sock in stalled:
+        sock.close()
+
+
+def urllib_post(port, path, data):
+    request = urllib.request.Request(f"http://127.0.0.1:{port}{path}", data=data,
+                                     headers={"Content-Type": "application/json"})
+    try:
+        with urllib.request.urlopen(request, timeout=20) as answer:
+            return answer.status, answer.read().decode()
+    except urllib.error.HTTPError as error:
+        return error.code, error.read().decode()
+
+
+def test_stalled_bodies_from_one_address_leave_the_descriptors_to_others(ros):
+    """Under `ulimit -n 256`, 300 POSTs from 127.0.0.1 whose bodies never come: before, they took every descriptor
+    and a client from another address waited in vain (and the stalled ones were never closed). Now one address
+    holds a quarter of the descriptors at most (48 here; 503 beyond), and a body must come within 10 s."""
+    proc, port = start_bridge(ros, node_name="security_fds_bridge", max_fds=256)
+    stalled = []
+    try:
+        for _ in range(300):
+            try:
+                sock = socket.create_connection(("127.0.0.1", port), timeout=3)
+                sock.sendall(post_head("/bags/record", 10) + b"{")
+            except OSError:
+                break
+            stalled.append(sock)
+        started = time.monotonic()
+        with socket.create_connection(("127.0.0.1", port), timeout=5, source_address=("127.0.0.2", 0)) as other:
+            other.sendall(b"GET /bags HTTP/1.1\r\nHost: localhost\r\n\r\n")
+            assert answer_head(other, 5).startswith(b"HTTP/1.1 404"), "the other address was not served"
+        assert time.monotonic() - started < 2
+        answers = [answer_head(sock, 0.2) for sock in stalled[-100:]]
+        assert all(answer.startswith(b"HTTP/1.1 503") and b"max_connections_per_address" in answer
+                   for answer in answers), answers[:3]
+        stalled[0].settimeout(15)
+        assert stalled[0].recv(100) == b""  # closed, its body late (a timeout would raise)
+    finally:
+        for sock in stalled:
+            sock.close()
+        proc.stop()
