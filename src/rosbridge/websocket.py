@@ -111,7 +111,8 @@ class ClientConnection:
     next requests, the rest waits, and the client's socket with it (backpressure). A compressed message is
     unpacked a slice at a time, each slice a turn's worth. A message must be whole within fragment_timeout of its
     first byte (_check_unfinished), and what unfinished messages hold is bounded for all clients together
-    (bridge.unfinished).
+    (bridge.unfinished), a client stalled in the middle of one making way for a client whose bytes keep coming
+    (websocket_frames.SharedBound: _made_way).
 
     Writing: the Session's queued frames go to the stream while it takes them; once the stream is backed up (the
     kernel holds at most unsent.UNSENT_LIMIT unsent), the rest stays in the Session's Outbox, which keeps each
@@ -130,7 +131,7 @@ class ClientConnection:
         self._loop = tornado.ioloop.IOLoop.current()
         self._reader = ws.FrameReader(frame_limit(settings), deflate=window_bits is not None,
                                       unmask=borrowed.websocket_mask, max_inflated=settings.max_message_size or None,
-                                      shared=bridge.unfinished)
+                                      shared=bridge.unfinished, evicted=self._made_way)
         self.budget = ClientBudget(settings.max_frames_per_second, settings.max_bytes_per_second, time.monotonic)
         self.session = protocol.Session(bridge.backend, bridge.config, time.time, self._loop.call_later,
                                         self._wake, self._close_after_sending, name=peer,
@@ -204,6 +205,8 @@ class ClientConnection:
                     return
                 event = reader.next_event()
                 if event is None:
+                    if self._waiting == "end":  # (its unfinished message made way for another's meanwhile)
+                        return
                     self._read()
                     if self._unfinished_timer is None and reader.unfinished_since is not None:
                         self._check_unfinished()
@@ -242,10 +245,26 @@ class ClientConnection:
         if left > 0:
             self._unfinished_timer = self._loop.call_later(left, self._check_unfinished)
             return
-        self._waiting = "end"
         self._reader.close()  # (what it held goes now, not once the close is answered)
-        self.close(ws.POLICY, f"message not whole within fragment_timeout ({self.bridge.settings.fragment_timeout} s)",
-                   then_drop=True)
+        self._drop(ws.POLICY, f"message not whole within fragment_timeout ({self.bridge.settings.fragment_timeout} s)")
+
+    def _made_way(self):
+        """The client's unfinished message made way for another client's, whose bytes came faster (SharedBound):
+        the reader has let go of it; the connection ends."""
+        self.bridge.log_refusal("unfinished evicted", "a client dropped: its unfinished message made way for a "
+                                f"faster one (unfinished messages of all clients at {self.bridge.unfinished.limit} "
+                                "bytes)")
+        self._drop(ws.TRY_AGAIN, "unfinished messages of all clients at their bound, and yours came slowest: "
+                                 "try again later")
+
+    def _drop(self, code, reason):
+        """Ends the connection, reading nothing more: our close frame, then the stream closed once it is written
+        (or CLOSE_TIMEOUT later)."""
+        if self._turn_timer is not None:
+            self._loop.remove_timeout(self._turn_timer)
+            self._turn_timer = None
+        self._waiting = "end"
+        self.close(code, reason, then_drop=True)
 
     def _handle_other(self, kind, payload):
         if kind == ws.BINARY:

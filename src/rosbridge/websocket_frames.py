@@ -35,6 +35,7 @@ CONTEXT_BYTES = 1 << 15  # the largest window: how far back a client's compresse
 INFLATE_SLICE = 1 << 16  # bytes a client's compressed message is unpacked by at a time: well under a millisecond
 OWN_BYTES = 1 << 17  # what a client's unfinished message may hold before it counts against the shared bound: about
 # one read and a frame begun, so that the many clients that are mid-frame for a moment never draw on it
+RECENT = 1.0  # s: a holder of the shared bound is judged by the bytes it received in the last one to two of these
 
 
 class ProtocolError(Exception):
@@ -140,11 +141,79 @@ def xor_mask(mask, data):
 
 
 class SharedBound:
-    """What the unfinished messages of every client hold together, in bytes (each reader's beyond OWN_BYTES):
-    at most `limit`. The client whose message would go beyond is refused (TRY_AGAIN), not the ones holding it."""
+    """What the unfinished messages of every client hold together, in bytes: at most `limit`. Its holders are each
+    client's FrameReader (beyond OWN_BYTES) and its Session's `fragment` ops (reassembly.Fragments), each with an
+    evict() that lets go of all it holds. When a holder would go beyond the limit, the holders whose bytes came
+    slower lately make way: those that received fewer in the last RECENT to 2 * RECENT seconds than the one asking
+    are evicted, the slowest first, if that makes room; else the one asking is refused. So a client stalled in the
+    middle of a message (or trickling it) keeps no one out for long, and one whose bytes keep coming (a phone's
+    slow upload) makes way only for a faster one."""
 
-    def __init__(self, limit):
-        self.limit, self.held = limit, 0
+    def __init__(self, limit, clock=time.monotonic):
+        self.limit, self.held, self._clock = limit, 0, clock
+        self._holders = {}  # holder -> its _Holding
+
+    def hold(self, holder, count):
+        """`holder` now holds `count` bytes (0: nothing). False if that is refused: it then holds what it held."""
+        holding = self._holders.get(holder)
+        before = holding.count if holding is not None else 0
+        if count <= before:
+            if count:
+                holding.count = count
+            elif holding is not None:
+                del self._holders[holder]
+            self.held -= before - count
+            return True
+        now = self._clock()
+        if holding is None:
+            holding = self._holders[holder] = _Holding(now)
+        holding.arrived(count - before, now)
+        over = self.held + count - before - self.limit
+        if over > 0 and not self._make_room(holder, holding.recent(now), over, now):
+            if not before:
+                del self._holders[holder]
+            return False
+        self.held += count - before
+        holding.count = count
+        return True
+
+    def _make_room(self, asking, pace, needed, now):
+        slower = sorted(((holding.recent(now), holding.count, holder) for holder, holding in self._holders.items()
+                         if holder is not asking and holding.recent(now) < pace), key=lambda item: item[0])
+        evicted, freed = [], 0
+        for _, count, holder in slower:
+            if freed >= needed:
+                break
+            evicted.append(holder)
+            freed += count
+        if freed < needed:
+            return False
+        for holder in evicted:
+            self.held -= self._holders.pop(holder).count
+            holder.evict()
+        return True
+
+
+class _Holding:
+    """What one holder of a SharedBound holds, and the bytes it received lately (in the window begun at `since`,
+    and the one before it)."""
+    __slots__ = ("count", "since", "now_bytes", "before_bytes")
+
+    def __init__(self, now):
+        self.count, self.since, self.now_bytes, self.before_bytes = 0, now, 0, 0
+
+    def arrived(self, size, now):
+        self._roll(now)
+        self.now_bytes += size
+
+    def recent(self, now):
+        self._roll(now)
+        return self.now_bytes + self.before_bytes
+
+    def _roll(self, now):
+        if now - self.since >= RECENT:
+            self.before_bytes = self.now_bytes if now - self.since < 2 * RECENT else 0
+            self.now_bytes, self.since = 0, now
 
 
 class FrameReader:
@@ -162,6 +231,8 @@ class FrameReader:
     raises ProtocolError, and so do a message over max_size bytes (TOO_BIG, before its payload is read), a
     compressed one unpacking to more than max_inflated (TOO_BIG, as soon as it does), and one that would take the
     unfinished messages of every client beyond their shared bound (TRY_AGAIN); the reader is done after that.
+    A reader whose unfinished message makes way for a faster one (SharedBound) lets go of everything and calls
+    `evicted` (the shell closes the connection).
 
     What it holds: at most one incomplete frame (max_size bytes) and the bytes given to it beyond that, which
     the shell keeps small by reading only when next_event() has said None; one message being put together
@@ -170,7 +241,7 @@ class FrameReader:
     compressed messages held, 2 * CONTEXT_BYTES at most (see _start_inflating). While a message is unfinished
     (unfinished_since), what it holds beyond OWN_BYTES counts against `shared` (a SharedBound, if given)."""
 
-    def __init__(self, max_size, deflate=False, unmask=xor_mask, max_inflated=None, shared=None,
+    def __init__(self, max_size, deflate=False, unmask=xor_mask, max_inflated=None, shared=None, evicted=None,
                  clock=time.monotonic):
         self.max_size, self._unmask = max_size, unmask
         self.max_inflated = max_size if max_inflated is None else max_inflated
@@ -187,6 +258,7 @@ class FrameReader:
         self._final = False  # whether it is the message's last frame
         self._inflated = bytearray()  # the end of what the client's compressed messages held (_start_inflating)
         self._shared, self._held, self._clock = shared, 0, clock  # (_held: what this reader counts in _shared)
+        self._evicted = evicted
         self._since = None  # when the message being received began to arrive
 
     @property
@@ -210,6 +282,14 @@ class FrameReader:
         """Lets go of what it holds (the connection ended), its part of the shared bound too."""
         self._hold(0)
         self._buffer, self._start, self._parts, self._inflater, self._input = bytearray(), 0, None, None, None
+
+    def evict(self):
+        """The shared bound took back what this reader held, for a client whose bytes come faster: it lets go of
+        the rest and says so."""
+        self._held = 0
+        self.close()
+        if self._evicted is not None:
+            self._evicted()
 
     def next_event(self):
         if self._input is not None:
@@ -315,10 +395,11 @@ class FrameReader:
         if shared is None:
             return
         count = max(0, count - OWN_BYTES)
-        if count > self._held and shared.held + count - self._held > shared.limit:
+        if count == self._held:
+            return
+        if not shared.hold(self, count):
             raise ProtocolError(TRY_AGAIN, f"unfinished messages of all clients at their bound ({shared.limit} "
                                            "bytes): try again later")
-        shared.held += count - self._held
         self._held = count
 
     def _start_inflating(self):

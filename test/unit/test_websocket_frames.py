@@ -462,3 +462,32 @@ def test_unfinished_messages_of_every_client_share_one_bound():
     assert shared.held == 0
     again = ws.FrameReader(1 << 22, shared=shared)
     assert unfinished(again, part)[0][0] == ws.PART
+
+
+def test_a_reader_stalled_in_its_message_makes_way_for_one_whose_bytes_keep_coming():
+    """When the shared bound is full, the holders that received fewer bytes lately (the last RECENT to 2 * RECENT
+    seconds) than the one asking are evicted, slowest first: a stalled client's message (its reader closed, the
+    shell told) makes way for a client sending; one sending as fast does not, and then the one asking is
+    refused."""
+    clock = [100.0]
+    shared = ws.SharedBound(2_000_000, clock=lambda: clock[0])
+    evicted = []
+    stalled, trickling, sending, late = (ws.FrameReader(1 << 23, shared=shared, clock=lambda: clock[0],
+                                                       evicted=lambda name=name: evicted.append(name))
+                                         for name in ("stalled", "trickling", "sending", "late"))
+    big = client_frame(bytes(3_000_000))
+    assert unfinished(stalled, big[:1_000_000]) == [] and unfinished(trickling, big[:900_000]) == []
+    clock[0] += 2 * ws.RECENT
+    assert unfinished(trickling, big[900_000:900_010]) == []  # (a few bytes now and then)
+    assert unfinished(sending, big[:ws.OWN_BYTES + 50_000]) == []  # (room left: nobody makes way)
+    assert evicted == [] and shared.held == 1_000_000 + 900_010 + 50_000 - 2 * ws.OWN_BYTES
+    assert unfinished(sending, big[ws.OWN_BYTES + 50_000:1_000_000]) == []
+    assert evicted == ["stalled"] and stalled.buffered == 0  # (the slowest, and enough)
+    assert shared.held == 900_010 + 1_000_000 - 2 * ws.OWN_BYTES
+    assert unfinished(sending, big[1_000_000:2_000_000]) == []
+    assert evicted == ["stalled", "trickling"]
+    with pytest.raises(ws.ProtocolError) as refusal:  # (as fast as `sending`, which holds the rest: refused)
+        unfinished(late, big[:1_500_000])
+    assert refusal.value.code == ws.TRY_AGAIN and evicted == ["stalled", "trickling"]
+    assert unfinished(sending, big[2_000_000:]) == [(ws.TEXT, "\0" * 3_000_000, 3_000_000)]
+    assert shared.held == 0
