@@ -127,9 +127,10 @@ class Session:
     so what is held stays small) and handled once it is done; then resume_reading() is called."""
 
     def __init__(self, backend, config, clock, call_later, wake, close, name="client", resume_reading=None,
-                 off_loop=None):
+                 off_loop=None, cancel_later=None, unfinished=None):
         self.backend, self.config, self.name = backend, config, name
         self._clock, self._call_later, self._wake, self._close = clock, call_later, wake, close
+        self._cancel_later = cancel_later  # cancel_later(what call_later returned): a timer not run after all
         self._off_loop = off_loop  # off_loop(fn, then): fn() on another thread, then(result) on the loop
         self._resume_reading = resume_reading
         self._held = None  # frames received while an earlier request's ROS side is under way, in order
@@ -143,7 +144,10 @@ class Session:
         self._last_report = float("-inf")  # when the client was last told what its slow link skipped
         self._reports = collections.deque()  # those status frames: they go first
         self._woken = False
-        self._fragments = Fragments(config.max_message_size, config.fragment_timeout)
+        # its fragment ops' unfinished messages count with every client's (unfinished: a SharedBound, if given)
+        self._fragments = Fragments(config.max_message_size, config.fragment_timeout, unfinished,
+                                    self._fragments_made_way)
+        self._fragments_timer = None  # when the next unfinished fragmented message expires
 
     # ---- incoming -------------------------------------------------------------------------------
     @property
@@ -326,13 +330,29 @@ class Session:
         self.backend.service_response(self, req["service"], req.get("id"), req["result"], req.get("values"))
 
     def _op_fragment(self, req, depth):
+        text = self._fragments.add(req["id"], req["num"], req["total"], req["data"], self._clock())
+        if text is not None:
+            self.handle_text(text, depth + 1)
+        elif self._fragments_timer is None:
+            self._expire_fragments()
+
+    def _expire_fragments(self):
+        """Drops the fragmented messages that were not whole within fragment_timeout (telling the client), and
+        comes back when the next one is due: a client that stops sending holds nothing past it."""
+        self._fragments_timer = None
+        if self.is_closed:
+            return
         now = self._clock()
         for frag_id, received, total in self._fragments.expire(now):
             self.status("warning", f"fragment {frag_id!r}: dropped after fragment_timeout "
                                    f"({self.config.fragment_timeout} s) with {received} of {total} parts")
-        text = self._fragments.add(req["id"], req["num"], req["total"], req["data"], now)
-        if text is not None:
-            self.handle_text(text, depth + 1)
+        deadline = self._fragments.next_deadline()
+        if deadline is not None:
+            self._fragments_timer = self._call_later(max(0.0, deadline - now), self._expire_fragments)
+
+    def _fragments_made_way(self, count):
+        self.status("error", f"{count} unfinished fragmented message(s) dropped: the unfinished messages of all "
+                             "clients were at their bound, and another client's came faster: send again")
 
     def _op_png(self, req, depth):
         if (req.get("total") or 1) != 1:
@@ -428,6 +448,8 @@ class Session:
         self.subscriptions.clear()
         self._outgoing.clear()
         self._fragments.clear()
+        if self._fragments_timer is not None and self._cancel_later is not None:
+            self._cancel_later(self._fragments_timer)
         self.backend.release(self)
 
 

@@ -13,11 +13,15 @@ PART_OVERHEAD = 128  # bytes a stored part is counted beyond its text: what it c
 
 class Fragments:
     """One client's unfinished fragmented messages, bounded in number and in bytes (max_bytes 0: no byte
-    bound), each dropped fragment_timeout seconds after its first part arrived."""
+    bound), each dropped fragment_timeout seconds after its first part arrived (expire: the Session's timer).
+    What they hold also counts against `shared` (websocket_frames.SharedBound, if given: the unfinished messages
+    of every client together): a part that would go beyond it is refused, its message dropped; and when another
+    client's message needs the room and came faster, all of them are dropped (evict) and evicted(count) says
+    how many."""
     MAX_SETS = 100
 
-    def __init__(self, max_bytes, timeout):
-        self.max_bytes, self.timeout = max_bytes, timeout
+    def __init__(self, max_bytes, timeout, shared=None, evicted=None):
+        self.max_bytes, self.timeout, self._shared, self._evicted = max_bytes, timeout, shared, evicted
         self._sets = {}  # fragment id -> [total, {num: data}, deadline]
         self.bytes = 0
 
@@ -38,6 +42,10 @@ class Fragments:
         if limit and self.bytes + growth > limit:
             self._drop(frag_id)
             raise RequestError(f"fragment {frag_id!r}: reassembled message over max_message_size ({limit} bytes)")
+        if self._shared is not None and not self._shared.hold(self, self.bytes + growth):
+            self._drop(frag_id)
+            raise RequestError(f"fragment {frag_id!r}: dropped, the unfinished messages of all clients are at their "
+                               f"bound ({self._shared.limit} bytes): try again later")
         self.bytes += growth
         entry[1][num] = data
         if len(entry[1]) < total:
@@ -49,9 +57,13 @@ class Fragments:
     def expire(self, now):
         """Drops the sets past their deadline; yields (id, parts received, total) of each."""
         for frag_id, entry in list(self._sets.items()):
-            if entry[2] < now:
+            if entry[2] <= now:
                 self._drop(frag_id)
                 yield frag_id, len(entry[1]), entry[0]
+
+    def next_deadline(self):
+        """When the next set is dropped if it is not whole by then, or None."""
+        return min((entry[2] for entry in self._sets.values()), default=None)
 
     def ids(self):
         return list(self._sets)
@@ -59,10 +71,21 @@ class Fragments:
     def clear(self):
         self._sets.clear()
         self.bytes = 0
+        if self._shared is not None:
+            self._shared.hold(self, 0)
+
+    def evict(self):
+        """The shared bound took back what these hold, for another client's message that came faster."""
+        count = len(self._sets)
+        self.clear()
+        if self._evicted is not None:
+            self._evicted(count)
 
     def _drop(self, frag_id):
         entry = self._sets.pop(frag_id)
         self.bytes -= sum(len(part) + PART_OVERHEAD for part in entry[1].values())
+        if self._shared is not None:
+            self._shared.hold(self, self.bytes)
 
 
 def unpack_png(data, max_bytes):

@@ -135,7 +135,8 @@ class ClientConnection:
         self.budget = ClientBudget(settings.max_frames_per_second, settings.max_bytes_per_second, time.monotonic)
         self.session = protocol.Session(bridge.backend, bridge.config, time.time, self._loop.call_later,
                                         self._wake, self._close_after_sending, name=peer,
-                                        resume_reading=self._resume, off_loop=bridge.encoder.run)
+                                        resume_reading=self._resume, off_loop=bridge.encoder.run,
+                                        cancel_later=self._loop.remove_timeout, unfinished=bridge.unfinished)
         self._waiting = None  # what reading waits for: "read", "turn" (a timer), "session", or "end"
         self._turn_timer = None
         self._unfinished_timer = None  # when the message the client is sending must be whole (_check_unfinished)

@@ -71,14 +71,19 @@ def test_the_session_implements_what_the_ros_side_may_call_on_a_client():
 
 
 class Harness:
-    def __init__(self, off_loop=None, **config):
+    def __init__(self, off_loop=None, cancel_later=None, unfinished=None, **config):
         self.now = 1000.0
         self.timers = []
         self.closed_with = None
         self.backend = RecordingBackend()
-        self.session = protocol.Session(self.backend, protocol.Config(**config), lambda: self.now,
-                                        lambda delay, fn: self.timers.append((self.now + delay, fn)),
-                                        lambda: None, self._close, off_loop=off_loop)
+        self.session = protocol.Session(self.backend, protocol.Config(**config), lambda: self.now, self._call_later,
+                                        lambda: None, self._close, off_loop=off_loop, cancel_later=cancel_later,
+                                        unfinished=unfinished)
+
+    def _call_later(self, delay, fn):
+        timer = (self.now + delay, fn)
+        self.timers.append(timer)
+        return timer
 
     def _close(self, reason):
         self.closed_with = reason
@@ -327,10 +332,47 @@ def test_fragments_reassemble_in_any_order_and_expire(h):
 
     h.send({"op": "set_level", "level": "warning"})
     h.send({"op": "fragment", "id": 2, "data": "{", "num": 0, "total": 2})
-    h.advance(601)
+    h.advance(300)
     h.send({"op": "fragment", "id": 3, "data": "{", "num": 0, "total": 2})
-    assert "fragment_timeout" in h.replies()[0]["msg"]
+    h.advance(301)  # (on a timer: the client sends nothing more)
+    assert "fragment 2: dropped after fragment_timeout (600.0 s) with 1 of 2 parts" in h.replies()[0]["msg"]
     assert h.session._fragments.ids() == [3]
+    h.advance(300)
+    assert "fragment 3: dropped" in h.replies()[0]["msg"] and h.session._fragments.ids() == []
+    assert h.timers == []  # (nothing left to expire: no timer)
+
+
+def test_a_client_leaving_cancels_its_fragments_timer():
+    cancelled = []
+    h = Harness(cancel_later=cancelled.append)
+    h.send({"op": "fragment", "id": 1, "data": "{", "num": 0, "total": 2})
+    [timer] = h.timers
+    h.session.closed()
+    assert cancelled == [timer] and h.session._fragments.bytes == 0
+
+
+def test_fragments_count_with_every_clients_unfinished_messages_and_a_stalled_clients_make_way():
+    """A client's parked fragments count against the bound shared by every client's unfinished messages (a
+    websocket_frames.SharedBound): within it they wait; beyond it the part is refused; and a client whose bytes
+    came faster takes their room once they have stopped coming, the client told."""
+    from rosbridge.websocket_frames import RECENT, SharedBound
+    now = [1000.0]
+    shared = SharedBound(1_000_000, clock=lambda: now[0])
+    parked, refused, sending = (Harness(unfinished=shared) for _ in range(3))
+    parked.send({"op": "fragment", "id": "p", "data": "x" * 600_000, "num": 0, "total": 2})
+    assert shared.held == parked.session._fragments.bytes > 600_000
+    refused.send({"op": "fragment", "id": "r", "data": "x" * 600_000, "num": 0, "total": 2})
+    assert "all clients are at their bound" in refused.replies()[0]["msg"]
+    assert refused.session._fragments.ids() == [] and shared.held == parked.session._fragments.bytes
+    now[0] += 2 * RECENT
+    sending.send({"op": "fragment", "id": "s", "data": "x" * 600_000, "num": 0, "total": 2})
+    assert parked.session._fragments.ids() == [] and sending.session._fragments.ids() == ["s"]
+    assert "1 unfinished fragmented message(s) dropped" in parked.replies()[0]["msg"]
+    sending.send({"op": "fragment", "id": "s", "data": '"}', "num": 1, "total": 2})
+    assert shared.held == 0
+    sending.session.closed()
+    parked.session.closed()
+    assert shared.held == 0
 
 
 def test_fragments_cannot_exceed_max_message_size():
