@@ -4,7 +4,9 @@ rosbag, no rospy, no tornado; bags.py does the recording).
 Sizes follow rosbag's format 2.0 as rosbag.Bag writes it (uncompressed, unencrypted, its default chunks), so that
 an empty message costs what it takes on disk: its record's header and its entry in its chunk's index, 58 bytes.
 They are upper bounds: a bag's chunks are counted as if each held every connection."""
+import array
 import collections
+import itertools
 
 # "#ROSBAG V2.0\n", then the file header record, padded to 4096 bytes
 FILE_HEADER = 13 + 4104
@@ -103,35 +105,92 @@ class FolderSpace:
         self._reserved.pop(name, None)
 
 
-# what a black box entry takes in memory besides its data: its tuple (72), stamp (24), deque slot (8, with its
-# block's share), its data's bytes object (33; a big message's bytearray, 57); measured by test_bag_bounds. More
-# than its record in a bag (MESSAGE), so a full black box's bag is within max_bytes and its header and connections.
+# what a black box entry counts for besides its data: more than its record in a bag (MESSAGE), so that a full black
+# box's bag is within max_bytes and its header and connections, and more than it takes in memory (its stamp, kind
+# and end in arrays, 20 bytes: test_bag_bounds measures it); as much as an entry took as a tuple once, so that a
+# full box holds as many messages as then (400,000 empty ones at the defaults), and a save takes as long
 ENTRY_BYTES = 160
+SEGMENT_ENTRIES, SEGMENT_BYTES = 4096, 1 << 20  # a segment of the black box is full at either
+
+
+class _Segment:
+    """Consecutive entries of the black box in arrays, appended to and never changed otherwise (a save reads them
+    on another thread while the box goes on): stamps, kinds (indexes of (topic, cls)), and each entry's end in
+    data, the entries' bytes one after the other (bytes once it is full). Entries before `start` have left the
+    box."""
+    __slots__ = ("stamps", "kinds", "ends", "data", "start")
+
+    def __init__(self):
+        self.stamps, self.kinds, self.ends = array.array("d"), array.array("I"), array.array("Q")
+        self.data, self.start = bytearray(), 0
+
+    def full(self):
+        return len(self.stamps) >= SEGMENT_ENTRIES or len(self.data) >= SEGMENT_BYTES
+
+    def close(self):
+        self.data = bytes(self.data)  # its exact size: a bytearray that grew keeps up to 1/8 more
+
+    def begin(self, index):
+        return self.ends[index - 1] if index else 0
+
+    def entries(self, start, stop, kinds):
+        for index in range(start, stop):
+            topic, cls = kinds[self.kinds[index]]
+            yield self.stamps[index], topic, cls, bytes(self.data[self.begin(index):self.ends[index]])
 
 
 class BlackBox:
     """The black box's messages, oldest first: those of the last `seconds` before the newest, within max_bytes,
-    each counted as its data's bytes and ENTRY_BYTES. Entries: (stamp, topic, cls, data)."""
+    each counted as its data's bytes and ENTRY_BYTES. Entries are (stamp, topic, cls, data), kept in segments of
+    arrays (_Segment), not as an object each: the garbage collector's full collections, which a save's writing
+    sets off, would otherwise walk hundreds of thousands of them while the loop waits. What has left the box is
+    freed a segment at a time: at most SEGMENT_BYTES (or one message) more than `bytes` are held."""
 
     def __init__(self, seconds, max_bytes):
         self.seconds, self.max_bytes = seconds, max_bytes
         self.bytes = 0
-        self._entries = collections.deque()
+        self._segments = collections.deque()
+        self._kinds, self._kind_list = {}, []  # (topic, cls) -> its index in _kind_list
+        self._length = 0
         self._payload = 0
         self._topics = collections.Counter()  # topic -> its entries
         self._classes = {}  # topic -> cls, for the connections of a bag
 
     def __len__(self):
-        return len(self._entries)
+        return self._length
 
     def add(self, stamp, topic, cls, data):
-        entries = self._entries
-        entries.append((stamp, topic, cls, data))
+        kind = self._kinds.get((topic, cls))
+        if kind is None:
+            kind = self._kinds[topic, cls] = len(self._kind_list)
+            self._kind_list.append((topic, cls))
+        if not self._segments or self._segments[-1].full():
+            if self._segments:
+                self._segments[-1].close()
+            self._segments.append(_Segment())
+        segment = self._segments[-1]
+        segment.data += data
+        segment.stamps.append(stamp)
+        segment.kinds.append(kind)
+        segment.ends.append(len(segment.data))
+        self._length += 1
         self._count(topic, cls, len(data), 1)
         horizon = stamp - self.seconds
-        while entries and (entries[0][0] < horizon or self.bytes > self.max_bytes):
-            _, old_topic, old_cls, old_data = entries.popleft()
-            self._count(old_topic, old_cls, len(old_data), -1)
+        while self._length and (self._oldest() < horizon or self.bytes > self.max_bytes):
+            self._drop_oldest()
+
+    def _oldest(self):
+        first = self._segments[0]
+        return first.stamps[first.start]
+
+    def _drop_oldest(self):
+        first = self._segments[0]
+        topic, cls = self._kind_list[first.kinds[first.start]]
+        self._count(topic, cls, first.ends[first.start] - first.begin(first.start), -1)
+        self._length -= 1
+        first.start += 1
+        if first.start == len(first.stamps):
+            self._segments.popleft()
 
     def _count(self, topic, cls, length, sign):
         self.bytes += sign * (length + ENTRY_BYTES)
@@ -143,10 +202,13 @@ class BlackBox:
             del self._topics[topic], self._classes[topic]
 
     def entries(self):
-        """A copy of the entries (for a save, which may take a while)."""
-        return list(self._entries)
+        """The entries as they are now (for a save, which reads them on another thread while the box goes on),
+        oldest first, each (stamp, topic, cls, data) made as it is read."""
+        parts = [(segment, segment.start, len(segment.stamps)) for segment in self._segments]
+        kinds = list(self._kind_list)
+        return itertools.chain.from_iterable(segment.entries(start, stop, kinds) for segment, start, stop in parts)
 
     def bag_bytes(self):
         """What a bag of the entries takes on disk (an upper bound)."""
-        return bag_bytes(len(self._entries), self._payload,
+        return bag_bytes(self._length, self._payload,
                          [connection_bytes(topic, cls) for topic, cls in self._classes.items()])

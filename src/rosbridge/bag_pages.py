@@ -16,7 +16,7 @@ import json
 import tornado.concurrent
 import tornado.web
 
-from rosbridge.bags import bag_path
+from rosbridge.bags import Busy, bag_path
 from rosbridge.errors import ClientError
 from rosbridge.http_access import EndpointHandler, refusal
 
@@ -73,7 +73,7 @@ class BagAction(_BagHandler):
                 if error:
                     raise ClientError(f"saving the black box into {name} failed: {error}")
         except ClientError as error:
-            self.answer_error(400, str(error))
+            self.answer_error(409 if isinstance(error, Busy) else 400, str(error))
             return
         self.finish(self.recorder.state())
 

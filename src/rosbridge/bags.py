@@ -7,7 +7,8 @@ Threads: everything here runs on the loop but the writing. One writer thread (a 
 beyond, messages are dropped and counted) opens, writes and closes bags; what it finds out (an error, a bag done)
 comes back to the loop (IOLoop.add_callback). The folder's size is bounded, counted as the disk counts it: each bag
 reserves what it will take before it is written (a save all of it, before it is accepted; a recording message by
-message), so bags written at once never add up past max_bytes, and a recording stops there, saying so. Only plain
+message), so bags written at once never add up past max_bytes, and a recording stops there, saying so. One black
+box save is written at a time (another is refused, Busy: each would keep the box as it was, and wait). Only plain
 files are bags: a symlink in the folder is neither listed, served nor deleted (it could lead out of the folder)."""
 import concurrent.futures
 import os
@@ -27,6 +28,10 @@ from rosbridge.errors import ClientError
 BAG_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,100}\.bag")
 WRITER_QUEUE_BYTES = 64 << 20  # messages waiting for the disk, as they will take it; beyond, dropped (and counted)
 WRITER_QUEUE_JOBS = 20_000  # and as many at most: each job is some 500 bytes of Python objects, an empty message's too
+
+
+class Busy(ClientError):
+    """Refused for now: what it asks is being done for another request."""
 
 
 def bag_path(folder, name):
@@ -130,6 +135,7 @@ class Recorder:
         self._bag = None  # (writer thread only)
         self._box = None  # the BlackBox
         self._box_topics = None
+        self._saving = None  # the bag a black box save is writing
 
     # ---- what is there ----------------------------------------------------------------------------------------
     def bags(self):
@@ -273,11 +279,14 @@ class Recorder:
         self._box.add(message.stamp, message.topic, message.msg_class, message.data)
 
     def save_blackbox(self, name=None, then=None):
-        """Writes what the black box holds into a new bag, once the folder has room for it; then(error or None)
-        once it is on disk."""
+        """Writes what the black box holds into a new bag, once the folder has room for it and no other save is
+        being written (Busy: each holds a copy of the box and the writer); then(error or None) once it is on
+        disk."""
         name = self._new_name(name, "blackbox-%Y-%m-%d-%H-%M-%S")
         if self._box_topics is None:
             raise ClientError("the black box is off: choose its topics first")
+        if self._saving is not None:
+            raise Busy(f"the black box is being saved into {self._saving}: save again once it is written")
         self.bags()
         if not self._space.reserve(name, self._box.bag_bytes()):
             raise ClientError(f"the bag folder would exceed its bound ({self.max_bytes} bytes): delete some bags")
@@ -289,9 +298,11 @@ class Recorder:
                     write_message(bag, topic, raw(cls, data), genpy.Time.from_sec(when))
 
         def written(error):
+            self._saving = None
             self._written(name)
             if then is not None:
                 then(error)
+        self._saving = name
         self._writer.submit(write, then=written)
         return name
 
