@@ -50,6 +50,8 @@ class FrameQueue:
 
 
 SMALL_MESSAGE = 1 << 16  # bytes: a message smaller than this goes before the big ones that have not started yet
+OWN_QUEUE_BYTES = 1 << 18  # what one client's outbox may hold before it draws on the bound shared by all clients'
+# (QueuePool): the small backlogs of many clients never do
 TOPIC_BACKLOG_BYTES = 16 * 1024  # what one topic may have waiting while the socket is backed up (but its newest)...
 FRESH_HORIZON = 0.5  # ...and for how long (s): older messages of a topic that has a newer one waiting are skipped
 
@@ -60,6 +62,24 @@ class _Unit:
 
     def __init__(self, key, frames, size, queued_at, big):
         self.key, self.frames, self.size, self.queued_at, self.big = key, frames, size, queued_at, big
+
+
+class QueuePool:
+    """What the outboxes of every client may hold together beyond OWN_QUEUE_BYTES each: `limit` bytes, handed out
+    as an outbox needs them and given back as it drains (Outbox), so that clients that do not read cannot hold
+    their whole bound each."""
+
+    def __init__(self, limit):
+        self.limit, self.granted = limit, 0
+
+    def grant(self, wanted):
+        """Up to `wanted` more bytes for one outbox: what is left of the limit, at most."""
+        given = max(0, min(wanted, self.limit - self.granted))
+        self.granted += given
+        return given
+
+    def give_back(self, count):
+        self.granted -= count
 
 
 class Outbox:
@@ -79,10 +99,16 @@ class Outbox:
       message larger than the whole bound is refused. Skipped, dropped and refused are counted by topic for the
       client's status messages (take_report). A message counts its bytes as encoded: one that goes deflated to
       a slow link is deflated once taken (websocket.py), so its smaller size never lets more wait here; its
-      deflated copy lives with the frame (frames.deflated_payload)."""
+      deflated copy lives with the frame (frames.deflated_payload).
+    - With a `pool` (a QueuePool shared by every client's outbox), what waits beyond OWN_QUEUE_BYTES, and what
+      the socket was given but has not sent (in_flight, from set_backed_up), must also be granted by the pool:
+      beyond what it grants, whole messages are dropped as above, the newest too."""
 
-    def __init__(self, max_frames, max_bytes, clock):
+    def __init__(self, max_frames, max_bytes, clock, pool=None):
         self.max_frames, self.max_bytes, self._clock = max_frames, max_bytes, clock
+        self._pool, self._granted, self._in_flight = pool, 0, 0
+        # what may wait before the oldest messages are dropped: max_bytes, or with a pool what it granted
+        self._allowed = max_bytes if pool is None else min(max_bytes, OWN_QUEUE_BYTES)
         self._small, self._big = collections.deque(), collections.deque()  # units, oldest first
         self._dead = 0  # units skipped or dropped that are still in a lane (removed lazily)
         self._by_key = {}  # topic (or None) -> its waiting units, oldest first
@@ -115,8 +141,17 @@ class Outbox:
         self.bytes += size
         if self.backed_up and key is not None:
             self._freshen(key, waiting, unit.queued_at)
-        if self.frames > self.max_frames or self.bytes > self.max_bytes:
+        if self.frames > self.max_frames or self.bytes > self._allowed:
             self._bound(unit)
+
+    def set_backed_up(self, flag, in_flight=0):
+        """Whether the socket is backed up (then each topic keeps only what is fresh), and how many bytes the
+        socket holds that have not left yet (they count against the pool until they have)."""
+        self.backed_up, self._in_flight = flag, in_flight
+        if self._pool is not None:
+            self._regrant()
+            if self.bytes > self._allowed:
+                self._bound(None)
 
     def _freshen(self, key, waiting, now):
         while len(waiting) > 1 and (self._key_bytes[key] > TOPIC_BACKLOG_BYTES
@@ -125,14 +160,32 @@ class Outbox:
             self.skipped[key] += 1
 
     def _bound(self, newest):
+        if self._pool is not None:
+            self._regrant()
         for lane in (self._big, self._small):  # the big ones first: they are what fills memory
             for unit in lane:
-                if self.frames <= self.max_frames and self.bytes <= self.max_bytes:
+                if self.frames <= self.max_frames and self.bytes <= self._allowed:
                     return
                 if unit.frames is not None and unit is not newest:
-                    self._by_key[unit.key].remove(unit)
-                    self._remove(unit)
-                    self.dropped[unit.key] += 1
+                    self._drop(unit)
+        if self._pool is not None and self.bytes > self._allowed and newest is not None and newest.frames is not None:
+            self._drop(newest)  # (what the pool did not grant)
+
+    def _drop(self, unit):
+        self._by_key[unit.key].remove(unit)
+        self._remove(unit)
+        self.dropped[unit.key] += 1
+
+    def _regrant(self):
+        """Holds as much of the pool as what waits (up to max_bytes) and what is in flight take beyond
+        OWN_QUEUE_BYTES, or what is left of it, and gives back the rest."""
+        wanted = max(0, min(self.bytes, self.max_bytes) + self._in_flight - OWN_QUEUE_BYTES)
+        if wanted > self._granted:
+            self._granted += self._pool.grant(wanted - self._granted)
+        elif wanted < self._granted:
+            self._pool.give_back(self._granted - wanted)
+            self._granted = wanted
+        self._allowed = min(self.max_bytes, OWN_QUEUE_BYTES + self._granted - self._in_flight)
 
     def _remove(self, unit):
         """Takes a waiting unit out of the counts; it leaves its lane when the lane is next taken from, or compacted
@@ -172,6 +225,8 @@ class Outbox:
             self._current_key = unit.key
             return unit.frames[0]
         if not current:
+            if self._granted:  # (drained: what it held of the pool goes back)
+                self._regrant()
             return None
         frame = current.popleft()
         self.frames -= 1
@@ -198,7 +253,9 @@ class Outbox:
         self._current_key = None
         self._by_key.clear()
         self._key_bytes.clear()
-        self._dead = self.frames = self.bytes = 0
+        self._dead = self.frames = self.bytes = self._in_flight = 0
+        if self._pool is not None:
+            self._regrant()
 
 
 # Deflating what a slow link carries (websocket.ClientConnection, for a client that offered permessage-deflate):

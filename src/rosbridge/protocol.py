@@ -15,7 +15,7 @@ from rosbridge.auth import mac_is_valid
 from rosbridge.codec.json_values import dumps
 from rosbridge.errors import ClientError, RequestError, log_bug
 from rosbridge.frames import COMPRESSIONS, service_response_frames, status_frame
-from rosbridge.outgoing import Outbox
+from rosbridge.outgoing import OWN_QUEUE_BYTES, Outbox, QueuePool
 from rosbridge.reassembly import Fragments, unpack_png
 from rosbridge.subscription import MAX_THROTTLE_RATE, Subscription
 
@@ -46,6 +46,8 @@ class Config:
         # what may wait for one slow client before the oldest whole messages are dropped: frames (max_queue), and
         # bytes: enough for a 16 MB occupancy grid as JSON (about 47 MB)
         self.max_queue_bytes = max(64_000_000, 2 * self.max_message_size)
+        # and for all of them together, beyond OWN_QUEUE_BYTES each: two such clients' worth
+        self.queue_pool = QueuePool(2 * self.max_queue_bytes)
         self.globs = globs or globs_module.Globs()
         self.auth_secret = auth_secret
 
@@ -140,7 +142,7 @@ class Session:
         self.level = STATUS_LEVELS.index("error")
         self.authenticated = not config.authenticate
         self.is_closed = False
-        self._outgoing = Outbox(config.max_queue, config.max_queue_bytes, clock)
+        self._outgoing = Outbox(config.max_queue, config.max_queue_bytes, clock, config.queue_pool)
         self._last_report = float("-inf")  # when the client was last told what its slow link skipped
         self._reports = collections.deque()  # those status frames: they go first
         self._woken = False
@@ -412,10 +414,10 @@ class Session:
             self._woken = True
             self._wake()
 
-    def backed_up(self, flag):
+    def backed_up(self, flag, in_flight=0):
         """The server says whether the client's socket has stopped taking frames (then each topic keeps only
-        what is fresh: outgoing.Outbox)."""
-        self._outgoing.backed_up = flag
+        what is fresh: outgoing.Outbox), and how many bytes it was given that have not left yet."""
+        self._outgoing.set_backed_up(flag, in_flight)
 
     def take_frame(self):
         """The next frame to write, or None when the queue is empty (the next send wakes the server again).
@@ -462,7 +464,8 @@ def _outbox_report(skipped, dropped, refused, config):
                           f"(the link is slower than the messages): {by_topic(skipped)}")
     if dropped:
         yield "error", (f"dropped {sum(dropped.values())} whole message(s): client too slow (outgoing bound "
-                        f"{config.max_queue} frames, {config.max_queue_bytes} bytes): {by_topic(dropped)}")
+                        f"{config.max_queue} frames, {config.max_queue_bytes} bytes; beyond {OWN_QUEUE_BYTES} bytes "
+                        f"each, {config.queue_pool.limit} bytes for all clients together): {by_topic(dropped)}")
     if refused:
         yield "error", (f"refused {sum(refused.values())} message(s) larger than the client's whole outgoing bound "
                         f"({config.max_queue} frames, {config.max_queue_bytes} bytes): {by_topic(refused)}")

@@ -30,6 +30,10 @@ READ_CHUNK = 64 * 1024  # bytes asked of a client's stream per read: every frame
 # Frames waiting for a client go to its socket together, up to this many bytes per write: one system call for a
 # burst of small messages instead of one each.
 WRITE_BATCH_BYTES = 64 * 1024
+# What the socket does not take at once goes to the stream in pieces of this many bytes (by reference): each one
+# written is progress, so that a slow link taking a map for longer than websocket_ping_timeout is not taken for
+# one that stopped reading.
+WRITE_PIECE_BYTES = 64 * 1024
 CLOSE_TIMEOUT = 5.0  # seconds a client has to answer our close frame before the connection is dropped
 
 
@@ -116,7 +120,8 @@ class ClientConnection:
 
     Writing: the Session's queued frames go to the stream while it takes them; once the stream is backed up (the
     kernel holds at most unsent.UNSENT_LIMIT unsent), the rest stays in the Session's Outbox, which keeps each
-    topic fresh meanwhile, until the stream has drained.
+    topic fresh meanwhile, until the stream has drained. A client whose stream writes nothing for
+    websocket_ping_timeout meanwhile does not read: it is dropped (_check_stalled), and what waited for it with it.
 
     Deflating, with a client that offered permessage-deflate (window_bits: the largest window negotiated, else
     None): every message with use_compression; else, with compress_slow_links, the messages of DEFLATE_MIN_BYTES
@@ -146,9 +151,11 @@ class ClientConnection:
         self._awaiting_drain = False  # written data the socket has not taken yet
         self._write_waited = None  # (when, bytes) of the write the socket has not taken all of yet
         self._link = LinkMeter()
-        self._deflating = False  # the frame taken last is being deflated off the loop...
+        self._deflating = 0  # the size of the frame taken last while it is being deflated off the loop...
         self._ready = None  # ...and once it is, (it, its payload): it goes first
         self._pong = None  # the pong of the latest ping, waiting for the socket to drain (_write_control)
+        self._stall_timer = None  # while the stream is backed up: when it must have written something (_check_stalled)
+        self._wrote_at = None  # when it last did
         self._pinger, self._ping_sent = None, None
         self._last_heard = time.monotonic()  # when a read last brought something
 
@@ -310,9 +317,8 @@ class ClientConnection:
                 except tornado.iostream.StreamClosedError:  # (the close callback cleans up)
                     return
                 if written is not None and stream.writing():
-                    self._awaiting_drain, self._write_waited = True, (time.monotonic(), size)
-                    self._backed_up()
-                    written.add_done_callback(self._drained)
+                    self._write_waited = (time.monotonic(), size)
+                    self._await_drain(written)
                     return
             if self._deflating:  # (_deflated goes on)
                 return
@@ -350,13 +356,13 @@ class ClientConnection:
                                    functools.partial(self._deflated, frame))
         if payload is not None:  # (made already, for another client)
             return frame, payload
-        self._deflating = True
+        self._deflating = len(frame)
         self._backed_up()
         return None, None
 
     def _deflated(self, frame, payload):
         """A frame taken is deflated (payload None: that failed, and was logged; it goes as it is)."""
-        self._deflating = False
+        self._deflating = 0
         if self._stream.closed():
             return
         self._ready = (frame, payload)
@@ -364,8 +370,37 @@ class ClientConnection:
         self._flush()
 
     def _backed_up(self):
-        """Tells the Session whether the client's frames wait (each topic then keeps only what is fresh)."""
-        self.session.backed_up(self._awaiting_drain or self._deflating)
+        """Tells the Session whether the client's frames wait (each topic then keeps only what is fresh), and what
+        was taken that has not left: the batch the stream has not written, the frame being deflated."""
+        in_flight = (self._write_waited[1] if self._write_waited is not None else 0) + self._deflating
+        self.session.backed_up(self._awaiting_drain or self._deflating > 0, in_flight)
+
+    def _await_drain(self, written):
+        """The stream holds what it could not write yet: _drained once it has all gone (`written`, the future of
+        its last write, is done), and the client dropped if nothing of it goes for websocket_ping_timeout."""
+        self._awaiting_drain = True
+        self._backed_up()
+        written.add_done_callback(self._drained)
+        self._wrote_at = time.monotonic()
+        if self._stall_timer is None:
+            self._stall_timer = self._loop.call_later(self.bridge.settings.websocket_ping_timeout,
+                                                      self._check_stalled)
+
+    def _wrote(self, _):
+        self._wrote_at = time.monotonic()
+
+    def _check_stalled(self):
+        self._stall_timer = None
+        if not self._awaiting_drain or self._stream.closed():
+            return
+        timeout = self.bridge.settings.websocket_ping_timeout
+        left = self._wrote_at + timeout - time.monotonic()
+        if left > 0:
+            self._stall_timer = self._loop.call_later(left, self._check_stalled)
+            return
+        self.bridge.log_refusal("stalled", f"a client dropped: it read nothing of what waited for it for "
+                                f"websocket_ping_timeout ({timeout} s)")
+        self._stream.close()  # (a close frame would wait behind what it does not read)
 
     def _drained(self, written):
         self._awaiting_drain = False
@@ -407,7 +442,8 @@ class ClientConnection:
         """Sends data: straight to the socket while the stream holds nothing unsent, so that a message that the
         kernel takes at once costs no future and no further turn of the loop (Tornado's write has both: a topic
         at 1 kHz would pay them on every message); what the socket does not take, or all when it fails, through
-        the stream, which waits for the drain or closes on the error. Returns the stream's future, or None.
+        the stream (in WRITE_PIECE_BYTES pieces, each written a sign of life: _wrote), which waits for the drain
+        or closes on the error. Returns the stream's future, or None.
         Not for TLS (the SSL object's state is the stream's own): everything through the stream there."""
         stream = self._stream
         if self._send_direct and not stream.writing() and not stream.closed():
@@ -418,7 +454,13 @@ class ClientConnection:
             if sent == len(data):
                 return None
             data = memoryview(data)[sent:]
-        return stream.write(data)
+        if len(data) <= WRITE_PIECE_BYTES:
+            return stream.write(data)
+        view = memoryview(data)
+        for start in range(0, len(view), WRITE_PIECE_BYTES):
+            written = stream.write(view[start:start + WRITE_PIECE_BYTES])
+            written.add_done_callback(self._wrote)
+        return written
 
     def _write_control(self, frame):
         """A pong. While the socket is backed up only the latest ping's pong waits, and goes once it has drained
@@ -432,9 +474,7 @@ class ClientConnection:
             return
         written = self._send(frame)
         if written is not None and self._stream.writing():
-            self._awaiting_drain = True
-            self._backed_up()
-            written.add_done_callback(self._drained)
+            self._await_drain(written)
 
     # ---- keeping alive, closing ------------------------------------------------------------------
     def _keep_alive(self):
@@ -473,7 +513,7 @@ class ClientConnection:
             self._drop_timer = self._loop.call_later(CLOSE_TIMEOUT, stream.close)
 
     def _on_stream_closed(self):
-        for timer in (self._turn_timer, self._drop_timer, self._unfinished_timer):
+        for timer in (self._turn_timer, self._drop_timer, self._unfinished_timer, self._stall_timer):
             if timer is not None:
                 self._loop.remove_timeout(timer)
         if self._pinger is not None:

@@ -2,8 +2,8 @@
 socket is backed up, bounded; the LinkMeter, which says whether a client's link is slow."""
 import tracemalloc
 
-from rosbridge.outgoing import (DEFLATE_MIN_BYTES, FRESH_HORIZON, SLOW_LINK_BYTES_PER_SECOND, SMALL_MESSAGE,
-                                TOPIC_BACKLOG_BYTES, LinkMeter, Outbox, sends_deflated)
+from rosbridge.outgoing import (DEFLATE_MIN_BYTES, FRESH_HORIZON, OWN_QUEUE_BYTES, SLOW_LINK_BYTES_PER_SECOND,
+                                SMALL_MESSAGE, TOPIC_BACKLOG_BYTES, LinkMeter, Outbox, QueuePool, sends_deflated)
 
 
 class Clock:
@@ -211,3 +211,33 @@ def test_only_big_messages_go_deflated_to_a_slow_link_and_every_one_with_use_com
     assert sends_deflated(DEFLATE_MIN_BYTES, False, slow) and not sends_deflated(DEFLATE_MIN_BYTES - 1, False, slow)
     assert not sends_deflated(1 << 20, False, fast) and not sends_deflated(1 << 20, False, unknown)
     assert all(sends_deflated(size, True, link) for size in (10, 1 << 20) for link in (slow, fast, unknown))
+
+
+def test_the_outboxes_of_every_client_share_one_bound_beyond_their_own_bytes():
+    """Beyond OWN_QUEUE_BYTES each, what waits for the clients, and what their sockets were given but have not sent,
+    must be granted by one QueuePool: clients that never read hold at most the pool together (beyond it whole
+    messages are dropped, the newest too), a client with a small backlog is never touched, and an outbox that
+    drains, or whose client leaves, gives its share back."""
+    pool, clock = QueuePool(3_000_000), Clock()
+    hogs = [Outbox(1000, 64_000_000, clock, pool) for _ in range(3)]
+    answer = (b"A" * 1_000_000,)
+    for hog in hogs:
+        hog.set_backed_up(True, in_flight=1_000_000)  # (an answer in its socket already)
+        for _ in range(5):
+            hog.push(None, answer)
+    assert pool.granted == pool.limit
+    assert [hog.bytes for hog in hogs] == [2_000_000, 0, 0]  # (with the one in flight: the pool and its own)
+    assert [hog.take_report()[1][None] for hog in hogs] == [3, 5, 5]
+    victim = Outbox(1000, 64_000_000, clock, pool)
+    victim.set_backed_up(True, in_flight=30_000)
+    for i in range(100):
+        victim.push(None, small(f"v{i}" + "." * 1000))
+    assert len(victim) == 100 and victim.take_report() == ({}, {}, {})
+    first = hogs[0]
+    first.set_backed_up(False)
+    assert pool.granted == 2_000_000 - OWN_QUEUE_BYTES
+    assert drain(first) == ["A" * 1_000_000] * 2 and pool.granted == 0
+    hogs[1].push(None, answer)  # (room again)
+    assert hogs[1].bytes == 1_000_000 and pool.granted == 2_000_000 - OWN_QUEUE_BYTES
+    hogs[1].clear()
+    assert pool.granted == 0
