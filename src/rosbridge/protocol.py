@@ -28,6 +28,7 @@ LATER_REFUSALS = {"subscribe": "topic", "advertise": "topic", "publish": "topic"
 ORDERED_OPS = frozenset(("advertise", "unadvertise", "subscribe", "unsubscribe", "advertise_service",
                          "unadvertise_service"))
 LARGEST_INT = 2**63 - 1  # the widest integer ROS has (int64/uint64 aside); any count or time fits
+AUTH_TIMEOUT = 10.0  # s: with authenticate, a client that has not authenticated by then is closed
 
 
 class Config:
@@ -141,6 +142,7 @@ class Session:
         self._ids = {}  # (op, name) -> the id of the latest such request, for refusals that come later
         self.level = STATUS_LEVELS.index("error")
         self.authenticated = not config.authenticate
+        self._auth_timer = None if self.authenticated else call_later(AUTH_TIMEOUT, self._auth_deadline)
         self.is_closed = False
         self._outgoing = Outbox(config.max_queue, config.max_queue_bytes, clock, config.queue_pool)
         self._last_report = float("-inf")  # when the client was last told what its slow link skipped
@@ -367,7 +369,15 @@ class Session:
         if not mac_is_valid(req, self.config.auth_secret, self._clock(), self.config.auth_time_delta):
             raise RequestError("auth: authentication failed (bad MAC, or t/end out of time)")
         self.authenticated = True
+        self._cancel(self._auth_timer)
+        self._auth_timer = None
         self.status("info", "authenticated")
+
+    def _auth_deadline(self):
+        """An idle socket that never authenticates must not keep a place that max_clients counts."""
+        self._auth_timer = None
+        if not self.authenticated and not self.is_closed:
+            self.close(f"not authenticated within {AUTH_TIMEOUT:g} s")
 
     def _op_set_level(self, req, depth):
         if req["level"] not in STATUS_LEVELS:
@@ -450,9 +460,13 @@ class Session:
         self.subscriptions.clear()
         self._outgoing.clear()
         self._fragments.clear()
-        if self._fragments_timer is not None and self._cancel_later is not None:
-            self._cancel_later(self._fragments_timer)
+        self._cancel(self._fragments_timer)
+        self._cancel(self._auth_timer)
         self.backend.release(self)
+
+    def _cancel(self, timer):
+        if timer is not None and self._cancel_later is not None:
+            self._cancel_later(timer)
 
 
 def _outbox_report(skipped, dropped, refused, config):

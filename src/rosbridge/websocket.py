@@ -81,13 +81,22 @@ class BridgeSocket(tornado.web.RequestHandler):
         self.finish()
 
     def _policy_refusal(self, origin):
-        """(status, text) if the bridge turns this client away: a web page it does not allow, or too many."""
+        """(status, text) if the bridge turns this client away: a web page it does not allow, or too many. With
+        authenticate, a client that has waited longest without authenticating makes room for a new one (a place
+        kept by an idle socket is the first to go; none lives past protocol.AUTH_TIMEOUT anyway)."""
         bridge, peer = self.bridge, self.request.remote_ip
         if origin is not None and not origin_allowed(origin, self.request.host, peer, bridge.allowed_origins,
                                                      bridge.allowed_hosts):
             bridge.refused_origin(origin, peer)
             return 403, "Cross origin websockets not allowed"
         if len(bridge.clients) >= bridge.settings.max_clients:
+            idle = min((client for client in bridge.clients if client.unauthenticated_since is not None),
+                       key=lambda client: client.unauthenticated_since, default=None)
+            if idle is not None:
+                bridge.log_refusal("max_clients auth", "a client that had not authenticated closed, making room "
+                                   f"for a new one (max_clients {bridge.settings.max_clients})")
+                idle.drop(ws.TRY_AGAIN, "making room for another client: authenticate sooner")
+                return None
             bridge.log_refusal("max_clients", f"a client refused: {len(bridge.clients)} connected "
                                f"(max_clients {bridge.settings.max_clients})")
             return 503, "too many clients"
@@ -157,7 +166,7 @@ class ClientConnection:
         self._stall_timer = None  # while the stream is backed up: when it must have written something (_check_stalled)
         self._wrote_at = None  # when it last did
         self._pinger, self._ping_sent = None, None
-        self._last_heard = time.monotonic()  # when a read last brought something
+        self._last_heard = self._opened = time.monotonic()  # when a read last brought something
 
     def start(self, handshake_answer):
         stream = self._stream
@@ -190,6 +199,11 @@ class ClientConnection:
         self._last_heard = time.monotonic()
         self._reader.receive(read.result())
         self._take_frames()
+
+    @property
+    def unauthenticated_since(self):
+        """When the client came, while it has not authenticated (and is not being closed), else None."""
+        return None if self.session.authenticated or self._closing else self._opened
 
     def silent_for(self, now):
         """Seconds the client has not been heard while the bridge was ready to read it, or held its requests
@@ -254,7 +268,7 @@ class ClientConnection:
             self._unfinished_timer = self._loop.call_later(left, self._check_unfinished)
             return
         self._reader.close()  # (what it held goes now, not once the close is answered)
-        self._drop(ws.POLICY, f"message not whole within fragment_timeout ({self.bridge.settings.fragment_timeout} s)")
+        self.drop(ws.POLICY, f"message not whole within fragment_timeout ({self.bridge.settings.fragment_timeout} s)")
 
     def _made_way(self):
         """The client's unfinished message made way for another client's, whose bytes came faster (SharedBound):
@@ -262,10 +276,10 @@ class ClientConnection:
         self.bridge.log_refusal("unfinished evicted", "a client dropped: its unfinished message made way for a "
                                 f"faster one (unfinished messages of all clients at {self.bridge.unfinished.limit} "
                                 "bytes)")
-        self._drop(ws.TRY_AGAIN, "unfinished messages of all clients at their bound, and yours came slowest: "
+        self.drop(ws.TRY_AGAIN, "unfinished messages of all clients at their bound, and yours came slowest: "
                                  "try again later")
 
-    def _drop(self, code, reason):
+    def drop(self, code, reason):
         """Ends the connection, reading nothing more: our close frame, then the stream closed once it is written
         (or CLOSE_TIMEOUT later)."""
         if self._turn_timer is not None:

@@ -453,6 +453,22 @@ def test_bad_auth_closes(changes):
     assert h.replies()[0]["level"] == "error" and h.closed_with == "authentication failed"
 
 
+def test_a_client_that_does_not_authenticate_in_time_is_closed():
+    cancelled = []
+    idle = Harness(authenticate=True, auth_secret="s3cret", cancel_later=cancelled.append)
+    idle.advance(protocol.AUTH_TIMEOUT - 0.1)
+    assert idle.closed_with is None
+    idle.advance(0.1)
+    assert idle.closed_with == f"not authenticated within {protocol.AUTH_TIMEOUT:g} s"
+    prompt = Harness(authenticate=True, auth_secret="s3cret", cancel_later=cancelled.append)
+    [deadline] = prompt.timers
+    prompt.send(auth(prompt.now))
+    assert cancelled == [deadline] and prompt.timers == [deadline]  # (the harness keeps what was cancelled)
+    prompt.advance(protocol.AUTH_TIMEOUT)
+    assert prompt.closed_with is None
+    assert Harness().timers == []  # (without authenticate: no deadline)
+
+
 def test_auth_without_a_secret_refuses_everyone():
     h = Harness(authenticate=True, auth_secret=None)
     h.send(auth(h.now))
