@@ -67,7 +67,9 @@ SETTINGS = (
             ours=True),
     Setting("websocket_ping_interval", float, 0.0, "seconds between keep-alive pings; 0 = none",
             check=NOT_NEGATIVE),
-    Setting("websocket_ping_timeout", float, 30.0, "seconds without a pong before the connection is closed (and a camera stream whose frame has not left)",
+    Setting("websocket_ping_timeout", float, 30.0,
+            "seconds without a pong before the connection is closed; likewise a client that reads nothing of what "
+            "waits for it, and a camera stream whose frame has not left",
             check=ABOVE_ZERO),
     Setting("topics_glob", str, "", 'topics clients may use, e.g. `"[/turtle1/*, /rosout]"`; empty = all'),
     Setting("services_glob", str, "", "services clients may call or provide; empty = all"),

@@ -76,10 +76,14 @@ async def auth_flood(ws, seconds):
     return f"{sent} auth frames"
 
 
-def raw_connect(url, extensions=""):
-    """A raw socket after the websocket handshake (sent, its answer not read), offering `extensions`."""
+def raw_connect(url, extensions="", recv_buffer=None):
+    """A raw socket after the websocket handshake (sent, its answer not read), offering `extensions`; with
+    recv_buffer, its receive buffer that small (a client that reads nothing then takes almost nothing)."""
     parts = urllib.parse.urlparse(url)
-    sock = socket.create_connection((parts.hostname, parts.port))
+    sock = socket.socket()
+    if recv_buffer:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, recv_buffer)
+    sock.connect((parts.hostname, parts.port))
     offer = f"Sec-WebSocket-Extensions: {extensions}\r\n" if extensions else ""
     sock.sendall(f"GET / HTTP/1.1\r\nHost: {parts.hostname}:{parts.port}\r\nUpgrade: websocket\r\n"
                  "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
@@ -115,7 +119,7 @@ def pings_never_read(url, seconds):
     return f"{sent} pings of 4 bytes"
 
 
-def on_connections(count, url, seconds, extensions, abuse):
+def on_connections(count, url, seconds, extensions, abuse, recv_buffer=None):
     """Runs abuse(sock, end) on `count` raw connections at once, each on a new connection whenever the bridge
     closes its last one, until `seconds` have passed; returns how many connections were made and what the abuses
     returned, added up."""
@@ -124,7 +128,7 @@ def on_connections(count, url, seconds, extensions, abuse):
     def run():
         connections = done = 0
         while time.monotonic() < end:
-            sock = raw_connect(url, extensions)
+            sock = raw_connect(url, extensions, recv_buffer)
             connections += 1
             try:
                 done += abuse(sock, end)
@@ -179,6 +183,39 @@ def unfinished_messages(url, seconds):
         return 1
     connections, _ = on_connections(5, url, seconds, "", hold)
     return f"{connections} unfinished messages of 30 MB"
+
+
+def never_reads(url, seconds):
+    """Ten connections that never read (a receive buffer of 4 kB), each asking for twelve answers of 7 MB, one
+    connection after the other: /rosapi/get_param of a parameter that is not set answers the default the client
+    gave."""
+    default, end, socks, asked = json.dumps("B" * 7_000_000), time.monotonic() + seconds, [], 0
+    try:
+        for _ in range(10):
+            socks.append(raw_connect(url, recv_buffer=4096))
+            for call in range(12):
+                socks[-1].sendall(raw_frame(json.dumps({"op": "call_service", "service": "/rosapi/get_param",
+                                                        "id": call, "args": {"name": "/hostile/unset",
+                                                                             "default": default}}).encode()))
+                asked += 1
+        time.sleep(max(0.0, end - time.monotonic()))
+    except OSError as error:  # the bridge closed one
+        return f"{asked} answers of 7 MB asked, then {error}"
+    finally:
+        for sock in socks:
+            sock.close()
+    return f"{asked} answers of 7 MB asked on 10 connections that never read"
+
+
+def parked_fragments(url, seconds):
+    """Forty connections, each sending the first of two `fragment` ops of 8 MB, never the second, then waiting."""
+    def park(sock, end):
+        sock.sendall(raw_frame(json.dumps({"op": "fragment", "id": "parked", "num": 0, "total": 2,
+                                           "data": "F" * 7_990_000}).encode()))
+        time.sleep(max(0.0, end - time.monotonic()))
+        return 1
+    _, parked = on_connections(40, url, seconds, "", park)
+    return f"{parked} fragments of 8 MB parked"
 
 
 ABUSES_IN_PROCESS = {f.__name__: f for f in (flood, subscribe_many, advertise_many, publish_unknown, huge_throttle,
@@ -279,7 +316,8 @@ class Victim:
         self._thread.join(10)
 
 
-RAW_ABUSES = {f.__name__: f for f in (pings_never_read, inflate_bombs, unfinished_messages)}
+RAW_ABUSES = {f.__name__: f for f in (pings_never_read, inflate_bombs, unfinished_messages, never_reads,
+                                      parked_fragments)}
 ABUSES = [*ABUSES_IN_PROCESS, *RAW_ABUSES]
 
 

@@ -1,6 +1,7 @@
 """One client never hurts another: while a hostile client (hostile.py, a process of its own) abuses the bridge,
 a well-behaved client subscribed to turtlesim's 62.5 Hz pose keeps receiving it with no gap over 0.5 s, and its
 /rosapi/get_time calls are answered within 1 s; the bridge's memory stays bounded and it keeps running."""
+import json
 import socket
 import struct
 import time
@@ -9,8 +10,9 @@ from pathlib import Path
 import pytest
 
 import hostile
-from bridge_client import RawWebSocket, WsClient
+from bridge_client import RawWebSocket, WsClient, ping
 from harness import ProcStat, node_pid, start_bridge, wait_for
+from rosbridge import protocol
 from test_security import SECRET, auth_frame
 
 pytestmark = pytest.mark.slow  # (deselect with -m 'not slow' for a quick run)
@@ -20,11 +22,16 @@ MAX_GAP = 0.5
 MAX_CALL_TIME = 1.0
 
 
-# MB; what the bridge may hold for a client that does not read its pongs is bounded by far less
-MAX_RSS_GROWTH = {"pings_never_read": 8}  # (its pongs wait one at a time: 0 MB; 9-103 MB when each waited)
+# MB after the attack: a client that does not read its pongs leaves nothing (they wait one at a time: 0 MB; 9-103 MB
+# when each waited); after ten clients that never read, the heap keeps the pages their answers took (heap.py),
+# within the peak's bound below
+MAX_RSS_GROWTH = {"pings_never_read": 8, "never_reads": 300}
 # MB at the peak: five unfinished messages of 30 MB took 153 MB; all clients' together are bounded at 32 MB now,
-# which the bridge holds about twice of (their frames' buffers, and what malloc keeps of them): 65-76 MB seen
-MAX_PEAK_RSS_GROWTH = {"unfinished_messages": 100}
+# which the bridge holds about twice of (their frames' buffers, and what malloc keeps of them): 65-76 MB seen.
+# Ten clients that never read their twelve answers of 7 MB took 774 MB (64 MB waiting for each); all clients'
+# outboxes are bounded together at 128 MB now: 207 MB seen. Forty clients parking a `fragment` op of 8 MB took
+# 311 MB; they count in the unfinished messages' bound now: 72 MB seen.
+MAX_PEAK_RSS_GROWTH = {"unfinished_messages": 100, "never_reads": 300, "parked_fragments": 150}
 # s: the victim's websocket pings (p95) while four clients send messages that unpack to 31 MB each: they took
 # 0.5 s (p50) to 1.1 s (p95) when each message was unpacked at once, on the loop
 MAX_PING_P95 = {"inflate_bombs": 0.05}
@@ -191,3 +198,101 @@ def test_a_client_leaving_releases_its_descriptors(ros):
     client.close()
     wait_for(lambda: count() <= before + 5, 30, what=f"the descriptors back to {before} (now {count()})")
     proc.stop()
+
+
+def test_a_client_stalled_in_a_big_message_does_not_lock_the_others_out(ros):
+    """A client sends 31.8 MB of a 31.9 MB message (all that unfinished messages may hold together) and stops.
+    Another client publishing 1 MB, which needs part of that bound, is served: the stalled one makes way (closed
+    with 1013, try again) for the one whose bytes keep coming. Before, the one arriving was refused with 1013
+    while the stalled one could hold the bound for fragment_timeout (600 s), and start again."""
+    proc, port = start_bridge(ros, node_name="isolation_stalled")
+    try:
+        hog = RawWebSocket(port, recv_buffer=4096)
+        size = 31_900_000
+        hog.sock.sendall(RawWebSocket.header(size) + bytes(4) + b" " * (size - 100_000))
+        time.sleep(3)  # (its bytes stopped coming)
+        client = WsClient(f"ws://127.0.0.1:{port}/")
+        client.send({"op": "advertise", "topic": "/isolation/big", "type": "std_msgs/String"})
+        client.send({"op": "publish", "topic": "/isolation/big", "msg": {"data": "x" * 1_000_000}})
+        reply = client.request({"op": "call_service", "service": "/rosapi/get_time", "id": "after"})
+        assert reply["op"] == "service_response" and reply["result"], reply
+        client.close()
+        opcode, payload = hog.recv_frame()
+        assert (opcode, payload[:2]) == (0x8, struct.pack("!H", 1013)), payload
+        hog.close()
+    finally:
+        proc.stop()
+
+
+def test_a_client_that_never_reads_is_closed_after_websocket_ping_timeout(ros):
+    """A client that reads nothing while the bridge has answers for it (three of 3 MB) is closed once nothing of
+    them has left for websocket_ping_timeout, and what waited for it is let go; a client that reads slowly, but
+    reads, gets all of a 3 MB answer that takes longer than that to go. Before, the one that never read was kept
+    (with up to 64 MB waiting for it) until it left."""
+    proc, port = start_bridge(ros, node_name="isolation_never_reads", websocket_ping_timeout=2)
+    pid = node_pid(ros, "/isolation_never_reads")
+    descriptors = lambda: len(list(Path(f"/proc/{pid}/fd").iterdir()))  # noqa: E731
+    call = json.dumps({"op": "call_service", "service": "/rosapi/get_param", "id": "big",
+                       "args": {"name": "/isolation/unset", "default": json.dumps("B" * 3_000_000)}}).encode()
+    try:
+        time.sleep(1)
+        before = descriptors()
+        idle = RawWebSocket(port, recv_buffer=4096)
+        for _ in range(3):
+            idle.sock.sendall(RawWebSocket.frame(call))
+        slow = RawWebSocket(port, recv_buffer=65536)
+        slow.sock.sendall(RawWebSocket.frame(call))
+        started, got = time.monotonic(), 0
+        wait_for(lambda: descriptors() == before + 2, 10, what="both clients connected")
+        while got < 3_000_000:  # (at most 800 kB/s: 3.75 s for the answer)
+            data = slow.sock.recv(8192)
+            assert data, f"the slow client was closed after {got} bytes"
+            got += len(data)
+            time.sleep(0.01)
+        taken = time.monotonic() - started
+        assert taken > 3, taken  # (the slow client's answer took longer than websocket_ping_timeout)
+        assert descriptors() == before + 1, "the client that never reads is still connected"
+        ping_raw(slow)
+        slow.close()
+        idle.close()
+    finally:
+        proc.stop()
+
+
+def ping_raw(client):
+    """The raw client is still served: a websocket ping answered (after what was sent before it)."""
+    client.sock.sendall(RawWebSocket.frame(b"alive", opcode=0x9))
+    while True:
+        opcode, payload = client.recv_frame()
+        if opcode == 0xA:
+            assert payload == b"alive"
+            return
+
+
+def test_clients_that_do_not_authenticate_make_way_for_one_that_does(ros, tmp_path):
+    """With authenticate, idle clients that never authenticate fill max_clients. One more client is let in,
+    the longest waiting of them making way (closed), and the others are closed protocol.AUTH_TIMEOUT after they came.
+    Before, the client that came to authenticate got 503 for as long as they stayed."""
+    secret = tmp_path / "secret"
+    secret.write_text(SECRET)
+    proc, port = start_bridge(ros, node_name="isolation_no_auth", authenticate="true", secret_file=secret,
+                              max_clients=5)
+    try:
+        idle = [RawWebSocket(port) for _ in range(5)]
+        time.sleep(0.5)
+        started = time.monotonic()
+        client = WsClient(f"ws://127.0.0.1:{port}/")
+        client.send(auth_frame(rand="isolation-no-auth"))
+        reply = client.request({"op": "call_service", "service": "/rosapi/get_time", "id": "t"})
+        assert reply["op"] == "service_response" and reply["result"], reply
+        opcode, payload = idle[0].recv_frame()  # (the first one came first)
+        assert opcode == 0x8 and payload[:2] == struct.pack("!H", 1013), payload
+        for waiting in idle[1:]:
+            opcode, payload = waiting.recv_frame()
+            assert opcode == 0x8 and b"authenticate" in payload, payload
+        closed = time.monotonic() - started
+        assert protocol.AUTH_TIMEOUT - 1 < closed < protocol.AUTH_TIMEOUT + 2, closed
+        ping(client)
+        client.close()
+    finally:
+        proc.stop()
