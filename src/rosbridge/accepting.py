@@ -75,16 +75,16 @@ class BoundedHTTPServer(tornado.httpserver.HTTPServer):
         if soft_limit != resource.RLIM_INFINITY:  # (and a quarter of the descriptors at most)
             per_address = min(per_address, max(1, (soft_limit - FDS_KEPT_FREE) // 4))
         self.per_address, self._log = per_address, log
-        self._open = {}  # address -> its streams (the closed ones dropped as the address connects again)
+        self._open = {}  # address -> its streams (the closed ones dropped as it connects again, or at a sweep)
         self._accepted = 0
 
     def handle_stream(self, stream, address):
         peer = address[0] if isinstance(address, tuple) else str(address)
         streams = [open_stream for open_stream in self._open.get(peer, ()) if not open_stream.closed()]
         self._accepted += 1
-        if self._accepted % SWEEP_EVERY == 0:  # (addresses that have left)
-            self._open = {other: kept for other, kept in self._open.items()
-                          if any(not open_stream.closed() for open_stream in kept)}
+        if self._accepted % SWEEP_EVERY == 0:  # (the connections closed since, of every address)
+            self._open = {other: still for other, kept in self._open.items()
+                          if (still := [open_stream for open_stream in kept if not open_stream.closed()])}
         if len(streams) >= self.per_address:
             self._open[peer] = streams
             self._log(("connections", peer), f"Refused a connection from {peer}: it has {len(streams)} open "
