@@ -8,7 +8,8 @@
   CompressedImage can be sent as it is;
 - the adaptation of the `adaptive=1` streams: `Ladder` (the sizes and qualities a viewer steps through),
   `Adaptation` (when one viewer steps, from how long its link took to take each frame) and `FrameInterval` (a
-  topic's frame interval, from the frames' arrival times).
+  topic's frame interval, from the frames' arrival times);
+- `Sending`: the pictures being written to the viewers, bounded in bytes, and which stalled viewers make room.
 
 Decoding and encoding (Picture) is CPU work: streams.py runs it on its encoder thread and says how frames get
 there. Everything else here is cheap and runs on the event loop."""
@@ -393,3 +394,79 @@ class FrameInterval:
             gap = min(self.LONGEST, max(self.SHORTEST, now - self._last))
             self.seconds = gap if self.seconds is None else (1 - self.SMOOTHING) * self.seconds + self.SMOOTHING * gap
         self._last = now
+
+
+# ---- what is being sent ------------------------------------------------------------------------------------------
+class Sending:
+    """What is being written to the viewers, bounded in bytes: each writer (a viewer) writes one picture at a time,
+    from when it started until it has left (done). A picture written to several viewers counts once (they share its
+    bytes); `limit` in all, or one picture alone whatever its size. Beyond it, room is made by dropping the writers
+    whose picture has not left for `stall` seconds, oldest first (crowding): a reader that takes nothing holds its
+    picture only until others need the room."""
+
+    def __init__(self, limit, stall):
+        self.limit, self.stall = limit, stall
+        self.used = 0  # bytes
+        self._pictures = {}  # id(data) -> [data, writers]
+        self._writers = {}  # writer -> (since, data), oldest first
+
+    def crowding(self, data, now):
+        """The writers to drop before `data` may be written: [] when it fits now (or is being written already),
+        None when it does not fit even without every writer stalled for `stall` seconds."""
+        return [] if id(data) in self._pictures else self._crowding(len(data), now)
+
+    def room_for(self, size, now):
+        """Whether a picture of `size` bytes (not being written yet) may be written now, maybe after crowding."""
+        return self._crowding(size, now) is not None
+
+    def _crowding(self, size, now):
+        if self._fits(size, 0):
+            return []
+        dropped, freed, left = [], 0, {}
+        for writer in self.stalled(now, self.stall):
+            dropped.append(writer)
+            held = self._writers[writer][1]
+            key = id(held)
+            left[key] = left.get(key, self._pictures[key][1]) - 1
+            if not left[key]:  # (its last writer: the picture's bytes go)
+                freed += len(held)
+                if self._fits(size, freed):
+                    return dropped
+        return None
+
+    def _fits(self, size, freed):
+        used = self.used - freed
+        return not used or used + size <= self.limit
+
+    def start(self, writer, data, now):
+        """`data` is being written to `writer` from `now` (after crowding() made room for it)."""
+        assert writer not in self._writers, "a writer writes one picture at a time"
+        self._writers[writer] = (now, data)
+        entry = self._pictures.get(id(data))
+        if entry is None:
+            self._pictures[id(data)] = [data, 1]
+            self.used += len(data)
+        else:
+            entry[1] += 1
+
+    def done(self, writer):
+        """The writer's picture has left, or the writer is gone; whether it was writing one."""
+        held = self._writers.pop(writer, None)
+        if held is None:
+            return False
+        data = held[1]
+        entry = self._pictures[id(data)]
+        entry[1] -= 1
+        if not entry[1]:
+            del self._pictures[id(data)]
+            self.used -= len(data)
+        return True
+
+    def stalled(self, now, seconds):
+        """The writers whose picture has not left for more than `seconds`, oldest first."""
+        found = []
+        for writer, (since, _) in self._writers.items():
+            if now - since <= seconds:
+                break
+            found.append(writer)
+        return found

@@ -12,7 +12,12 @@ Each viewer gets the newest frame and never a backlog: one frame is written to i
 socket has not taken it (the IOStream's write future not done; unsent.limit_unsent keeps the kernel's share
 small), newer frames only replace the one it will get next. Each frame is made at most once per (size, quality,
 invert) for every viewer, and only when a viewer wants it; what is made is kept with the frame up to
-MAX_VARIANT_BYTES (Frame.trim).
+MAX_VARIANT_BYTES (Frame.trim). What is being written to the viewers, all topics together, is bounded in bytes
+(MAX_SENDING_BYTES, jpeg.Sending: Streams.make_room): beyond it a stream viewer waits until a picture of its size
+has room, a snapshot is refused (503), and viewers whose picture has not left for CROWDED_STALL are dropped if that
+makes room. A viewer counts (max_clients, and its picture in those bytes) until its picture has left, and is
+dropped if it has not left after websocket_ping_timeout; a snapshot is written on its own connection, as a stream
+is, not joined to its head by Tornado (a copy).
 
 Threads (everything runs on the event loop but the encoding):
 - the loop: the handlers, Streams, every StreamTopic, Frame (its `variants`, what was made of it) and viewer, and
@@ -42,8 +47,9 @@ import tornado.web
 
 from rosbridge import globs as globs_module
 from rosbridge import http_access, jpeg
-from rosbridge.off_loop import EncodingThread
 from rosbridge.errors import ClientError, log_bug
+from rosbridge.off_loop import EncodingThread
+from rosbridge.pages import SECURITY_HEADERS
 from rosbridge.unsent import limit_unsent
 
 BOUNDARY = "boundarydonotcross"  # web_video_server's
@@ -58,6 +64,8 @@ LOOKUP_TIMEOUT = 5.0
 MAX_KEYS_PER_JOB = 8  # variants one encoding job makes; more wait for the next job (the topic's next turn)
 JOB_PIXELS = 4_000_000  # and pixels in all (one variant at least): a topic's turn at the encoder, ~0.1 s here
 MAX_VARIANT_BYTES = 16 * 1024 * 1024  # the variants a frame keeps, newest first (older ones are made again if asked)
+MAX_SENDING_BYTES = 64 * 1024 * 1024  # the pictures being written to the viewers, all topics (jpeg.Sending)
+CROWDED_STALL = 2.0  # seconds a viewer's picture may take to leave before the viewer is dropped for others' room
 MAX_DISCARDED = 64 * 1024  # bytes a viewer may send after its request before its stream is closed
 PASS = "pass"  # the key of a CompressedImage sent as it is
 NO_CACHE = "no-cache, no-store, must-revalidate, pre-check=0, post-check=0, max-age=0"
@@ -435,7 +443,8 @@ class Viewer:
         self.topic = None
         self.pass_mode = None
         self.sent_seq = 0  # the last frame given to it
-        self.ended = False
+        self.ended = False  # it takes no more frames (what it was given may still be being written)
+        self._stream = None  # its connection, once its answer is written (detached from Tornado)
         self.ladder = self.adaptation = None
         if request.adaptive:
             self.ladder = jpeg.Ladder(request.quality or jpeg.ADAPTIVE_QUALITY)
@@ -449,11 +458,6 @@ class Viewer:
     def _expired(self):
         self._expiry = None
         self.fail(401, "authentication expired: the end given (rosauth's end) has passed")
-
-    @property
-    def writing_since(self):
-        """When the frame being written to it was, or None."""
-        return None
 
     # ---- finding the topic
     def find(self, source):
@@ -516,10 +520,18 @@ class Viewer:
         self.end()
 
     def end(self):
+        """It is gone: its connection closed, and what was being written to it no longer counts."""
+        self._leave()
+        if self._stream is not None and not self._stream.closed():
+            self._stream.close()  # (Tornado drops what it had not written)
+        self.streams.sent(self)
+
+    def _leave(self):
+        """It takes no more frames, nor counts among the viewers."""
         if self.ended:
             return
         self.ended = True
-        self.streams.viewers.discard(self)
+        self.streams.left(self)
         if self._expiry is not None:
             self.streams.loop.remove_timeout(self._expiry)
             self._expiry = None
@@ -540,22 +552,16 @@ class StreamViewer(Viewer):
         self._arrived = 0  # frames that arrived while it was being written
         self._discarded = 0
         self.skipped = 0
-        head = ["HTTP/1.1 200 OK", "Connection: close", "Server: rosbridge_websocket", f"Cache-Control: {NO_CACHE}",
-                "Pragma: no-cache", f"Content-Type: multipart/x-mixed-replace;boundary={BOUNDARY}",
-                "X-Content-Type-Options: nosniff", *(f"{name}: {value}" for name, value in extra_headers)]
         stream.set_close_callback(self.end)
         try:
             limit_unsent(stream.socket)
             stream.set_nodelay(True)
-            stream.write(("\r\n".join(head) + f"\r\n\r\n--{BOUNDARY}\r\n").encode())
+            stream.write(_head(f"multipart/x-mixed-replace;boundary={BOUNDARY}", extra_headers)
+                         + f"--{BOUNDARY}\r\n".encode())
         except tornado.iostream.StreamClosedError:
             self.end()
             return
         self._read()
-
-    @property
-    def writing_since(self):
-        return self._writing[0] if self._writing is not None else None
 
     def _read(self):
         """Reads what the client sends (nothing, normally) so that its leaving is seen at once."""
@@ -586,7 +592,8 @@ class StreamViewer(Viewer):
                 if self.adaptation is not None:
                     self.adaptation.skipped(self._writing[1], time.monotonic())
             return
-        self.topic.want(self)
+        if not self.streams.waits_for_room(self):
+            self.topic.want(self)
 
     def take(self, frame, made):
         if self.ended or self._writing is not None:
@@ -597,6 +604,9 @@ class StreamViewer(Viewer):
             self.fail(415, f"{self.topic.topic}: {made}")
             return
         content_type, data = made
+        if not self.streams.make_room(self, data):
+            self.streams.wait_for_room(self, len(data))
+            return
         self.sent_seq = frame.seq
         head = (f"Content-Type: {content_type}\r\nContent-Length: {len(data)}\r\n"
                 f"X-Timestamp: {frame.stamp:.6f}\r\n\r\n").encode()
@@ -615,37 +625,37 @@ class StreamViewer(Viewer):
         if written.cancelled() or written.exception() is not None:
             self.end()
             return
+        if self.ended:
+            return  # (it failed meanwhile: its picture counts until its last part has left too)
         started, level = self._writing
         self._writing = None
-        if self.ended:
-            return
+        self.streams.sent(self)
         if self.adaptation is not None:
             now = time.monotonic()
             self.adaptation.taken(level, now - started, self.topic.interval.seconds, now)
         self.topic.want(self)
 
     def fail(self, status, text):
-        """Ends the stream with a last part holding the text (its headers are long sent)."""
+        """Ends the stream with a last part holding the text (its headers are long sent), then closes it."""
         if self.ended:
             return
-        stream = self._stream
-        Viewer.end(self)
+        self._leave()
         body = f"{text}\n".encode()
+        part = (f"Content-Type: text/plain; charset=UTF-8\r\nContent-Length: {len(body)}\r\n\r\n".encode() + body
+                + f"\r\n--{BOUNDARY}--\r\n".encode())
+        if self._writing is None:  # (counted as a picture is: dropped if it does not leave)
+            self.streams.sending.start(self, part, time.monotonic())
         try:
-            stream.write(f"Content-Type: text/plain; charset=UTF-8\r\nContent-Length: {len(body)}\r\n\r\n".encode()
-                         + body + f"\r\n--{BOUNDARY}--\r\n".encode()).add_done_callback(lambda _: stream.close())
+            self._stream.write(part).add_done_callback(lambda _: self.end())
         except tornado.iostream.StreamClosedError:
-            pass
-
-    def end(self):
-        Viewer.end(self)
-        if not self._stream.closed():
-            self._stream.close()
+            self.end()
 
 
 class SnapshotViewer(Viewer):
-    """A /snapshot viewer: the next frame (or, if none comes within SNAPSHOT_TIMEOUT, the newest one seen).
-    result: a Future of (frame, (content type, bytes)), or of a BadRequest."""
+    """A /snapshot viewer: the next frame (or, if none comes within SNAPSHOT_TIMEOUT, the newest one seen), made as
+    it asks, then written on its connection (send). It counts among the viewers (max_clients), and its picture among
+    the bytes being sent, until that has left. result: a Future of (stamp, content type, bytes), not of the frame (the
+    frame goes when its topic's next one comes), or of a BadRequest."""
 
     def __init__(self, streams, request, topic_name, until):
         super().__init__(streams, request, topic_name, until)
@@ -658,18 +668,40 @@ class SnapshotViewer(Viewer):
             self.sent_seq = self.topic.latest.seq  # (the next one)
 
     def new_frame(self, frame):
-        self.topic.want(self)
+        if not self.result.done():
+            self.topic.want(self)
 
     def take(self, frame, made):
-        if self.ended:
+        if self.ended or self.result.done():
             return
         if isinstance(made, jpeg.ImageError):
             self.fail(415, f"{self.topic.topic}: {made}")
             return
+        content_type, data = made
+        if not self.streams.make_room(self, data):
+            self.fail(503, f"the pictures being sent to camera viewers are at the bridge's bound "
+                           f"({MAX_SENDING_BYTES >> 20} MB): try again")
+            return
         self.sent_seq = frame.seq
-        if not self.result.done():
-            self.result.set_result((frame, made))
-        self.end()
+        self._stop_timer()
+        self.result.set_result((frame.stamp, content_type, data))
+
+    def send(self, stream, extra_headers):
+        """Writes the answer on the request's connection, detached from Tornado (which would join the picture to its
+        head: a copy of it), then ends."""
+        self._stream = stream
+        if self.ended or stream.closed():
+            self.end()
+            return
+        stamp, content_type, data = self.result.result()
+        stream.set_close_callback(self.end)
+        head = _head(content_type, [("Content-Length", len(data)), ("X-Timestamp", f"{stamp:.6f}"), *extra_headers])
+        try:
+            limit_unsent(stream.socket)
+            stream.write(head)
+            stream.write(data).add_done_callback(lambda _: self.end())
+        except tornado.iostream.StreamClosedError:
+            self.end()
 
     def _timed_out(self):
         self._timer = None
@@ -684,16 +716,31 @@ class SnapshotViewer(Viewer):
             f"nobody publishes {self.topic_name} (waited {SNAPSHOT_TIMEOUT:g} s)"
         self.fail(504, what)
 
-    def fail(self, status, text):
-        if not self.result.done():
-            self.result.set_exception(BadRequest(status, text))
-        self.end()
-
-    def end(self):
+    def _stop_timer(self):
         if self._timer is not None:
             self.streams.loop.remove_timeout(self._timer)
             self._timer = None
+
+    def fail(self, status, text):
+        """Refuses the request, unless its answer is being written already (it then ends once that has left)."""
+        if not self.result.done():
+            self.result.set_exception(BadRequest(status, text))
+            self.end()
+
+    def end(self):
+        self._stop_timer()
+        if not self.result.done():  # (its client left)
+            self.result.set_exception(BadRequest(503, "the snapshot's client left"))
         super().end()
+
+
+def _head(content_type, headers):
+    """The head of a 200 answer written on a detached connection (closed after it): never cached, the page's security
+    headers, and `headers`, (name, value) pairs."""
+    lines = ["HTTP/1.1 200 OK", "Connection: close", "Server: rosbridge_websocket", f"Cache-Control: {NO_CACHE}",
+             "Pragma: no-cache", f"Content-Type: {content_type}",
+             *(f"{name}: {value}" for name, value in (*SECURITY_HEADERS.items(), *headers))]
+    return ("\r\n".join(lines) + "\r\n\r\n").encode()
 
 
 # ---- what the endpoints share ------------------------------------------------------------------------------------
@@ -708,15 +755,83 @@ class Streams:
         self.pending = 0  # requests holding a place while their topic is looked up
         self.encoder = Encoder(self.loop)
         self.types = TopicTypes(bridge.backend)
+        self.sending = jpeg.Sending(MAX_SENDING_BYTES, CROWDED_STALL)
+        self._room_waiters = {}  # stream viewer -> bytes of the picture it waits to have room for (in order)
+        self._given_room = None  # the waiter given room last, until its picture is made and offered
+        self._giving_room = False
         # a viewer whose frame has not left for websocket_ping_timeout is gone (a dead link sends no FIN)
         self.stalled = bridge.settings.websocket_ping_timeout
-        tornado.ioloop.PeriodicCallback(self._drop_stalled, self.stalled / 6 * 1000).start()
+        tornado.ioloop.PeriodicCallback(self._look_at_writers, min(self.stalled / 6, CROWDED_STALL / 2) * 1000).start()
 
-    def _drop_stalled(self):
+    def _look_at_writers(self):
+        for viewer in self.sending.stalled(time.monotonic(), self.stalled):
+            viewer.end()
+        if self._room_waiters:  # (a picture stalled for CROWDED_STALL meanwhile may make room: no frame need come)
+            self._give_room()
+
+    # ---- the pictures being sent
+    def make_room(self, viewer, data):
+        """Whether `data` may be written to `viewer` now; it then counts among the bytes being sent (at most
+        MAX_SENDING_BYTES) until sent(viewer). Viewers whose picture has not left for CROWDED_STALL are dropped if
+        that makes room."""
+        if viewer is self._given_room:  # (the next waiter's turn)
+            self._given_room = None
+            self._room_later()
         now = time.monotonic()
-        for viewer in list(self.viewers):
-            if viewer.writing_since is not None and now - viewer.writing_since > self.stalled:
-                viewer.end()
+        crowd = self.sending.crowding(data, now)
+        if crowd is None:
+            self.bridge.log_refusal("stream room", f"a camera picture of {len(data)} bytes waits or is refused: "
+                                    f"{self.sending.used} bytes are being sent to camera viewers (at most "
+                                    f"{MAX_SENDING_BYTES})")
+            return False
+        if crowd:
+            self.bridge.log_refusal("stream crowded", f"dropped {len(crowd)} camera viewer(s) whose picture had not "
+                                    f"left for {CROWDED_STALL:g} s: the pictures being sent reached {MAX_SENDING_BYTES}"
+                                    " bytes")
+        for stalled in crowd:
+            stalled.end()
+        self.sending.start(viewer, data, now)
+        return True
+
+    def wait_for_room(self, viewer, size):
+        """The (stream) viewer, refused room for a picture of `size` bytes, wants the newest frame again once one
+        of that size would have room (not at each frame: each would be made only to wait)."""
+        self._room_waiters[viewer] = size
+
+    def waits_for_room(self, viewer):
+        return viewer in self._room_waiters
+
+    def sent(self, viewer):
+        """What was being written to the viewer has left, or it is gone."""
+        if self.sending.done(viewer) and self._room_waiters:
+            self._room_later()
+
+    def _room_later(self):
+        if not self._giving_room:
+            self._giving_room = True
+            self.loop.add_callback(self._give_room)
+
+    def _give_room(self):
+        """The first waiter whose picture may have room wants the newest frame. One at a time: each would have its
+        picture made for the same room, and all but one wait again."""
+        self._giving_room = False
+        if self._given_room is not None:
+            return
+        now = time.monotonic()
+        for viewer, size in self._room_waiters.items():
+            if self.sending.room_for(size, now):
+                del self._room_waiters[viewer]
+                self._given_room = viewer
+                viewer.topic.want(viewer)
+                return
+
+    def left(self, viewer):
+        """The viewer takes no more frames."""
+        self.viewers.discard(viewer)
+        self._room_waiters.pop(viewer, None)
+        if viewer is self._given_room:
+            self._given_room = None
+            self._room_later()
 
     # ---- access
     def refusal(self, request):
@@ -859,17 +974,11 @@ class SnapshotHandler(_Handler):
         viewer = self._viewer = SnapshotViewer(self.streams, request, topic, self.streams.auth_end(self.request))
         viewer.find(source)
         try:
-            frame, (content_type, data) = await viewer.result
+            await viewer.result
         except BadRequest as error:
             self.refuse(error.status, error.text)
             return
-        finally:
-            viewer.end()
-        for name, value in self.allowed_origin_headers():
-            self.set_header(name, value)
-        self.set_header("Content-Type", content_type)
-        self.set_header("X-Timestamp", f"{frame.stamp:.6f}")
-        self.finish(bytes(data))
+        viewer.send(self.detach(), self.allowed_origin_headers())
 
     def on_connection_close(self):
         viewer = getattr(self, "_viewer", None)

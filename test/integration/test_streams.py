@@ -635,6 +635,145 @@ def test_a_flood_of_sizes_on_one_topic_does_not_starve_another_topic(bridge, nod
     assert waited < 4 * each, (waited, each)
 
 
+def stalled_readers(port, paths, gap):
+    """A connection per path, one every `gap` s, each asking it and never reading (a 4 kB receive window: a link
+    that takes nothing); returns the sockets (close them)."""
+    socks = []
+    for path in paths:
+        sock = socket.socket()
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+        sock.connect(("127.0.0.1", port))
+        sock.sendall(f"GET {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n".encode())
+        socks.append(sock)
+        time.sleep(gap)
+    return socks
+
+
+def what_readers_got(port, socks):
+    """How many readers were answered each status (their status line's code), and how many the bridge closed."""
+    got = collections.Counter()
+    for sock in socks:
+        sock.settimeout(0.5)
+        try:
+            head = sock.recv(12, socket.MSG_PEEK)
+        except OSError:
+            head = b""
+        got[head[9:12].decode() or "nothing"] += 1
+        got["closed"] += closed_by_the_server(port, sock.getsockname()[1])
+    return got
+
+
+@pytest.fixture(scope="module")
+def noise_camera(node):
+    """/streams_test/noise: noise, 2048x1024 rgb8 at 2 Hz; asked at 4096x2048 and quality 100, a 12 MB JPEG."""
+    import os
+    pictures = [Image.frombytes("RGB", (2048, 1024), os.urandom(2048 * 1024 * 3)) for _ in range(2)]
+    cam = Camera(node, "/streams_test/noise", 2, image_maker(pictures))
+    yield cam
+    cam.close()
+
+
+@pytest.fixture
+def held_bridge(ros, noise_camera):
+    """A bridge of its own, its memory measured alone (websocket_ping_timeout the default 30 s)."""
+    proc, port = start_bridge(ros, node_name="streams_held_bridge", topics_glob=GLOB)
+    try:
+        wait_streaming(port, "/streams_test/noise")
+        yield proc, port
+    finally:
+        proc.stop()
+
+
+@pytest.mark.slow
+def test_snapshots_to_stalled_readers_are_bounded_in_memory_and_others_still_answered(held_bridge):
+    """24 snapshots of 12 MB (4096x2048 at quality 96-100), to readers that never read: each kept its frame, its
+    picture and a second copy of it joined to the headers, as long as its reader liked (25-57 MB a reader: the
+    bridge grew 2 GB for 40 of them). Now the pictures being written to viewers are bounded in bytes
+    (streams.MAX_SENDING_BYTES): beyond it a snapshot is refused (503), or makes room by dropping a reader whose
+    picture has not left for streams.CROWDED_STALL; and a normal snapshot is answered meanwhile."""
+    proc, port = held_bridge
+    stat = ProcStat(proc.pid)
+    rss = stat.rss_mb()
+    stat.reset_peak_rss()
+    readers = stalled_readers(port, [f"/snapshot?topic=/streams_test/noise&width=4096&height=2048&quality="
+                                     f"{100 - index % 5}" for index in range(24)], 0.25)
+    try:
+        time.sleep(3)  # (the last ones answered)
+        held = stat.rss_mb() - rss
+        start = time.monotonic()
+        status, _, body = get(port, "/snapshot?topic=/streams_test/noise&width=320")
+        waited = time.monotonic() - start
+        peak = stat.peak_rss_mb() - rss
+        answers = what_readers_got(port, readers)
+    finally:
+        for sock in readers:
+            sock.close()
+    print(f"the bridge held {held:.0f} MB above its {rss:.0f} MB (peak {peak:.0f} MB); the readers: {dict(answers)};"
+          f" a normal snapshot waited {waited:.2f} s")
+    assert status == 200 and jpeg_size(body) == (320, 160)
+    assert waited < 3
+    assert held < 175 and peak < 275, (held, peak)
+
+
+@pytest.mark.slow
+def test_stalled_stream_viewers_of_many_sizes_are_bounded_in_memory_and_a_normal_one_served(held_bridge):
+    """30 stream viewers that never read, each asking its own size of 8 Mpx at quality 98-100: each kept its own 12
+    MB picture until websocket_ping_timeout (80 of them took the bridge from 52 MB to 1.19 GB). Now they share
+    streams.MAX_SENDING_BYTES (a viewer beyond it waits, and makes room by dropping one whose picture has not left
+    for streams.CROWDED_STALL), and a normal viewer gets the camera's frames meanwhile."""
+    proc, port = held_bridge
+    stat = ProcStat(proc.pid)
+    rss = stat.rss_mb()
+    stat.reset_peak_rss()
+    readers = stalled_readers(port, [f"/stream?topic=/streams_test/noise&width={4096 - 8 * index}&height=2048&"
+                                     f"quality={100 - index % 3}" for index in range(30)], 0.1)
+    normal = Http(port, "/stream?topic=/streams_test/noise&width=320")
+    try:
+        normal.part()
+        start, stamps = time.monotonic(), []
+        while time.monotonic() - start < 6:
+            stamps.append(normal.part()[0]["x-timestamp"])
+        held = stat.rss_mb() - rss
+        peak = stat.peak_rss_mb() - rss
+        answers = what_readers_got(port, readers)
+    finally:
+        normal.close()
+        for sock in readers:
+            sock.close()
+    print(f"the bridge held {held:.0f} MB above its {rss:.0f} MB (peak {peak:.0f} MB); the stalled viewers: "
+          f"{dict(answers)}; the normal one got {len(stamps)} frames in 6 s")
+    assert len(stamps) >= 8, stamps  # (of 12)
+    assert held < 175 and peak < 275, (held, peak)
+
+
+def test_a_snapshot_counts_in_max_clients_until_sent_and_is_dropped_if_it_stalls(ros, camera):
+    """A snapshot is a viewer until its picture has left: it counts in max_clients (it stopped counting once answered,
+    so readers that never read could hold any number of pictures), and one not gone after websocket_ping_timeout is
+    dropped, as a stream's is (it was held for good)."""
+    timeout = 3.0
+    proc, port = start_bridge(ros, node_name="streams_snapshot_bridge", topics_glob=GLOB, max_clients=2,
+                              websocket_ping_timeout=timeout)
+    try:
+        wait_streaming(port, "/streams_test/cam")
+        time.sleep(0.5)  # (that snapshot's place given back)
+        connected = time.monotonic()
+        readers = stalled_readers(port, ["/snapshot?topic=/streams_test/cam&width=1920&height=1440&quality=100"] * 2,
+                                  0)
+        for sock in readers:
+            assert sock.recv(12, socket.MSG_PEEK) == b"HTTP/1.1 200"  # (answered: its picture is being sent)
+        status, _, body = get(port, "/snapshot?topic=/streams_test/cam&width=32")
+        assert status == 503 and b"too many camera stream viewers" in body
+        for sock in readers:
+            wait_for(lambda: closed_by_the_server(port, sock.getsockname()[1]), 4 * timeout, interval=0.1,
+                     what="the bridge to close the stalled snapshot")
+        assert time.monotonic() - connected > timeout, "dropped before its picture stalled for the timeout"
+        for sock in readers:
+            sock.close()
+        wait_for(lambda: get(port, "/snapshot?topic=/streams_test/cam&width=32")[0] == 200, 10, what="room again")
+    finally:
+        proc.stop()
+
+
 # ---- the list, the viewer page, bad requests ----------------------------------------------------------------------
 def test_the_list_of_image_topics(bridge, camera, node):
     from sensor_msgs.msg import CompressedImage

@@ -1,7 +1,7 @@
 """streams.py without processes: a topic's frames made once per (frame, size, quality) for all its viewers, only
 when a viewer wants them, one encoding job at a time with the newest frame winning, jobs bounded in pixels and
-topics taking turns, a frame's variants bounded in bytes; the requests' parameters and which topic a request
-streams from."""
+topics taking turns, a frame's variants bounded in bytes; the pictures being sent to the viewers bounded in bytes
+(jpeg.Sending); the requests' parameters and which topic a request streams from."""
 import io
 
 import pytest
@@ -225,6 +225,53 @@ def test_a_refused_subscription_ends_its_viewers(topic):
     viewer = FakeViewer(topic)
     topic.ros_refused("subscribe", "/cam", "the topic is published as std_msgs/String")
     assert viewer.failed == (503, "the topic is published as std_msgs/String") and topic.is_closed
+
+
+# ---- the pictures being sent -------------------------------------------------------------------------------------
+def test_a_picture_sent_to_several_viewers_counts_once_until_its_last_has_it():
+    sending = jpeg.Sending(limit=100, stall=2.0)
+    shared, other = bytes(60), bytes(30)
+    for viewer in ("a", "b", "c"):
+        assert sending.crowding(shared, 0.0) == []
+        sending.start(viewer, shared, 0.0)
+    assert sending.used == 60
+    assert sending.crowding(other, 0.0) == [] and sending.crowding(bytes(41), 0.0) is None
+    assert sending.done("a") and sending.done("b") and sending.used == 60
+    assert sending.done("c") and sending.used == 0
+    assert not sending.done("c")  # (a viewer gone after its picture left)
+
+
+def test_beyond_the_limit_stalled_viewers_make_room_oldest_first_as_few_as_it_takes():
+    """A picture that does not fit waits (None) until viewers whose picture has not left for `stall` seconds can be
+    dropped to make room: the oldest first, only as many as it takes; a picture shared with a viewer that is not
+    stalled frees nothing."""
+    sending = jpeg.Sending(limit=100, stall=2.0)
+    first, second = bytes(40), bytes(40)
+    sending.start("old", first, 0.0)
+    sending.start("shares", second, 1.0)
+    sending.start("newer", second, 2.5)
+    new = bytes(30)
+    assert sending.crowding(new, 1.9) is None and not sending.room_for(30, 1.9)  # (nobody stalled for 2 s yet)
+    assert sending.crowding(new, 2.1) == ["old"] and sending.room_for(30, 2.1)
+    assert sending.crowding(bytes(70), 3.1) is None  # ("shares" stalled, but "newer" still takes its picture)
+    assert sending.crowding(bytes(70), 4.6) == ["old", "shares", "newer"]
+    assert sending.crowding(second, 0.0) == []  # (being sent already: no more bytes)
+
+
+def test_one_picture_larger_than_the_limit_is_sent_alone():
+    sending = jpeg.Sending(limit=100, stall=2.0)
+    assert sending.crowding(bytes(500), 0.0) == []
+    sending.start("big", bytes(500), 0.0)
+    assert sending.crowding(bytes(1), 1.0) is None and sending.crowding(bytes(1), 2.5) == ["big"]
+
+
+def test_the_viewers_whose_picture_stalled_oldest_first():
+    sending = jpeg.Sending(limit=100, stall=2.0)
+    for index, viewer in enumerate(("a", "b", "c")):
+        sending.start(viewer, bytes(10), float(index))
+    assert sending.stalled(11.5, 10.0) == ["a", "b"]
+    sending.done("a")
+    assert sending.stalled(11.5, 10.0) == ["b"]
 
 
 # ---- requests ---------------------------------------------------------------------------------------------------
