@@ -14,20 +14,26 @@ back; the usual ids, letters, digits, `_-.~/`, are unchanged): a frame id may ho
 control characters nor more than Latin-1.
 
 One subscription per topic through the bridge's backend (CloudTopic, a backend.Client), shared with the websocket
-clients, kept LINGER seconds after its last request. Decimating is done off the loop (up to 0.4 s of CPU for a
-cloud of 300k padded rows), on one thread for all topics (Clouds.decimator), one job per topic at a time: requests
-for what a job makes (the same cloud and stride, cloud.stride_for) wait for it and share it, the others wait for
-their own; a topic's next job is queued behind the other topics' jobs, so requests flooding one topic delay another
-by one job at most. What was made of each topic's newest cloud is kept, CACHE_BYTES in all (cloud.Answers)."""
+clients, kept LINGER seconds after its last request; MAX_TOPICS topics at once, more are refused (503). Only a
+topic the master lists as a PointCloud2 is subscribed: a request for a name it does not list looks again every
+streams.WAIT_POLL seconds (streams.TopicTypes) and answers 204 if it never came within WAIT_S. (Each subscription
+costs a master registration and graph updates on the ROS side: requests for names nobody publishes, each
+subscribed, held the other clients' calls for seconds.)
+
+Decimating is done off the loop (up to 0.4 s of CPU for a cloud of 300k padded rows), on one thread for all topics
+(Clouds.decimator), one job per topic at a time: requests for what a job makes (the same cloud and stride,
+cloud.stride_for) wait for it and share it, the others wait for their own; a topic's next job is queued behind
+the other topics' jobs, so requests flooding one topic delay another by one job at most. What was made of each
+topic's newest cloud is kept, CACHE_BYTES in all (cloud.Answers)."""
 import asyncio
 import collections
 import functools
+import random
 import time
 import urllib.parse
 
 import rosgraph.names
 import tornado.concurrent
-import tornado.gen
 import tornado.ioloop
 import tornado.web
 
@@ -36,12 +42,16 @@ from rosbridge.cloud import Answers, CloudError, decimate, point_count, read_clo
 from rosbridge.errors import ClientError
 from rosbridge.http_access import EndpointHandler, query_text, refusal
 from rosbridge.off_loop import EncodingThread
-from rosbridge.streams import TopicTypes
+from rosbridge.streams import WAIT_POLL, BadRequest, TopicTypes
 
 CLOUD = "sensor_msgs/PointCloud2"
 DEFAULT_POINTS, MAX_POINTS = 20000, 200000
 WAIT_S = 5.0
+# each request waits WAIT_S give or take this share, at random, so that requests made together do not all end in
+# one turn of the loop (900 at once held it 0.3 s)
+WAIT_SPREAD = 0.1
 LINGER = 5.0
+MAX_TOPICS = 8  # topics subscribed for /cloud at once (the lingering ones included)
 CACHE_BYTES = 16 << 20  # answers kept, all topics together: 8.4 MB for every stride of 2 to 15 of a 300k-point cloud
 ANSWER_BYTES = 512  # what an answer kept costs beside its body and headers (its tuple, dict and keys)
 
@@ -125,9 +135,7 @@ class CloudTopic:
 
     def _wake(self):
         waiting, self.waiting = self.waiting, set()
-        for future in waiting:
-            if not future.done():
-                future.set_result(None)
+        _wake_all(waiting)
 
     # ---- backend.Client
     def deliver(self, message):
@@ -159,6 +167,12 @@ def made_of(message, seq, max_points):
             "X-Timestamp": f"{cloud.stamp or message.stamp:.6f}"}, body
 
 
+def _wake_all(futures):
+    for future in futures:
+        if not future.done():
+            future.set_result(None)
+
+
 def _settle(future, made):
     if future.done():  # (cancelled: its request is gone)
         return
@@ -179,12 +193,45 @@ class Clouds:
         self.decimator = EncodingThread(self.loop, "cloud decimator")
         self.answers = Answers(CACHE_BYTES)
         self.requests = 0
+        self.unlisted = {}  # topic the master does not list -> futures of the requests waiting for it
+        self._look = None  # the next look at the master for them (one for all, not one a request)
+
+    def waiting_for(self, topic):
+        """The set to add the future of a request waiting for the master to list topic: set once it does (or a
+        look fails), looked at every WAIT_POLL seconds while some request waits."""
+        if self._look is None:
+            self._look = self.loop.call_later(WAIT_POLL, self._look_again)
+        return self.unlisted.setdefault(topic, set())
+
+    def _look_again(self):
+        self.types.get(self._looked)
+
+    def _looked(self, types, error):
+        self._look = None
+        for topic, waiting in list(self.unlisted.items()):
+            if not waiting:  # (its requests have gone)
+                del self.unlisted[topic]
+            elif error is not None or types.get(topic):
+                del self.unlisted[topic]
+                _wake_all(waiting)
+        if self.unlisted:
+            self._look = self.loop.call_later(WAIT_POLL, self._look_again)
 
     def topic_of(self, topic):
+        """The CloudTopic of topic, subscribed through the backend if new; raises BadRequest."""
         found = self.topics.get(topic)
         if found is None:
+            if len(self.topics) >= MAX_TOPICS:
+                watched = ", ".join(sorted(self.topics))
+                self.bridge.log_refusal("cloud max topics", f"Refused the point cloud {topic}: {MAX_TOPICS} "
+                                        f"topics watched already ({watched})")
+                raise BadRequest(503, f"too many point cloud topics watched at once (at most {MAX_TOPICS}: "
+                                      f"{watched}); each is let go {LINGER:g} s after its last request")
             found = CloudTopic(self, topic)
-            self.backend.subscribe(found, topic, CLOUD)  # raises ClientError
+            try:
+                self.backend.subscribe(found, topic, CLOUD)
+            except ClientError as error:
+                raise BadRequest(404, str(error)) from None
             self.topics[topic] = found
         return found
 
@@ -240,39 +287,21 @@ class CloudHandler(EndpointHandler):
         return topic, *numbers
 
     async def serve(self, topic, max_points, after):
-        clouds = self.clouds
-        looked = tornado.concurrent.Future()
-        clouds.types.get(lambda types, error: looked.set_result((types, error)))
-        types, error = await looked
-        if error is not None:
-            self.refuse(503, f"cannot ask the ROS master about {topic}: {error}")
-            return
-        kind = types.get(topic)
-        if kind not in (None, CLOUD):
-            self.refuse(404, f"topic {topic} is a {kind}, not a {CLOUD}")
-            return
+        deadline = time.monotonic() + WAIT_S * random.uniform(1 - WAIT_SPREAD, 1 + WAIT_SPREAD)
         try:
-            cloud_topic = clouds.topic_of(topic)
-        except ClientError as error:
-            self.refuse(404, str(error))
+            cloud_topic = await self.published(topic, deadline)
+        except BadRequest as error:
+            self.refuse(error.status, error.text)
+            return
+        if cloud_topic is None:
+            self.finish_empty()
             return
         cloud_topic.hold()
         try:
-            deadline = time.monotonic() + WAIT_S
             while cloud_topic.latest is None or cloud_topic.seq <= after:
-                left = deadline - time.monotonic()
-                if left <= 0 or cloud_topic.is_closed or self.request.connection.stream.closed():
-                    self.set_status(204)  # nothing newer: ask again
-                    self.finish()
+                if cloud_topic.is_closed or not await self.wait(deadline, cloud_topic.waiting):
+                    self.finish_empty()
                     return
-                self.waiting = tornado.concurrent.Future()
-                cloud_topic.waiting.add(self.waiting)
-                try:
-                    await tornado.gen.with_timeout(clouds.loop.time() + left, self.waiting)
-                except tornado.gen.TimeoutError:
-                    pass
-                finally:
-                    cloud_topic.waiting.discard(self.waiting)
             self.answering = cloud_topic.answer(max_points)
             try:
                 headers, body = await self.answering
@@ -292,6 +321,46 @@ class CloudHandler(EndpointHandler):
             self.set_header("Vary", "Origin")
         self.set_header("Content-Type", "application/octet-stream")
         self.finish(body)
+
+    async def published(self, topic, deadline):
+        """The topic's CloudTopic once the master lists it as a PointCloud2 (looked at every WAIT_POLL seconds until
+        deadline), or None; raises BadRequest."""
+        clouds = self.clouds
+        while topic not in clouds.topics:
+            looked = tornado.concurrent.Future()
+            clouds.types.get(lambda types, error: looked.set_result((types, error)))
+            types, error = await looked
+            if error is not None:
+                raise BadRequest(503, f"cannot ask the ROS master about {topic}: {error}")
+            kind = types.get(topic) or None  # ("": a type the master does not know)
+            if kind == CLOUD:
+                break
+            if kind is not None:
+                raise BadRequest(404, f"topic {topic} is a {kind}, not a {CLOUD}")
+            if not await self.wait(deadline, clouds.waiting_for(topic)):
+                return None
+        return clouds.topic_of(topic)
+
+    async def wait(self, until, waiting):
+        """Waits until `until` (a time.monotonic()), the connection closes, or a future added to the set `waiting`
+        is set (a newer cloud, the topic listed): False, without waiting, when the request has gone or its time has
+        come."""
+        left = until - time.monotonic()
+        if left <= 0 or self.request.connection.stream.closed():
+            return False
+        self.waiting = tornado.concurrent.Future()
+        waiting.add(self.waiting)
+        timer = self.clouds.loop.call_later(left, _wake_all, [self.waiting])
+        try:
+            await self.waiting
+        finally:
+            waiting.discard(self.waiting)
+            self.clouds.loop.remove_timeout(timer)
+        return True
+
+    def finish_empty(self):
+        self.set_status(204)  # nothing (newer): ask again
+        self.finish()
 
     def on_connection_close(self):
         if self.waiting is not None and not self.waiting.done():
