@@ -3,6 +3,7 @@ from catkin_pkg.python_setup import generate_distutils_setup
 from setuptools import setup
 
 setup(**generate_distutils_setup(
-    packages=['turtlesim', 'rosbridge', 'rosbridge.codec', 'rosbridge.ros_side'],
+    packages=['turtlesim', 'rosbridge', 'rosbridge.codec', 'rosbridge.http', 'rosbridge.protocol', 'rosbridge.ros_side',
+              'rosbridge.transport'],
     package_dir={'': 'src'},
 ))

@@ -6,7 +6,7 @@
   serve  the same-run ceiling for the bridge's /cloud: the least work such an endpoint does, and nothing else.
          One TCPROS connection to the topic's publisher (found through the master; no ROS node of its own),
          each message read straight into a buffer of its size (a thread: one blocking recv_into after another),
-         the bridge's own decimation (rosbridge.cloud: read_cloud, decimate; once per cloud and max_points), and
+         the bridge's own decimation (rosbridge.http.cloud: read_cloud, decimate; once per cloud and max_points), and
          a bare Tornado HTTP server answering the same requests (the newest cloud, or wait up to 5 s for one newer
          than SEQ). A rospy subscriber is no ceiling here: its reading costs more than the whole bridge's does.
 
@@ -78,7 +78,7 @@ class Newest:
         self.newer = asyncio.Event()
 
     def answer(self, max_points):
-        from rosbridge.cloud import decimate, read_cloud
+        from rosbridge.http.cloud import decimate, read_cloud
         if max_points not in self.made:
             cloud = read_cloud(self.raw)
             body, kept, total, third = decimate(cloud, max_points)
@@ -112,7 +112,7 @@ def receive(topic, deliver, timeout):
 
     from sensor_msgs.msg import PointCloud2
 
-    from rosbridge import tcpros
+    from rosbridge.ros_side import tcpros
     callerid = "/cloud_ceiling"
     sock = socket.create_connection(publisher_address(topic, callerid, timeout))
     sock.sendall(tcpros.encode_header(tcpros.subscriber_header(topic, PointCloud2, callerid)))

@@ -34,7 +34,7 @@ import sensor_msgs.msg
 from rosbridge.codec.json_values import dumps, from_json, to_json
 from rosbridge.codec.cbor import cbor_parts, to_cbor_value
 from rosbridge.codec.wrapping import png_frame
-from rosbridge.frames import Utf8Text, cbor_frame
+from rosbridge.protocol.encoded import Utf8Text, cbor_frame
 from rosbridge.codec.json_to_ros import packer
 from rosbridge.codec.ros_to_cbor import cbor_value
 from rosbridge.codec.ros_to_json import SPLICE_MARK, json_parts, json_text

@@ -1,6 +1,6 @@
 """The rover bench's ceiling: the bytes the bridge sends for each of the rover's streams, pushed at the stream's
 rate over a bare Tornado websocket, with no ROS and no conversion. They are made once at start, by the bridge's
-own encoders (rosbridge.frames.TopicMessage: JSON, CBOR, cbor-raw, fragments) from the message nav_messages.py
+own encoders (rosbridge.protocol.encoded.TopicMessage: JSON, CBOR, cbor-raw, fragments) from the message nav_messages.py
 builds, stamped with nav_messages.SENTINEL, and cut where the stamps are: a push only writes the time into a copy
 of the frame. What no bridge over Tornado can beat, for each stream and encoding.
 
@@ -23,7 +23,7 @@ import tornado.websocket
 
 import nav_messages
 import stats
-from rosbridge.frames import SplicedFrame, TopicMessage, Utf8Text
+from rosbridge.protocol.encoded import SplicedFrame, TopicMessage, Utf8Text
 
 SECS, NSECS = nav_messages.SENTINEL
 _BIG_ENDIAN_UINT32 = b"\x1a"  # (CBOR's head of a 4-byte unsigned integer)

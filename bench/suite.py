@@ -594,10 +594,10 @@ def cloud_out(run, url, server, topic):
 
 
 def decimation_ms(reps=20):
-    """CPU ms of rosbridge.cloud's read_cloud + decimate of the bench's cloud to 20,000 points, in this process."""
+    """CPU ms of rosbridge.http.cloud's read_cloud + decimate of the bench's cloud to 20,000 points, in this process."""
     import io
 
-    from rosbridge.cloud import decimate, read_cloud
+    from rosbridge.http.cloud import decimate, read_cloud
     buffer = io.BytesIO()
     payloads.ros_msg("cloud").serialize(buffer)
     raw = buffer.getvalue()

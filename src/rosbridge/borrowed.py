@@ -13,7 +13,7 @@ import rospy.impl.transport
 import tornado.util
 
 # Tornado: unmasking a client's websocket payload in C (tornado.speedups), 15-30x faster than any pure Python
-# way for a camera image; the pure one, websocket_frames.xor_mask, gives the same bytes.
+# way for a camera image; the pure one, rfc6455.xor_mask, gives the same bytes.
 _mask = tornado.util._websocket_mask
 
 

@@ -16,6 +16,13 @@ import socket
 import urllib.parse
 
 NAME = re.compile(r"[a-z0-9_-]+(\.[a-z0-9_-]+)*")  # a host name (or an IPv4 address), lowercase: no empty label
+# Headers on every page and answer the bridge serves: no MIME sniffing, and no other site may frame it
+# (clickjacking: a hidden frame over the Stop button).
+SECURITY_HEADERS = {
+    "X-Content-Type-Options": "nosniff",
+    "X-Frame-Options": "DENY",
+    "Content-Security-Policy": "frame-ancestors 'none'",
+}
 HOST = re.compile(r"(\[[0-9a-f:.]+\]|[a-z0-9_.-]+)(:[0-9]*)?")  # a name or address (IPv6 in brackets), a port
 
 

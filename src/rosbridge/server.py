@@ -1,5 +1,5 @@
 """The rosbridge_websocket node: a Tornado server whose "/" is both the rosbridge v2 websocket endpoint
-(websocket.py) and the web page (web_root/index.html; other files of web_root are served by pages.py).
+(transport/connection.py) and the web page (web_root/index.html; other files of web_root are served by pages.py).
 
 One IOLoop thread serves every client; rospy's threads and the service-call threads only hand work to it
 (see ros_side/__init__.py)."""
@@ -18,22 +18,23 @@ import tornado.web
 from rosbridge import protocol
 from rosbridge.accepting import BoundedHTTPServer, accept_connections
 from rosbridge.auth import UrlMacs
-from rosbridge.bag_pages import MAX_BODY, bag_routes
-from rosbridge.bags import Recorder
+from rosbridge.http.bag_routes import MAX_BODY, bag_routes
+from rosbridge.http.bag_recorder import Recorder
 from rosbridge.borrowed import handle_connection
-from rosbridge.cloud_pages import cloud_routes
+from rosbridge.http.cloud_routes import cloud_routes
 from rosbridge.globs import Globs, parse_globs
 from rosbridge.heap import reuse_big_buffers
-from rosbridge.http_access import host_checked
+from rosbridge.http.access import host_checked
 from rosbridge.off_loop import EncodingThread
-from rosbridge.pages import PageFiles, missing_files
+from rosbridge.http.pages import PageFiles, missing_files
 from rosbridge.ros_side import RosBackend
 from rosbridge.ros_side.recovery import MasterWatch
-from rosbridge.rosapi import Rosapi
+from rosbridge.ros_side.rosapi import Rosapi
 from rosbridge.settings import Settings
-from rosbridge.streams import stream_routes
-from rosbridge.websocket import BridgeSocket, DriverLeases, unfinished_bound
-from rosbridge.write_turns import WriteTurns
+from rosbridge.http.streams import stream_routes
+from rosbridge.transport.connection import BridgeSocket, unfinished_bound
+from rosbridge.transport.deadman import DriverLeases
+from rosbridge.transport.write_turns import WriteTurns
 
 MAX_LOGGED_KINDS = 1000  # kinds of refusal remembered for rate limiting (refused origins are kinds)
 IDLE_TIMEOUT = 10.0  # seconds
@@ -46,11 +47,11 @@ class Bridge:
         self.backend, self.config, self.settings = backend, config, settings
         self.writes = writes  # when the clients' queued frames are written (write_turns.py)
         self.encoder = EncodingThread(tornado.ioloop.IOLoop.current())  # big messages are encoded off the loop
-        # big messages deflated for the clients whose link is slow (websocket.py): a thread apart from the encoder's
+        # big messages deflated for the clients whose link is slow (transport/connection.py): a thread apart from the encoder's
         self.deflater = EncodingThread(tornado.ioloop.IOLoop.current(), name="rosbridge-deflate")
         self.allowed_origins = allowed_origins  # None: same host only (and clients that send no Origin)
         self.allowed_hosts = allowed_hosts  # None: this machine's names (and allowed_origins' sites)
-        self.url_macs = UrlMacs(config.auth_time_delta)  # the HTTP endpoints' rosauth (http_access.py)
+        self.url_macs = UrlMacs(config.auth_time_delta)  # the HTTP endpoints' rosauth (access.py)
         self.clients = set()
         self.unfinished = unfinished_bound(settings)  # what the messages clients have not finished hold, together
         self._logged = {}
@@ -84,10 +85,10 @@ class Bridge:
 
 
 def routes(bridge, web_root, recorder=None):
-    """The route table: "/" is the websocket (and the page), /bags the bag recorder (bag_pages.py), /stream,
+    """The route table: "/" is the websocket (and the page), /bags the bag recorder (bag_routes.py), /stream,
     /snapshot, /stream_viewer and /streams the camera streams (streams.py), /cloud the point clouds made small
-    (cloud_pages.py), other paths are files of web_root; a request addressed to a Host not this bridge's is refused
-    whatever its path (http_access.host_checked)."""
+    (cloud_routes.py), other paths are files of web_root; a request addressed to a Host not this bridge's is refused
+    whatever its path (access.host_checked)."""
     index = Path(web_root) / "index.html" if web_root else None
     table = [(r"/", BridgeSocket, {"bridge": bridge, "index_page": index if index and index.is_file() else None}),
              *stream_routes(bridge), *bag_routes(bridge, recorder), *cloud_routes(bridge)]

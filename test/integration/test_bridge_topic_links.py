@@ -14,7 +14,7 @@ from std_msgs.msg import String
 from bridge_client import WsClient
 from harness import ProcStat, node_pid, start_bridge, wait_for, wait_publisher_connected
 
-from rosbridge import tcpros
+from rosbridge.ros_side import tcpros
 from rosbridge.ros_side.links import LINK_QUEUE_BYTES
 
 

@@ -1,4 +1,4 @@
-"""/cloud (cloud_pages.py) through real processes, beside test_viewers' drawing tests: a bridge, latched clouds
+"""/cloud (cloud_routes.py) through real processes, beside test_viewers' drawing tests: a bridge, latched clouds
 published from this process, HTTP clients. What many requests cost: the bridge's memory under distinct max_points,
 the CPU of requests gone before their answer, another client's round trips while clouds of padded rows are
 decimated in a loop; a frame id that a header cannot carry as it is; and many topic names that nobody
@@ -16,7 +16,7 @@ import urllib.request
 
 import pytest
 
-from rosbridge.cloud_pages import MAX_TOPICS
+from rosbridge.http.cloud_routes import MAX_TOPICS
 
 import hostile
 from harness import ProcStat, node_pid, start_bridge, wait_for

@@ -12,7 +12,7 @@ import pytest
 import hostile
 from bridge_client import RawWebSocket, WsClient, ping
 from harness import ProcStat, node_pid, start_bridge, wait_for
-from rosbridge import protocol
+from rosbridge.protocol import session as protocol
 from test_security import SECRET, auth_frame
 
 pytestmark = pytest.mark.slow  # (deselect with -m 'not slow' for a quick run)

@@ -1,4 +1,4 @@
-"""rosbridge.rosapi against a real roscore, checked against what the stock CLI tools report."""
+"""rosbridge.ros_side.rosapi against a real roscore, checked against what the stock CLI tools report."""
 import json
 import re
 import time
@@ -8,8 +8,8 @@ import yaml
 
 from harness import wait_for
 from rosbridge.globs import Globs
-from rosbridge.rosapi import Rosapi, RosapiError, SERVICES
-from rosbridge.types import UnknownType, message_class
+from rosbridge.ros_side.rosapi import Rosapi, RosapiError, SERVICES
+from rosbridge.message_types import UnknownType, message_class
 
 BRIDGE = "/rosapi_test_bridge"  # the node name the bridge would give rosapi
 

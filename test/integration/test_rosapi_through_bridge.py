@@ -8,7 +8,7 @@ import roslibpy
 import yaml
 
 from harness import start_bridge, wait_for
-from rosbridge.rosapi import SERVICES
+from rosbridge.ros_side.rosapi import SERVICES
 from test_rosapi_against_cli import graph, settle  # noqa: F401  (graph is a fixture)
 
 

@@ -10,12 +10,12 @@ import rosbag
 from sensor_msgs.msg import Image
 from std_msgs.msg import Empty, String
 
-from rosbridge.bag_bounds import (CHUNK, CHUNK_CONNECTION, CHUNK_THRESHOLD, ENTRY_BYTES, FILE_HEADER, MESSAGE, BagSize,
+from rosbridge.http.bag_bounds import (CHUNK, CHUNK_CONNECTION, CHUNK_THRESHOLD, ENTRY_BYTES, FILE_HEADER, MESSAGE, BagSize,
                                   BlackBox, FolderSpace, connection_bytes)
 
 
 def written(tmp_path, messages):
-    """The size of the bag rosbag.Bag writes of messages [(topic, cls, data)], as bags.py writes them (raw)."""
+    """The size of the bag rosbag.Bag writes of messages [(topic, cls, data)], as bag_recorder.py writes them (raw)."""
     path = tmp_path / "check.bag"
     with rosbag.Bag(str(path), "w") as bag:
         for i, (topic, cls, data) in enumerate(messages):

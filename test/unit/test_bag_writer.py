@@ -10,8 +10,8 @@ import rosbag
 from std_msgs.msg import Empty
 
 from fakes import Loop
-from rosbridge.bag_bounds import MESSAGE
-from rosbridge.bags import WRITER_QUEUE_BYTES, WRITER_QUEUE_JOBS, Writer, raw, write_message
+from rosbridge.http.bag_bounds import MESSAGE
+from rosbridge.http.bag_recorder import WRITER_QUEUE_BYTES, WRITER_QUEUE_JOBS, Writer, raw, write_message
 
 
 @pytest.fixture

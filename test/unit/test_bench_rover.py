@@ -14,7 +14,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
 import nav_clients  # noqa: E402
 import nav_messages  # noqa: E402
 from nav_ceiling import Frames  # noqa: E402
-from rosbridge.frames import TopicMessage  # noqa: E402
+from rosbridge.protocol.encoded import TopicMessage  # noqa: E402
 
 
 def bridge_frames(stream, compression, fragment_size=None):

@@ -9,7 +9,7 @@ import rospy.topics
 import tornado.tcpserver
 
 from rosbridge import borrowed
-from rosbridge.websocket_frames import xor_mask
+from rosbridge.transport.rfc6455 import xor_mask
 
 
 def test_tornado_websocket_mask_unmasks_as_rfc_6455_says():

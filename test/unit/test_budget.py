@@ -2,7 +2,7 @@
 import pytest
 
 from fakes import Clock
-from rosbridge.budget import BYTES_PER_TURN, FRAMES_PER_TURN, ClientBudget
+from rosbridge.transport.budget import BYTES_PER_TURN, FRAMES_PER_TURN, ClientBudget
 
 
 def test_unlimited_rates_still_take_turns():

@@ -24,7 +24,7 @@ from rosbridge.codec import BIG_BYTES
 from rosbridge.codec.cbor import cbor_parts, raw_publish_parts, to_cbor_value
 from rosbridge.codec.ros_to_cbor import cbor_value
 from rosbridge.codec.wrapping import fragments, png_frame, png_unframe
-from rosbridge.frames import SplicedFrame, cbor_frame
+from rosbridge.protocol.encoded import SplicedFrame, cbor_frame
 
 # element type -> (size in bytes, signed, float, struct code)
 NUMERIC = {"int8": (1, True, False, "b"), "uint16": (2, False, False, "H"), "int16": (2, True, False, "h"),

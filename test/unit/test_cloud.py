@@ -10,7 +10,7 @@ from array import array
 import pytest
 from sensor_msgs.msg import PointCloud2, PointField
 
-from rosbridge.cloud import Answers, CloudError, decimate, point_count, read_cloud, stride_for
+from rosbridge.http.cloud import Answers, CloudError, decimate, point_count, read_cloud, stride_for
 
 F32, F64, U16 = PointField.FLOAT32, PointField.FLOAT64, PointField.UINT16
 

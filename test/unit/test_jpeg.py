@@ -9,7 +9,7 @@ from hypothesis import given, strategies as st
 from PIL import Image
 from sensor_msgs.msg import CompressedImage, Image as RosImage
 
-from rosbridge import jpeg
+from rosbridge.http import jpeg
 
 
 def serialized(msg):

@@ -13,7 +13,7 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 from test_json_values import AllTypes, serialized
 from rosbridge.codec.fields import INT_RANGES, parse_slot_type
 from rosbridge.codec.json_values import ConversionError, dumps, from_json, to_json
-from rosbridge.types import message_class
+from rosbridge.message_types import message_class
 
 SETTINGS = settings(deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 # For the tests run once for every installed message type (163 on Debian 12): the field kinds recur from type to type,

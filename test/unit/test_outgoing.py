@@ -1,21 +1,13 @@
 """The Outbox: what waits for one websocket client, whole messages, small before big, each topic fresh while the
-socket is backed up, bounded; the LinkMeter, which says whether a client's link is slow."""
+socket is backed up, bounded."""
 import tracemalloc
 
-from rosbridge.outgoing import (DEFLATE_MIN_BYTES, FRESH_HORIZON, OWN_QUEUE_BYTES, SLOW_LINK_BYTES_PER_SECOND,
-                                SMALL_MESSAGE, TOPIC_BACKLOG_BYTES, LinkMeter, Outbox, QueuePool, sends_deflated)
-
-
-class Clock:
-    def __init__(self):
-        self.now = 1000.0
-
-    def __call__(self):
-        return self.now
+from fakes import Clock
+from rosbridge.protocol.outbox import FRESH_HORIZON, OWN_QUEUE_BYTES, SMALL_MESSAGE, TOPIC_BACKLOG_BYTES, Outbox, QueuePool
 
 
 def outbox(max_frames=1000, max_bytes=64_000_000):
-    clock = Clock()
+    clock = Clock(1000.0)
     return Outbox(max_frames, max_bytes, clock), clock
 
 
@@ -162,55 +154,6 @@ def test_a_message_skipped_or_taken_leaves_no_trace():
     assert (len(box), box.bytes) == (0, 0)
     box.push("/t1", small("z"))
     assert drain(box) == ["z"]
-
-
-# ---- LinkMeter: is a client's link slow enough that its big messages go deflated? ----------------------------
-def test_a_link_is_not_judged_before_a_write_waited():
-    meter = LinkMeter()
-    assert meter.rate is None and not meter.slow
-
-
-def test_a_camera_frame_that_drains_at_20_mbit_s_makes_the_link_slow():
-    meter = LinkMeter()
-    meter.waited(1_228_800, 0.52)  # one raw 640x480 frame as JSON through a 19 Mbit/s link
-    assert meter.slow and 2e6 < meter.rate < 3e6
-
-
-def test_loopback_is_fast_even_when_its_writes_wait():
-    meter = LinkMeter()
-    for _ in range(20):
-        meter.waited(1_228_800, 0.004)  # the reader takes a frame in 4 ms (300 MB/s)
-    assert not meter.slow
-    meter.waited(1_228_800, 0.2)  # one pause of the reader (its machine busy) does not make it slow
-    assert not meter.slow
-
-
-def test_small_writes_that_waited_are_not_enough_to_judge_a_link():
-    meter = LinkMeter()
-    for _ in range(100):
-        meter.waited(2_000, 0.013)  # a pose that waited for the kernel to drain what came before
-    assert meter.rate < SLOW_LINK_BYTES_PER_SECOND and not meter.slow
-
-
-def test_a_link_that_speeds_up_is_fast_again_within_a_few_big_writes():
-    meter = LinkMeter()
-    for _ in range(10):
-        meter.waited(620_000, 0.26)  # deflated frames through 19 Mbit/s
-    assert meter.slow
-    writes = 0
-    while meter.slow:
-        meter.waited(1_228_800, 0.01)  # then a wired link
-        writes += 1
-    assert writes <= 4
-
-
-def test_only_big_messages_go_deflated_to_a_slow_link_and_every_one_with_use_compression():
-    slow, fast, unknown = LinkMeter(), LinkMeter(), LinkMeter()
-    slow.waited(1_228_800, 0.52)
-    fast.waited(1_228_800, 0.004)
-    assert sends_deflated(DEFLATE_MIN_BYTES, False, slow) and not sends_deflated(DEFLATE_MIN_BYTES - 1, False, slow)
-    assert not sends_deflated(1 << 20, False, fast) and not sends_deflated(1 << 20, False, unknown)
-    assert all(sends_deflated(size, True, link) for size in (10, 1 << 20) for link in (slow, fast, unknown))
 
 
 def test_the_outboxes_of_every_client_share_one_bound_beyond_their_own_bytes():

@@ -1,4 +1,4 @@
-"""rosbridge.protocol without ROS or sockets: a Session fed frames, with a backend that records what the
+"""rosbridge.protocol.session without ROS or sockets: a Session fed frames, with a backend that records what the
 protocol asks of the ROS side, and a clock and timers the test moves by hand."""
 import hashlib
 import inspect
@@ -10,9 +10,9 @@ import pytest
 from std_msgs.msg import Int32, String
 
 from fakes import OffLoop
-from rosbridge import protocol
-from rosbridge.frames import SplicedFrame, TopicMessage, Utf8Text
-from rosbridge.backend import Backend
+from rosbridge.protocol import session as protocol
+from rosbridge.protocol.encoded import SplicedFrame, TopicMessage, Utf8Text
+from rosbridge.contract import Backend
 from rosbridge.globs import Globs
 
 
@@ -63,7 +63,7 @@ def test_the_ros_backend_implements_the_contract_with_its_signatures():
 
 
 def test_the_session_implements_what_the_ros_side_may_call_on_a_client():
-    from rosbridge.backend import Client
+    from rosbridge.contract import Client
     for name in [n for n in vars(Client) if not n.startswith("_")]:
         contract = inspect.signature(getattr(Client, name)).parameters
         assert list(inspect.signature(getattr(protocol.Session, name)).parameters) == list(contract), name
@@ -353,9 +353,9 @@ def test_a_client_leaving_cancels_its_fragments_timer():
 
 def test_fragments_count_with_every_clients_unfinished_messages_and_a_stalled_clients_make_way():
     """A client's parked fragments count against the bound shared by every client's unfinished messages (a
-    websocket_frames.SharedBound): within it they wait; beyond it the part is refused; and a client whose bytes
+    rfc6455.SharedBound): within it they wait; beyond it the part is refused; and a client whose bytes
     came faster takes their room once they have stopped coming, the client told."""
-    from rosbridge.websocket_frames import RECENT, SharedBound
+    from rosbridge.transport.rfc6455 import RECENT, SharedBound
     now = [1000.0]
     shared = SharedBound(1_000_000, clock=lambda: now[0])
     parked, refused, sending = (Harness(unfinished=shared) for _ in range(3))

@@ -1,4 +1,4 @@
-"""Property tests of the pure protocol core (rosbridge.protocol.Session) fed random, malformed and hostile
+"""Property tests of the pure protocol core (rosbridge.protocol.session.Session) fed random, malformed and hostile
 frames: it never raises, answers every refused frame with exactly one `status` error that carries the
 request's id, writes only strict JSON, and keeps working afterwards.
 
@@ -12,8 +12,9 @@ import cbor2
 import std_msgs.msg
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from rosbridge import frames, protocol
-from rosbridge.backend import Backend
+from rosbridge.protocol import encoded as frames
+from rosbridge.protocol import session as protocol
+from rosbridge.contract import Backend
 from rosbridge.globs import Globs
 from test_protocol import received
 

@@ -22,7 +22,7 @@ from test_json_values_properties import EACH_TYPE, messages
 from rosbridge.codec.json_values import dumps, to_json
 from rosbridge.codec import BIG_BYTES
 from rosbridge.codec.fields import parse_slot_type
-from rosbridge.types import UnknownType, message_class
+from rosbridge.message_types import UnknownType, message_class
 from rosbridge.codec.ros_to_json import SPLICE_MARK, joined, json_parts, json_text
 
 

@@ -8,8 +8,9 @@ import pytest
 from sensor_msgs.msg import Image as RosImage
 
 from fakes import Loop
-from rosbridge import jpeg, streams
-from rosbridge.frames import TopicMessage
+from rosbridge.http import jpeg
+from rosbridge.http import streams
+from rosbridge.protocol.encoded import TopicMessage
 
 
 class FakeEncoder:

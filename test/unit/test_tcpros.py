@@ -1,4 +1,4 @@
-"""rosbridge.tcpros: the framing and the connection headers, against what rospy and rosgraph do."""
+"""rosbridge.ros_side.tcpros: the framing and the connection headers, against what rospy and rosgraph do."""
 import io
 import random
 
@@ -7,7 +7,7 @@ from geometry_msgs.msg import Twist
 from rospy.impl.tcpros_pubsub import TCPROSHandler
 from std_msgs.msg import String
 
-from rosbridge import tcpros
+from rosbridge.ros_side import tcpros
 
 
 def messages_of(sizes, seed=0):

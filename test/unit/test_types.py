@@ -2,7 +2,7 @@ import sys
 
 import pytest
 
-from rosbridge.types import UnknownType, message_class, service_class
+from rosbridge.message_types import UnknownType, message_class, service_class
 
 
 def test_known_types_load():

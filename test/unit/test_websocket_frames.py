@@ -1,4 +1,4 @@
-"""rosbridge.websocket_frames without sockets: a client's bytes in any pieces, every frame kind, every way of
+"""rosbridge.transport.rfc6455 without sockets: a client's bytes in any pieces, every frame kind, every way of
 breaking RFC 6455, permessage-deflate both ways (and a big frame deflated once for every client that sends it
 compressed); and the budget's turns over a reader fed a flood."""
 import base64
@@ -11,10 +11,8 @@ import zlib
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from fakes import OffLoop
-from rosbridge import frames
-from rosbridge import websocket_frames as ws
-from rosbridge.budget import FRAMES_PER_TURN, ClientBudget
+from rosbridge.transport import rfc6455 as ws
+from rosbridge.transport.budget import FRAMES_PER_TURN, ClientBudget
 
 
 def client_frame(payload, opcode=ws.TEXT, fin=True, rsv1=False, masked=True, length=None):
@@ -297,47 +295,6 @@ def test_a_cameras_base64_deflates_to_well_under_its_size():
     noise = bytes(random.Random(1).choice(range(96, 160)) for _ in range(200_000))  # a grainy picture's bytes
     text = b'{"op":"publish","msg":{"data":"' + base64.b64encode(noise) + b'"}}'
     assert len(ws.deflate_message((text,), 15)) < 0.8 * len(text)
-
-
-# ---- one deflated payload for every client that sends a frame compressed (frames.deflated_payload) ----------
-
-@pytest.mark.parametrize("frame", [
-    frames.Utf8Text(b'{"op":"publish","msg":"' + b"ab" * 50_000 + b'"}'),
-    frames.SplicedFrame([b'{"op":"publish","msg":{"data":"', b"QUJD" * 30_000, b'"}}'], text=True)],
-    ids=["text", "spliced"])
-def test_a_big_frame_is_deflated_once_for_every_client_and_kept_with_it(frame):
-    off_loop, got = OffLoop(), []
-    for client in range(3):
-        assert frames.deflated_payload(frame, 15, off_loop, got.append) is None
-    assert len(off_loop.jobs) == 1
-    off_loop.run_all()
-    assert len(got) == 3 and got[0] is got[1] is got[2]
-    assert zlib.decompressobj(-15).decompress(got[0] + b"\x00\x00\xff\xff") == bytes(frame)
-    assert frames.deflated_payload(frame, 15, off_loop, got.append) is got[0] and not off_loop.jobs  # a later client
-    assert frames.deflated_payload(frame, 10, off_loop, got.append) is None  # another window: made for it
-    off_loop.run_all()
-    assert zlib.decompressobj(-10).decompress(got[-1] + b"\x00\x00\xff\xff") == bytes(frame)
-
-
-def test_a_failed_deflate_is_told_and_tried_again_next_time():
-    frame, off_loop, got = frames.Utf8Text(b"x" * 100_000), OffLoop(), []
-    frames.deflated_payload(frame, 15, off_loop, got.append)
-    (fn, then), = off_loop.jobs
-    off_loop.jobs.clear()
-    then(None)  # (what off_loop.EncodingThread gives when fn raised)
-    assert got == [None]
-    assert frames.deflated_payload(frame, 15, off_loop, got.append) is None and len(off_loop.jobs) == 1
-
-
-def test_a_small_frame_is_deflated_at_once_and_a_plain_bytes_one_each_time():
-    text = frames.Utf8Text(b'{"op":"status","level":"info","msg":"hello"}')
-    packed = frames.deflated_payload(text, 15)
-    assert frames.deflated_payload(text, 15) is packed
-    binary = b"\xa2" + b"x" * 80_000
-    off_loop = OffLoop()
-    frames.deflated_payload(binary, 15, off_loop, lambda payload: None)
-    frames.deflated_payload(binary, 15, off_loop, lambda payload: None)
-    assert len(off_loop.jobs) == 2
 
 
 def test_server_frames():

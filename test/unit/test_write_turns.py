@@ -1,18 +1,6 @@
 """write_turns.WriteTurns: woken clients write together, at the end of a delivery or in the loop's next turn."""
-from rosbridge.write_turns import WriteTurns
-
-
-class Loop:
-    def __init__(self):
-        self.soon = []
-
-    def call_soon(self, fn):
-        self.soon.append(fn)
-
-    def next_turn(self):
-        soon, self.soon = self.soon, []
-        for fn in soon:
-            fn()
+from fakes import Loop
+from rosbridge.transport.write_turns import WriteTurns
 
 
 def test_outside_a_delivery_the_woken_write_in_the_next_turn_once_for_all():

@@ -15,7 +15,7 @@ from rosbridge.codec.generated import define
 from rosbridge.codec.fields import DEFAULTS, STRUCT_CODES as _CODES, TIME_PART_CODES as _TIME_CODES
 from rosbridge.codec.json_values import (from_json,
                                parse_slot_type)
-from rosbridge.types import message_class
+from rosbridge.message_types import message_class
 
 # The JSON values each kind of field takes on the common road (bool is not an int here, as in convert).
 _KINDS = {"bool": "_BOOL", "float32": "_NUMBER", "float64": "_NUMBER"}

@@ -33,7 +33,7 @@ import genpy
 from rosbridge.codec.generated import define
 from rosbridge.codec.fields import BUILTIN_TYPES, DEFAULTS, FLOAT_TYPES, INT_RANGES, TIME_TYPES, parse_slot_type
 from rosbridge.errors import ClientError
-from rosbridge.types import message_class
+from rosbridge.message_types import message_class
 
 _FLOAT32 = struct.Struct("<f")
 _FLOAT32_MAX = 3.4028234663852886e38

@@ -21,7 +21,7 @@ from genpy.rostime import _canon
 from rosbridge.codec.cbor import TYPED_ARRAY_TAGS, byte_string
 from rosbridge.codec.fields import BUILTIN_TYPES, STRUCT_CODES, TIME_PART_CODES, parse_slot_type
 from rosbridge.codec.ros_to_json import Generator, Reader, check_length
-from rosbridge.types import message_class
+from rosbridge.message_types import message_class
 
 _NS = 1_000_000_000
 

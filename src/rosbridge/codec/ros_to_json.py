@@ -27,7 +27,7 @@ from genpy.rostime import _canon
 from rosbridge.codec.generated import define
 from rosbridge.codec.fields import BUILTIN_TYPES, STRUCT_CODES as _CODES, TIME_PART_CODES as _TIME_CODES, parse_slot_type
 from rosbridge.codec import BIG_BYTES
-from rosbridge.types import message_class
+from rosbridge.message_types import message_class
 
 _FLOATS = ("float32", "float64")
 _NS = 1_000_000_000

@@ -4,13 +4,13 @@ import contextlib
 
 import rospy
 
-from rosbridge.backend import Backend
+from rosbridge.contract import Backend
 from rosbridge.ros_side.links import TopicLinks
 from rosbridge.ros_side.publishers import Publishers
 from rosbridge.ros_side.services import ProvidedServices, ServiceCalls
 from rosbridge.ros_side.subscribers import Subscribers
 from rosbridge.ros_side.worker import RosWorker
-from rosbridge.types import message_class
+from rosbridge.message_types import message_class
 
 MAX_CALLS_RUNNING_PER_CLIENT = 16  # service calls of one client running at once (each on a thread)
 MAX_CALLS_RUNNING = 128  # service calls running at once in all

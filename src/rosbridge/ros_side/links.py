@@ -1,4 +1,4 @@
-"""The bridge's topic connections with other nodes, on the event loop: TCPROS (rosbridge.tcpros) with no thread
+"""The bridge's topic connections with other nodes, on the event loop: TCPROS (rosbridge.ros_side.tcpros) with no thread
 per connection and no hand-off per message. The bridge reads its publishers on plain sockets the loop watches
 (the path every message of a subscribed topic takes); its subscribers connect to a Tornado TCPServer.
 
@@ -7,6 +7,7 @@ rospy still does the rest of being a node: it registers the bridge's publishers 
 the connections in getBusInfo (each link is a rospy Transport in its topic's list). TopicLinks joins in as the
 first of rospy's protocol handlers: it makes the connections of the topics the bridge's clients use, and leaves
 the node's own topics (/rosout, /client_count) to rospy's TCPROS handler."""
+import collections
 import datetime
 import errno
 import os
@@ -21,12 +22,11 @@ import tornado.tcpserver
 import tornado.util
 from tornado.iostream import StreamClosedError
 
-from rosbridge import tcpros
+from rosbridge.ros_side import tcpros
 from rosbridge.borrowed import (INBOUND, OUTBOUND, ProtocolHandler, Transport, get_tcpros_handler,
                                 get_topic_manager, handle_connection, node_protocol_handlers)
 from rosbridge.accepting import accept_connections
-from rosbridge.outgoing import FrameQueue
-from rosbridge.read_pace import ReadPace
+from rosbridge.ros_side.read_pace import ReadPace
 
 TCPROS = "TCPROS"
 CONNECT_TIMEOUT = 10.0  # seconds for a publisher to accept the bridge's connection and answer its header
@@ -36,6 +36,50 @@ HANDSHAKE_TIMEOUT = 10.0  # seconds for a subscriber to send its header once con
 READ_CHUNK = 1 << 16  # bytes read at once from a publisher (one wake of the loop for every message in them)
 LINK_QUEUE_LIMIT = 10_000  # messages waiting for a slow subscriber when the topic's queue_size is 0 (unbounded)
 LINK_QUEUE_BYTES = 32_000_000  # and bytes, whatever the queue_size (a client's: up to 2^63); the newest is kept
+
+
+class FrameQueue:
+    """Frames (str or bytes) waiting for the socket, at most max_frames of them and max_bytes in all (the
+    newest frame is always kept). Counts what it drops so that the client can be told."""
+
+    def __init__(self, max_frames, max_bytes):
+        self.max_frames, self.max_bytes = max_frames, max_bytes
+        self._frames = collections.deque()
+        self.bytes = 0
+        self.dropped = 0
+
+    def __len__(self):
+        return len(self._frames)
+
+    def push(self, frame):
+        frames = self._frames
+        frames.append(frame)
+        self.bytes += len(frame)
+        while len(frames) > 1 and (len(frames) > self.max_frames or self.bytes > self.max_bytes):
+            self.bytes -= len(frames.popleft())
+            self.dropped += 1
+
+    def pop(self):
+        """The oldest frame, or None."""
+        if not self._frames:
+            return None
+        frame = self._frames.popleft()
+        self.bytes -= len(frame)
+        return frame
+
+    def take_all(self):
+        """Every frame waiting, oldest first; the queue is then empty."""
+        frames = list(self._frames)
+        self.clear()
+        return frames
+
+    def take_dropped(self):
+        dropped, self.dropped = self.dropped, 0
+        return dropped
+
+    def clear(self):
+        self._frames.clear()
+        self.bytes = 0
 
 
 async def read_header(stream):

@@ -6,12 +6,12 @@ import warnings
 
 import rospy
 
-from rosbridge import tcpros
-from rosbridge.backend import DRIVE_TYPES
+from rosbridge.ros_side import tcpros
+from rosbridge.contract import DRIVE_TYPES
 from rosbridge.errors import RequestError, refusal_text
 from rosbridge.codec.json_to_ros import packer
 from rosbridge.ros_side.holders import Holders
-from rosbridge.types import message_class
+from rosbridge.message_types import message_class
 
 # A client usually publishes right after advertising, before any subscriber has connected to the new
 # publisher (that takes the master's publisherUpdate and a TCP handshake): messages published while nobody was

@@ -11,7 +11,7 @@ import rosservice
 from rosbridge.codec.json_values import ConversionError, from_json, request_from_args, to_json
 from rosbridge.errors import RequestError, refusal_text
 from rosbridge.off_loop import CallThreads
-from rosbridge.types import service_class
+from rosbridge.message_types import service_class
 
 
 class ServiceCalls:

@@ -4,9 +4,9 @@ import time
 import rospy
 
 from rosbridge.errors import RequestError, log_bug, refusal_text
-from rosbridge.frames import TopicMessage
+from rosbridge.protocol.encoded import TopicMessage
 from rosbridge.ros_side.holders import Holders
-from rosbridge.types import message_class
+from rosbridge.message_types import message_class
 
 
 class TopicSubscriber:

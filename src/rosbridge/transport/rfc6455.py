@@ -4,7 +4,7 @@ and the bytes of the server's own frames; permessage-deflate (RFC 7692) both way
 answer asks the client to keep no context between its messages (client_no_context_takeover) and we keep none
 (server_no_context_takeover), so that nothing of zlib's lives per client between messages (a thousand idle clients
 hold no compressor or inflater), and a message deflated once is the same bytes for every client. Pure: no tornado,
-no sockets; the shell (websocket.py) moves the bytes and chooses which messages go deflated.
+no sockets; the shell (transport/connection.py) moves the bytes and chooses which messages go deflated.
 
 A client's frames come out one event per frame, so that whoever reads can weigh every frame a client sends
 (budget.py), the parts of a fragmented message and the control frames included."""

@@ -38,11 +38,11 @@ import tornado.ioloop
 import tornado.web
 
 from rosbridge import globs as globs_module
-from rosbridge.cloud import Answers, CloudError, decimate, point_count, read_cloud, stride_for
+from rosbridge.http.cloud import Answers, CloudError, decimate, point_count, read_cloud, stride_for
 from rosbridge.errors import ClientError
-from rosbridge.http_access import EndpointHandler, query_text, refusal
+from rosbridge.http.access import EndpointHandler, query_text, refusal
 from rosbridge.off_loop import EncodingThread
-from rosbridge.streams import WAIT_POLL, BadRequest, TopicTypes
+from rosbridge.http.streams import WAIT_POLL, BadRequest, TopicTypes
 
 CLOUD = "sensor_msgs/PointCloud2"
 DEFAULT_POINTS, MAX_POINTS = 20000, 200000

@@ -1,10 +1,10 @@
 """The websocket clients on the event loop. BridgeSocket answers the opening handshake (or serves the page on
 a plain GET); then a ClientConnection owns the connection's stream (Tornado's IOStream, through its public
-API) and moves bytes between it and two pure objects: websocket_frames.FrameReader (what the client sent,
+API) and moves bytes between it and two pure objects: rfc6455.FrameReader (what the client sent,
 frame by frame) and the client's protocol Session.
 
 Threads: all of it runs on the loop's thread, but for deflating a big message for the clients whose link is slow
-(frames.deflated_payload), which runs on the bridge's deflate thread (off_loop.EncodingThread, `bridge.deflater`,
+(slow_link.deflated_payload), which runs on the bridge's deflate thread (off_loop.EncodingThread, `bridge.deflater`,
 apart from the encoder so that a map's encoding never holds a slow client's next frame): the thread only reads
 the frame's bytes and returns new ones; the loop keeps them on the frame and resumes each client waiting for
 them (its next frames wait meanwhile, and it counts as backed up)."""
@@ -15,16 +15,17 @@ import tornado.ioloop
 import tornado.iostream
 import tornado.web
 
-from rosbridge import borrowed, protocol
-from rosbridge import websocket_frames as ws
-from rosbridge.budget import ClientBudget
+from rosbridge import borrowed
+from rosbridge import protocol
+from rosbridge.transport import rfc6455 as ws
+from rosbridge.transport.budget import ClientBudget
 from rosbridge.codec import BIG_BYTES
 from rosbridge.errors import log_bug
-from rosbridge.frames import SplicedFrame, Utf8Text, deflated_payload
+from rosbridge.protocol.encoded import SplicedFrame, Utf8Text
 from rosbridge.origins import origin_allowed
-from rosbridge.outgoing import DEFLATE_MIN_BYTES, LinkMeter, sends_deflated
-from rosbridge.pages import SECURITY_HEADERS
-from rosbridge.unsent import limit_unsent
+from rosbridge.transport.slow_link import DEFLATE_MIN_BYTES, LinkMeter, deflated_payload, sends_deflated
+from rosbridge.origins import SECURITY_HEADERS
+from rosbridge.transport.unsent import limit_unsent
 
 READ_CHUNK = 64 * 1024  # bytes asked of a client's stream per read: every frame complete in them is taken at once
 # Frames waiting for a client go to its socket together, up to this many bytes per write: one system call for a
@@ -125,7 +126,7 @@ class ClientConnection:
     unpacked a slice at a time, each slice a turn's worth. A message must be whole within fragment_timeout of its
     first byte (_check_unfinished), and what unfinished messages hold is bounded for all clients together
     (bridge.unfinished), a client stalled in the middle of one making way for a client whose bytes keep coming
-    (websocket_frames.SharedBound: _made_way).
+    (rfc6455.SharedBound: _made_way).
 
     Writing: the Session's queued frames go to the stream while it takes them; once the stream is backed up (the
     kernel holds at most unsent.UNSENT_LIMIT unsent), the rest stays in the Session's Outbox, which keeps each
@@ -135,7 +136,7 @@ class ClientConnection:
     Deflating, with a client that offered permessage-deflate (window_bits: the largest window negotiated, else
     None): every message with use_compression; else, with compress_slow_links, the messages of DEFLATE_MIN_BYTES
     or more while its link is measured slow (outgoing.LinkMeter, from the writes that waited for the drain). Those
-    are deflated once for every such client (frames.deflated_payload), on the deflate thread; a small one (only
+    are deflated once for every such client (slow_link.deflated_payload), on the deflate thread; a small one (only
     with use_compression) on the loop. RSV1 marks each compressed frame; the others go as they are."""
 
     def __init__(self, bridge, stream, peer, window_bits):
@@ -543,35 +544,3 @@ def _is_text(frame):
     if isinstance(frame, SplicedFrame):
         return frame.text
     return isinstance(frame, (str, Utf8Text))
-
-
-class DriverLeases:
-    """The dead-man stop for a driving client that goes silent (a phone that lost its Wi-Fi sends no FIN: its
-    connection only looks open). A client that drives (Backend.drives) holds a lease that anything it sends
-    renews; silent for half of `timeout`, it is pinged (a live client answers at once); silent for `timeout`,
-    its velocity topics get one zero message each (Backend.stop_driving) until it drives again. A client that
-    leaves is stopped by the backend at once (RosBackend's stop_drivers_leaving). Checked every timeout / 4, and
-    at the moment a silent driver's lease ends."""
-
-    def __init__(self, bridge, timeout):
-        self.bridge, self.timeout = bridge, timeout
-        self._loop = tornado.ioloop.IOLoop.current()
-
-    def start(self):
-        self._check()
-
-    def _check(self):
-        now, backend = time.monotonic(), self.bridge.backend
-        wait = self.timeout / 4
-        for client in self.bridge.clients:
-            if not backend.drives(client.session):
-                continue
-            silent = client.silent_for(now)
-            if silent >= self.timeout:
-                backend.stop_driving(client.session)
-                continue
-            if silent >= self.timeout / 2:
-                client.ping()
-            if silent > 0:
-                wait = min(wait, self.timeout - silent)
-        self._loop.call_later(wait, self._check)

@@ -14,7 +14,7 @@ PART_OVERHEAD = 128  # bytes a stored part is counted beyond its text: what it c
 class Fragments:
     """One client's unfinished fragmented messages, bounded in number and in bytes (max_bytes 0: no byte
     bound), each dropped fragment_timeout seconds after its first part arrived (expire: the Session's timer).
-    What they hold also counts against `shared` (websocket_frames.SharedBound, if given: the unfinished messages
+    What they hold also counts against `shared` (rfc6455.SharedBound, if given: the unfinished messages
     of every client together): a part that would go beyond it is refused, its message dropped; and when another
     client's message needs the room and came faster, all of them are dropped (evict) and evicted(count) says
     how many."""

@@ -3,7 +3,7 @@ bytes (read_cloud), then decimate() keeps every k-th point, at most max_points, 
 (x, y, third), the third being z, else intensity, else 0. Only the bytes of the kept points are touched, by
 strided slices (C speed: a 300k-point cloud to 20k points is a few ms); NaN points are passed on (the page skips
 them). k is rounded up to one of 8 values per doubling (stride_for), so that the many max_points a client may ask
-come to few distinct answers, which Answers keeps within a bound in bytes. The /cloud endpoint (cloud_pages.py)
+come to few distinct answers, which Answers keeps within a bound in bytes. The /cloud endpoint (cloud_routes.py)
 serves the result."""
 import collections
 import struct

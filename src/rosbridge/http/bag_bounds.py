@@ -1,5 +1,5 @@
 """What the bag recorder's bags take, counted as the disk counts them, and the bounds they are held to (pure: no
-rosbag, no rospy, no tornado; bags.py does the recording).
+rosbag, no rospy, no tornado; bag_recorder.py does the recording).
 
 Sizes follow rosbag's format 2.0 as rosbag.Bag writes it (uncompressed, unencrypted, its default chunks), so that
 an empty message costs what it takes on disk: its record's header and its entry in its chunk's index, 58 bytes.

@@ -1,53 +1,6 @@
-"""What waits for a socket. Outbox: a websocket client's (protocol.Session), whole messages, small before big, each
-topic kept fresh while the client's socket is backed up. FrameQueue: a ROS subscriber's of a topic the bridge
-publishes (ros_side/links.py), bounded, the oldest dropped. LinkMeter: how fast a websocket client's socket
-drains, which says whether its big messages go deflated (websocket.py)."""
+"""What waits for a client's socket: its Outbox (protocol.Session's), whole messages, small before big, each topic
+kept fresh while the socket is backed up, bounded per client and for all clients together (QueuePool)."""
 import collections
-
-
-class FrameQueue:
-    """Frames (str or bytes) waiting for the socket, at most max_frames of them and max_bytes in all (the
-    newest frame is always kept). Counts what it drops so that the client can be told."""
-
-    def __init__(self, max_frames, max_bytes):
-        self.max_frames, self.max_bytes = max_frames, max_bytes
-        self._frames = collections.deque()
-        self.bytes = 0
-        self.dropped = 0
-
-    def __len__(self):
-        return len(self._frames)
-
-    def push(self, frame):
-        frames = self._frames
-        frames.append(frame)
-        self.bytes += len(frame)
-        while len(frames) > 1 and (len(frames) > self.max_frames or self.bytes > self.max_bytes):
-            self.bytes -= len(frames.popleft())
-            self.dropped += 1
-
-    def pop(self):
-        """The oldest frame, or None."""
-        if not self._frames:
-            return None
-        frame = self._frames.popleft()
-        self.bytes -= len(frame)
-        return frame
-
-    def take_all(self):
-        """Every frame waiting, oldest first; the queue is then empty."""
-        frames = list(self._frames)
-        self.clear()
-        return frames
-
-    def take_dropped(self):
-        dropped, self.dropped = self.dropped, 0
-        return dropped
-
-    def clear(self):
-        self._frames.clear()
-        self.bytes = 0
-
 
 SMALL_MESSAGE = 1 << 16  # bytes: a message smaller than this goes before the big ones that have not started yet
 OWN_QUEUE_BYTES = 1 << 18  # what one client's outbox may hold before it draws on the bound shared by all clients'
@@ -98,8 +51,8 @@ class Outbox:
     - Bounds for everything: max_frames and max_bytes. Beyond them the oldest whole messages are dropped; a
       message larger than the whole bound is refused. Skipped, dropped and refused are counted by topic for the
       client's status messages (take_report). A message counts its bytes as encoded: one that goes deflated to
-      a slow link is deflated once taken (websocket.py), so its smaller size never lets more wait here; its
-      deflated copy lives with the frame (frames.deflated_payload).
+      a slow link is deflated once taken (transport/connection.py), so its smaller size never lets more wait here; its
+      deflated copy lives with the frame (transport/slow_link.deflated_payload).
     - With a `pool` (a QueuePool shared by every client's outbox), what waits beyond OWN_QUEUE_BYTES, and what
       the socket was given but has not sent (in_flight, from set_backed_up), must also be granted by the pool:
       beyond what it grants, whole messages are dropped as above, the newest too."""
@@ -256,50 +209,3 @@ class Outbox:
         self._dead = self.frames = self.bytes = self._in_flight = 0
         if self._pool is not None:
             self._regrant()
-
-
-# Deflating what a slow link carries (websocket.ClientConnection, for a client that offered permessage-deflate):
-# a message of DEFLATE_MIN_BYTES or more goes compressed when the client's link drains slower than
-# SLOW_LINK_BYTES_PER_SECOND. Why that rate: zlib's level 1 takes a camera's 1.2 MB of JSON (base64) to 0.5-0.6
-# of its size at 60-85 MB/s on this project's 2-core machine (15-20 ms, once for every slow client, off the loop).
-# At 8 MB/s (64 Mbit/s: Wi-Fi, a phone) that is 60-75 ms less on the link per frame, four times what deflating
-# costs; at faster links the saving shrinks towards the cost, and a wired or loopback client (tens to hundreds of
-# MB/s) gets the bytes as they are, at no CPU.
-DEFLATE_MIN_BYTES = SMALL_MESSAGE
-SLOW_LINK_BYTES_PER_SECOND = 8_000_000
-MEASURED_BYTES = 256 * 1024  # what the waits must have carried before a link is judged (one camera frame does)
-DRAIN_MEMORY = 0.75  # the weight of the earlier waits against each new one: a link that changes shows in a few
-
-
-class LinkMeter:
-    """How fast one client's socket takes what is written to it, from the writes that had to wait for it (a write
-    the socket takes at once says nothing of the link; the kernel holds little unsent, unsent.py, so one that
-    waits drains at the link's pace). Bytes over the seconds until drained, each summed with a decay: a big write
-    counts by its size, a reader's pause by its length. A write on loopback waits too (for the reader to take a
-    megabyte), but drains at hundreds of MB/s. Pure: the server says what waited and how long."""
-    __slots__ = ("bytes", "seconds")
-
-    def __init__(self):
-        self.bytes = self.seconds = 0.0
-
-    def waited(self, size, seconds):
-        """A write of `size` bytes waited `seconds` until the socket had taken it all."""
-        self.bytes = self.bytes * DRAIN_MEMORY + size
-        self.seconds = self.seconds * DRAIN_MEMORY + seconds
-
-    @property
-    def rate(self):
-        """Bytes per second, or None before a write waited."""
-        return self.bytes / self.seconds if self.seconds > 0 else None
-
-    @property
-    def slow(self):
-        """Measured (from MEASURED_BYTES at least) below SLOW_LINK_BYTES_PER_SECOND."""
-        return self.bytes >= MEASURED_BYTES and self.bytes < SLOW_LINK_BYTES_PER_SECOND * self.seconds
-
-
-def sends_deflated(size, every_message, link):
-    """Whether a message of `size` bytes goes deflated to a client that negotiated permessage-deflate: every one
-    with use_compression (every_message), else one of DEFLATE_MIN_BYTES or more while its link (a LinkMeter) is
-    slow."""
-    return every_message or size >= DEFLATE_MIN_BYTES and link.slow

@@ -1,7 +1,7 @@
 """The bag recorder: record chosen topics into rosbag files in one folder, or keep a "black box" of the last
 minutes in memory and save it on demand; list and delete the bags. The messages are the bridge's own
 (backend.Client subscriptions: TopicMessage, serialized bytes), written raw with the rosbag API, never
-deserialized. The HTTP side is bag_pages.py; what bags take and their bounds, bag_bounds.py.
+deserialized. The HTTP side is bag_routes.py; what bags take and their bounds, bag_bounds.py.
 
 Threads: everything here runs on the loop but the writing. One writer thread (a queue bounded in jobs and in bytes:
 beyond, messages are dropped and counted) opens, writes and closes bags; what it finds out (an error, a bag done)
@@ -21,7 +21,7 @@ import genpy
 import rosbag
 
 from rosbridge import globs
-from rosbridge.bag_bounds import MESSAGE, BagSize, BlackBox, FolderSpace
+from rosbridge.http.bag_bounds import MESSAGE, BagSize, BlackBox, FolderSpace
 from rosbridge.borrowed import forget_read_index
 from rosbridge.errors import ClientError
 

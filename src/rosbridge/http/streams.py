@@ -46,11 +46,12 @@ import tornado.iostream
 import tornado.web
 
 from rosbridge import globs as globs_module
-from rosbridge import http_access, jpeg
+from rosbridge.http import access
+from rosbridge.http import jpeg
 from rosbridge.errors import ClientError, log_bug
 from rosbridge.off_loop import EncodingThread
-from rosbridge.pages import SECURITY_HEADERS
-from rosbridge.unsent import limit_unsent
+from rosbridge.origins import SECURITY_HEADERS
+from rosbridge.transport.unsent import limit_unsent
 
 BOUNDARY = "boundarydonotcross"  # web_video_server's
 DEFAULT_QUALITY = 95  # web_video_server's, for a stream that does not adapt
@@ -110,7 +111,7 @@ class StreamRequest:
         return bool(self.width or self.height or self.quality is not None or self.invert or self.adaptive)
 
 
-_text = http_access.query_text
+_text = access.query_text
 
 
 def _integer(args, name, low, high, default=0):
@@ -836,14 +837,14 @@ class Streams:
     # ---- access
     def refusal(self, request):
         """(status, text) when the request is refused by the origin rules or authentication, else None."""
-        return http_access.refusal(self.bridge, request, "a camera stream")
+        return access.refusal(self.bridge, request, "a camera stream")
 
     def auth_end(self, request):
         """With authenticate, when the authentication of a request refusal() let through ends (its rosauth `end`,
         a time.time()), else None."""
         if not self.bridge.config.authenticate:
             return None
-        return float(http_access.query_text(request.query_arguments, "end"))
+        return float(access.query_text(request.query_arguments, "end"))
 
     def checked_topic(self, request):
         """The request's topic as ROS names it (resolved in the bridge's namespace), if topics_glob allows it."""
@@ -896,7 +897,7 @@ class Streams:
 
 
 # ---- handlers ----------------------------------------------------------------------------------------------------
-class _Handler(http_access.EndpointHandler):
+class _Handler(access.EndpointHandler):
     CACHE_CONTROL = NO_CACHE  # (web_video_server's)
 
     def initialize(self, streams):
@@ -1028,7 +1029,7 @@ class StreamListHandler(_Handler):
             self.finish(json.dumps({"topics": [{"topic": topic, "type": kind} for topic, kind in images]}))
             return
         auth = "".join(f"&{name}={urllib.parse.quote(_text(self.request.query_arguments, name) or '')}"
-                       for name in http_access.AUTH_FIELDS if self.streams.bridge.config.authenticate)
+                       for name in access.AUTH_FIELDS if self.streams.bridge.config.authenticate)
         items = []
         for topic, kind in images:
             query = html.escape(f"topic={urllib.parse.quote(topic)}{auth}", quote=True)

@@ -24,7 +24,7 @@ import rosgraph.network
 
 from rosbridge.errors import ClientError
 from rosbridge.globs import Globs, allowed, filter_names
-from rosbridge.types import UnknownType, message_class, service_class
+from rosbridge.message_types import UnknownType, message_class, service_class
 
 # Field types without a typedef of their own. The reference forgets `char`; we count it as a number.
 ATOMIC_TYPES = {"bool", "byte", "char", "int8", "uint8", "int16", "uint16", "int32", "uint32", "int64",

@@ -1,19 +1,19 @@
-"""What the bridge sends: frames ready for the socket, each encoded once for every client it goes to, and deflated
-(permessage-deflate) once per window size for every client it goes to compressed (deflated_payload)."""
+"""What the bridge sends: frames ready for the socket, each encoded once for every client it goes to (and deflated
+once per window size for every client it goes to compressed: transport/slow_link.deflated_payload keeps those on
+the frame)."""
 import itertools
 
 from rosbridge.codec import cbor, wrapping
 from rosbridge.codec.json_values import dumps
 from rosbridge.codec.ros_to_cbor import cbor_value
 from rosbridge.codec.ros_to_json import SPLICE_MARK, joined, json_parts
-from rosbridge.websocket_frames import deflate_message, message_window_bits
 
 COMPRESSIONS = ("none", "png", "cbor", "cbor-raw")
 
 
 class Utf8Text(bytes):
     """A text frame already encoded to UTF-8, so that it is encoded once for all the clients it goes to."""
-    deflated = None  # (no __slots__: a frame may keep its deflated payloads, see deflated_payload)
+    deflated = None  # (no __slots__: a frame may keep its deflated payloads, see transport/slow_link.deflated_payload)
 
 
 class SplicedFrame:
@@ -24,58 +24,13 @@ class SplicedFrame:
 
     def __init__(self, parts, text):
         self.parts, self.text, self._size = parts, text, sum(map(len, parts))
-        self.deflated = None  # see deflated_payload
+        self.deflated = None  # see transport/slow_link.deflated_payload
 
     def __len__(self):
         return self._size
 
     def __bytes__(self):
         return b"".join(self.parts)
-
-
-def deflated_payload(frame, max_window_bits, off_loop=None, then=None):
-    """The payload of `frame` (a Utf8Text, SplicedFrame or bytes) as one permessage-deflate message, with a window
-    of at most max_window_bits (websocket_frames.deflate_message: no context, so the same bytes for every client).
-    Made once per window for every client that sends the frame compressed, and kept on the frame (in `deflated`:
-    window bits -> the payload, or the callbacks waiting for it) as long as the frame lives, which is as long as
-    a subscription, an Outbox or a write holds it; at most its size again, in practice half. A plain bytes frame
-    (a binary one of one part) cannot keep it: it is deflated each time.
-
-    Returns the payload if it is made, or makes it now if off_loop is None (a small message, on the loop).
-    Else returns None, and then(payload) is called on the loop once off_loop(fn, done) has run fn on its thread
-    (off_loop.EncodingThread.run; fn reads only the frame's bytes, which nothing changes, and only the loop
-    touches `deflated`), for every client that asked meanwhile; payload None if it failed (a bug, logged)."""
-    bits = message_window_bits(len(frame), max_window_bits)
-    keeps = isinstance(frame, (Utf8Text, SplicedFrame))
-    if keeps and frame.deflated is None:
-        frame.deflated = {}
-    made = frame.deflated.get(bits) if keeps else None
-    if isinstance(made, bytes):
-        return made
-    parts = frame.parts if isinstance(frame, SplicedFrame) else (frame,)
-    if off_loop is None:
-        payload = deflate_message(parts, bits)
-        if keeps and made is None:
-            frame.deflated[bits] = payload
-        return payload
-    if made is not None:  # (being made: the callbacks waiting for it)
-        made.append(then)
-        return None
-    waiting = [then]
-    if keeps:
-        frame.deflated[bits] = waiting
-    off_loop(lambda: deflate_message(parts, bits), lambda payload: _deflated(frame, bits, waiting, payload))
-    return None
-
-
-def _deflated(frame, bits, waiting, payload):
-    if isinstance(frame, (Utf8Text, SplicedFrame)):
-        if payload is None:
-            del frame.deflated[bits]
-        else:
-            frame.deflated[bits] = payload
-    for then in waiting:
-        then(payload)
 
 
 def cbor_frame(obj):

@@ -6,11 +6,8 @@ import re
 
 import tornado.web
 
-SECURITY_HEADERS = {
-    "X-Content-Type-Options": "nosniff",
-    "X-Frame-Options": "DENY",
-    "Content-Security-Policy": "frame-ancestors 'none'",
-}
+from rosbridge.origins import SECURITY_HEADERS
+
 PAGE_FILE_KINDS = {".html", ".js", ".mjs", ".css", ".png", ".svg", ".ico", ".jpg", ".jpeg", ".webp", ".woff2",
                    ".map"}
 HIDDEN_FOLDERS = {"node_modules"}

@@ -3,7 +3,7 @@ state (subscriptions, authentication, status level) and call the ROS side throug
 contract. Pure: no rospy, no tornado; the server gives it a clock, a timer and a wake-up.
 
 The jobs around it have rooms of their own: reassembly.py (fragment and png ops), subscription.py (merging and
-throttling), outgoing.py (the outbox: whole messages, small first, fresh on a slow link), frames.py (encoding what goes out), auth.py (rosauth)."""
+throttling), protocol/outbox.py (the outbox: whole messages, small first, fresh on a slow link), protocol/encoded.py (encoding what goes out), auth.py (rosauth)."""
 import collections
 import functools
 import json
@@ -14,10 +14,10 @@ from rosbridge import settings
 from rosbridge.auth import mac_is_valid
 from rosbridge.codec.json_values import dumps
 from rosbridge.errors import ClientError, RequestError, log_bug
-from rosbridge.frames import COMPRESSIONS, service_response_frames, status_frame
-from rosbridge.outgoing import OWN_QUEUE_BYTES, Outbox, QueuePool
-from rosbridge.reassembly import Fragments, unpack_png
-from rosbridge.subscription import MAX_THROTTLE_RATE, Subscription
+from rosbridge.protocol.encoded import COMPRESSIONS, service_response_frames, status_frame
+from rosbridge.protocol.outbox import OWN_QUEUE_BYTES, Outbox, QueuePool
+from rosbridge.protocol.reassembly import Fragments, unpack_png
+from rosbridge.protocol.subscription import MAX_THROTTLE_RATE, Subscription
 
 REPORT_INTERVAL = 1.0  # s: how often at most a client is told what its slow link skipped or dropped
 STATUS_LEVELS = ("info", "warning", "error", "none")

@@ -1,5 +1,5 @@
-"""The bag recorder over HTTP (bags.py does the recording), under the same access rules as the websocket
-(http_access.py; topics_glob in bags.py):
+"""The bag recorder over HTTP (bag_recorder.py does the recording), under the same access rules as the websocket
+(access.py; topics_glob in bag_recorder.py):
 
     GET    /bags                   the recorder's state: the recording, the black box, the bags (JSON)
     POST   /bags/record            {"topics": [...], "name": optional}: start recording
@@ -16,9 +16,9 @@ import json
 import tornado.concurrent
 import tornado.web
 
-from rosbridge.bags import Busy, bag_path
+from rosbridge.http.bag_recorder import Busy, bag_path
 from rosbridge.errors import ClientError
-from rosbridge.http_access import EndpointHandler, refusal
+from rosbridge.http.access import EndpointHandler, refusal
 
 MAX_BODY = 64 * 1024  # the largest request body of any endpoint: the server refuses larger ones (413)
 

@@ -9,7 +9,7 @@ import tornado.routing
 import tornado.web
 
 from rosbridge.origins import host_allowed, host_name, origin_allowed, own_names
-from rosbridge.pages import SECURITY_HEADERS
+from rosbridge.origins import SECURITY_HEADERS
 
 AUTH_FIELDS = ("mac", "client", "dest", "rand", "t", "level", "end")
 
