@@ -11,6 +11,7 @@ Run it with `bash bench/run --only badlink [options]` (or `/usr/bin/python3 benc
 .build/setup.bash). It starts its own roscore on a free port, and stops everything it started (namespace and
 veth included) at the end, even on failure. With every case (no --links/--clients/--pictures/--servers given,
 no --no-readme) it rewrites its section of bench/README.template.md and bench/README.md."""
+
 import argparse
 import json
 import os
@@ -27,7 +28,6 @@ BENCH = Path(__file__).resolve().parent
 REPO = BENCH.parent
 sys.path.insert(0, str(REPO / "test"))
 import harness  # noqa: E402  (private roscore, process groups, logs, /proc readings)
-
 import peers  # noqa: E402
 import reporting  # noqa: E402
 import stats  # noqa: E402
@@ -78,8 +78,22 @@ class Link:
         """tbf on both ends' egress: the server -> client direction is the one that matters; the other carries
         the client's requests and TCP's acknowledgements, shaped alike (a Wi-Fi link is one shared medium)."""
         sh("tc", "qdisc", "replace", "dev", self.here, "root", "tbf", "rate", f"{mbit}mbit", *TBF.split())
-        sh("ip", "netns", "exec", self.ns, "tc", "qdisc", "replace", "dev", self.there, "root", "tbf",
-           "rate", f"{mbit}mbit", *TBF.split())
+        sh(
+            "ip",
+            "netns",
+            "exec",
+            self.ns,
+            "tc",
+            "qdisc",
+            "replace",
+            "dev",
+            self.there,
+            "root",
+            "tbf",
+            "rate",
+            f"{mbit}mbit",
+            *TBF.split(),
+        )
         self.rate = mbit
 
     def qdisc(self):
@@ -183,14 +197,21 @@ class Bench:
             master, param = self.ros.master(), "/badlink_before/actual_port"
             if master.hasParam(param):
                 master.deleteParam(param)
-            proc = self.spawn(["bash", "-c", f"source {self.before_ws}/devel/setup.bash && exec roslaunch turtlesim "
-                               f"rosbridge_websocket.launch port:=0 address:={addr} node_name:=badlink_before"],
-                              "before")
+            proc = self.spawn(
+                [
+                    "bash",
+                    "-c",
+                    f"source {self.before_ws}/devel/setup.bash && exec roslaunch turtlesim "
+                    f"rosbridge_websocket.launch port:=0 address:={addr} node_name:=badlink_before",
+                ],
+                "before",
+            )
 
             def port():
                 if not proc.alive():
                     raise RuntimeError(f"the bridge of {self.a.before} ended:\n{proc.output()[-3000:]}")
                 return master.getParam(param) if master.hasParam(param) else None
+
             port = harness.wait_for(port, 60, what=param)
             stat = harness.ProcStat(harness.node_pid(self.ros, "/badlink_before"))
             return proc, stat, f"ws://{addr}:{port}/", f"http://{addr}:{port}/"
@@ -212,12 +233,26 @@ class Bench:
 
     def client(self, kind, ws_url, page_url, server):
         if kind == "console":
-            proc = self.spawn([VENV_PY, BENCH / "badlink_clients.py", "console", "--url", page_url,
-                               "--mode", "plain" if server == "plain" else "bridge",
-                               *(["--phone"] if self.a.phone else [])], f"console-{server}", inside=True)
+            proc = self.spawn(
+                [
+                    VENV_PY,
+                    BENCH / "badlink_clients.py",
+                    "console",
+                    "--url",
+                    page_url,
+                    "--mode",
+                    "plain" if server == "plain" else "bridge",
+                    *(["--phone"] if self.a.phone else []),
+                ],
+                f"console-{server}",
+                inside=True,
+            )
         else:
-            proc = self.spawn([PY, BENCH / "badlink_clients.py", "ws", "--url", ws_url, "--style", kind,
-                               *self.deflate_arg], f"{kind}-{server}", inside=True)
+            proc = self.spawn(
+                [PY, BENCH / "badlink_clients.py", "ws", "--url", ws_url, "--style", kind, *self.deflate_arg],
+                f"{kind}-{server}",
+                inside=True,
+            )
         self.wait_line(proc, r"^READY", 120)
         return proc
 
@@ -255,14 +290,24 @@ class Bench:
         finally:
             self.stop(client, srv)
         figures = summarize(got, kind, t0, t1, published)
-        figures.update(rss_growth=max(rss) - rss0, rss_end_growth=rss[-1] - rss0, cpu_s=cpu1 - cpu0,
-                       cpu_ms_per_frame=(cpu1 - cpu0) * 1e3 / figures["camera_frames"]
-                       if figures["camera_frames"] else None,
-                       cpu_share=(cpu1 - cpu0) / (t1 - t0), tbf_drops=drops, tbf_backlog_max=max(backlog),
-                       tbf_backlog_p50=stats.percentile(backlog, 0.5), code=code)
+        figures.update(
+            rss_growth=max(rss) - rss0,
+            rss_end_growth=rss[-1] - rss0,
+            cpu_s=cpu1 - cpu0,
+            cpu_ms_per_frame=(cpu1 - cpu0) * 1e3 / figures["camera_frames"] if figures["camera_frames"] else None,
+            cpu_share=(cpu1 - cpu0) / (t1 - t0),
+            tbf_drops=drops,
+            tbf_backlog_max=max(backlog),
+            tbf_backlog_p50=stats.percentile(backlog, 0.5),
+            code=code,
+        )
         (self.workdir / f"{name}.json").write_text(json.dumps({"figures": figures, "raw": got}))
-        print(f"badlink: {name}: " + json.dumps({k: round(v, 3) if isinstance(v, float) else v
-                                                 for k, v in figures.items()}), file=sys.stderr, flush=True)
+        print(
+            f"badlink: {name}: "
+            + json.dumps({k: round(v, 3) if isinstance(v, float) else v for k, v in figures.items()}),
+            file=sys.stderr,
+            flush=True,
+        )
         return figures
 
     def drive(self, mbit, server, how):
@@ -277,8 +322,11 @@ class Bench:
         srv, stat, ws_url, _ = self.server(server)
         client = None
         try:
-            client = self.spawn([PY, BENCH / "badlink_clients.py", "driver", "--url", ws_url, *self.deflate_arg],
-                                f"driver-{server}", inside=True)
+            client = self.spawn(
+                [PY, BENCH / "badlink_clients.py", "driver", "--url", ws_url, *self.deflate_arg],
+                f"driver-{server}",
+                inside=True,
+            )
             self.wait_line(client, r"^READY", 60)
             time.sleep(3.0)
             self.twists()  # (forget the start)
@@ -298,12 +346,17 @@ class Bench:
         zero = next((t for t, x, z in twists if x == 0 and z == 0 and t >= end - 0.05), None)
         last = max((t for t, _ in before), default=None)
         ages = [t - z for t, z in before if t < end]
-        figures = {"how": how, "zero_after_end": zero - end if zero else None,
-                   "zero_after_last": zero - last if zero and last else None, "zeros": sum(
-                       1 for t, x, z in twists if x == 0 and z == 0 and t >= end - 0.05),
-                   "twist_p50": stats.percentile(ages, 0.5), "twist_p95": stats.percentile(ages, 0.95),
-                   "twist_max": max(ages, default=None),
-                   "twist_rate": len(ages) / 3.0, "code": code}
+        figures = {
+            "how": how,
+            "zero_after_end": zero - end if zero else None,
+            "zero_after_last": zero - last if zero and last else None,
+            "zeros": sum(1 for t, x, z in twists if x == 0 and z == 0 and t >= end - 0.05),
+            "twist_p50": stats.percentile(ages, 0.5),
+            "twist_p95": stats.percentile(ages, 0.95),
+            "twist_max": max(ages, default=None),
+            "twist_rate": len(ages) / 3.0,
+            "code": code,
+        }
         (self.workdir / f"{name}.json").write_text(json.dumps({"figures": figures, "raw": twists}))
         print(f"badlink: {name}: " + json.dumps(figures), file=sys.stderr, flush=True)
         return figures
@@ -317,8 +370,11 @@ class Bench:
         """TCP goodput through the shaped link: a bulk sender here, the sink inside."""
         self.link.shape(mbit)
         port = harness.free_port()
-        sink = self.spawn([PY, BENCH / "badlink_clients.py", "sink", "--listen",
-                           f"{self.link.client_addr}:{port}"], "sink", inside=True)
+        sink = self.spawn(
+            [PY, BENCH / "badlink_clients.py", "sink", "--listen", f"{self.link.client_addr}:{port}"],
+            "sink",
+            inside=True,
+        )
         try:
             self.wait_line(sink, r"^READY", 30)
             conn = harness.wait_for(lambda: peers.connect(self.link.client_addr, port), 10, what="the sink")
@@ -342,8 +398,12 @@ def before_workspace(commit, log):
     """A catkin workspace of this package as it was at `commit` (git archive; the page's libraries copied from
     web/vendor/, which git does not hold), built once in ~/.cache/turtlesim/: the bridge of that commit, to
     measure beside today's. Returns (workspace, full commit hash)."""
-    full = subprocess.run(["git", "-C", str(REPO), "rev-parse", "--verify", f"{commit}^{{commit}}"],
-                          capture_output=True, text=True, check=True).stdout.strip()
+    full = subprocess.run(
+        ["git", "-C", str(REPO), "rev-parse", "--verify", f"{commit}^{{commit}}"],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.strip()
     ws = Path.home() / ".cache" / "turtlesim" / f"badlink-before-{full[:12]}"
     if (ws / "devel" / "setup.bash").exists():
         return ws, full
@@ -355,8 +415,13 @@ def before_workspace(commit, log):
     shutil.copytree(REPO / "web" / "vendor", src / "web" / "vendor", dirs_exist_ok=True)
     env = {k: v for k, v in os.environ.items() if k not in ("CMAKE_PREFIX_PATH", "ROS_PACKAGE_PATH", "PYTHONPATH")}
     with open(log, "w") as out:
-        res = subprocess.run(["catkin_make", "-C", str(ws), f"-DPYTHON_EXECUTABLE={PY}", "-DCMAKE_BUILD_TYPE=Release"], cwd=ws,
-                             env=env, stdout=out, stderr=subprocess.STDOUT)
+        res = subprocess.run(
+            ["catkin_make", "-C", str(ws), f"-DPYTHON_EXECUTABLE={PY}", "-DCMAKE_BUILD_TYPE=Release"],
+            cwd=ws,
+            env=env,
+            stdout=out,
+            stderr=subprocess.STDOUT,
+        )
     if res.returncode:
         shutil.rmtree(ws / "devel", ignore_errors=True)
         raise SystemExit(f"badlink: the bridge of {commit} did not build (log: {log})")
@@ -372,35 +437,51 @@ def summarize(got, kind, t0, t1, published):
         delivered = None
         frames = [t for t in got["frames"] if t0 <= t < t1]
         seen = [(camera, small) for t, camera, small in got.get("in_view", []) if t0 <= t < t1]
-        extra = {"page_fps": len(frames) / seconds, "element": got.get("element"),
-                 "readouts": got.get("readouts", [])[-3:],
-                 "both_on_screen": sum(c and s for c, s in seen) / len(seen) if seen else None}
+        extra = {
+            "page_fps": len(frames) / seconds,
+            "element": got.get("element"),
+            "readouts": got.get("readouts", [])[-3:],
+            "both_on_screen": sum(c and s for c, s in seen) / len(seen) if seen else None,
+        }
     else:  # [[arrived, stamp, bytes]]
         camera = [(t, t - stamp) for t, stamp, _ in got["camera"] if t0 <= t < t1]
         small = [(t, t - stamp) for t, stamp, _ in got["small"] if t0 <= t < t1]
         on_time = {stamp for t, stamp, _ in got["small"] if t0 <= stamp < t1 and t <= t1 + GRACE}
         delivered = len(on_time) / published["small"] if published["small"] else None
         wire = sum(size for t, _, size in got["camera"] + got["small"] if t0 <= t < t1)
-        extra = {"kbyte_s": wire / seconds / 1e3, "status_count": got.get("status_count", 0),
-                 "statuses": got.get("statuses", [])[:2], "closed": bool(got.get("closed"))}
+        extra = {
+            "kbyte_s": wire / seconds / 1e3,
+            "status_count": got.get("status_count", 0),
+            "statuses": got.get("statuses", [])[:2],
+            "closed": bool(got.get("closed")),
+        }
 
     def ages(rows, lo=0.0, hi=1.0):
         return [age for t, age in rows if t0 + lo * seconds <= t < t0 + hi * seconds]
 
-    return {"small_delivered": delivered, "small_rate": len(small) / seconds,
-            "small_p50": stats.percentile(ages(small), 0.5), "small_p95": stats.percentile(ages(small), 0.95),
-            "small_max": max(ages(small), default=None),
-            "small_p95_first": stats.percentile(ages(small, 0, 1 / 3), 0.95),
-            "small_p95_last": stats.percentile(ages(small, 2 / 3, 1), 0.95),
-            "camera_frames": len(camera), "camera_fps": len(camera) / seconds,
-            "camera_p50": stats.percentile(ages(camera), 0.5), "camera_p95": stats.percentile(ages(camera), 0.95),
-            "camera_max": max(ages(camera), default=None),
-            "camera_p95_first": stats.percentile(ages(camera, 0, 1 / 3), 0.95),
-            "camera_p95_last": stats.percentile(ages(camera, 2 / 3, 1), 0.95),
-            "published_small": published["small"], "published_camera": published["camera"], **extra}
+    return {
+        "small_delivered": delivered,
+        "small_rate": len(small) / seconds,
+        "small_p50": stats.percentile(ages(small), 0.5),
+        "small_p95": stats.percentile(ages(small), 0.95),
+        "small_max": max(ages(small), default=None),
+        "small_p95_first": stats.percentile(ages(small, 0, 1 / 3), 0.95),
+        "small_p95_last": stats.percentile(ages(small, 2 / 3, 1), 0.95),
+        "camera_frames": len(camera),
+        "camera_fps": len(camera) / seconds,
+        "camera_p50": stats.percentile(ages(camera), 0.5),
+        "camera_p95": stats.percentile(ages(camera), 0.95),
+        "camera_max": max(ages(camera), default=None),
+        "camera_p95_first": stats.percentile(ages(camera, 0, 1 / 3), 0.95),
+        "camera_p95_last": stats.percentile(ages(camera, 2 / 3, 1), 0.95),
+        "published_small": published["small"],
+        "published_camera": published["camera"],
+        **extra,
+    }
 
 
 # ---- the table ---------------------------------------------------------------------------------------------
+
 
 def fmt(value, unit):
     if value is None:
@@ -436,9 +517,14 @@ class Table:
 
     def row(self, figure, value, unit, baseline_name, baseline, target="", ok=None, others=None):
         ratio = value / baseline if value is not None and baseline else None
-        cells = [figure, fmt(value, unit), f"{baseline_name}: {fmt(baseline, unit)}" if baseline_name else "",
-                 f"{ratio:.2f}x" if ratio is not None else "", target,
-                 "" if ok is None else ("met" if ok else "**missed**")]
+        cells = [
+            figure,
+            fmt(value, unit),
+            f"{baseline_name}: {fmt(baseline, unit)}" if baseline_name else "",
+            f"{ratio:.2f}x" if ratio is not None else "",
+            target,
+            "" if ok is None else ("met" if ok else "**missed**"),
+        ]
         for server in self.extra:
             value = (others or {}).get(server)
             cells.append(fmt(value, unit) if value is not None else "")
@@ -458,34 +544,54 @@ class Table:
 
 def goals(mbit, kind, picture):
     """The issue's goals for a case, as {figure: (text, test)}; none for the cases it sets none for."""
-    le = lambda x: (lambda v: v is not None and v <= x)  # noqa: E731
-    ge = lambda x: (lambda v: v is not None and v >= x)  # noqa: E731
+    le = lambda x: lambda v: v is not None and v <= x  # noqa: E731
+    ge = lambda x: lambda v: v is not None and v >= x  # noqa: E731
     if mbit == 20 and kind in ("roslibjs", "careful"):
-        return {"small_delivered": (">= 95 %", ge(0.95)), "small_p95": ("<= 0.5 s", le(0.5)),
-                "small_max": ("<= 1 s", le(1.0)), "camera_fps": (">= 1/s", ge(1.0)),
-                "camera_p95": ("<= 1.5 s", le(1.5)), "rss_growth": ("<= 64 MB", le(64))}
+        return {
+            "small_delivered": (">= 95 %", ge(0.95)),
+            "small_p95": ("<= 0.5 s", le(0.5)),
+            "small_max": ("<= 1 s", le(1.0)),
+            "camera_fps": (">= 1/s", ge(1.0)),
+            "camera_p95": ("<= 1.5 s", le(1.5)),
+            "rss_growth": ("<= 64 MB", le(64)),
+        }
     if mbit == 5 and kind == "console" and picture == "camera-like":
-        return {"camera_fps": (">= 14/s", ge(14)), "camera_p95": ("<= 100 ms", le(0.1)),
-                "small_p95": ("<= 100 ms", le(0.1))}
+        return {
+            "camera_fps": (">= 14/s", ge(14)),
+            "camera_p95": ("<= 100 ms", le(0.1)),
+            "small_p95": ("<= 100 ms", le(0.1)),
+        }
     if mbit == 5 and kind == "console" and picture == "busy":
-        return {"camera_fps": (">= 10/s", ge(10)), "camera_p95": ("<= 250 ms", le(0.25)),
-                "small_p95": ("<= 150 ms", le(0.15))}
+        return {
+            "camera_fps": (">= 10/s", ge(10)),
+            "camera_p95": ("<= 250 ms", le(0.25)),
+            "small_p95": ("<= 150 ms", le(0.15)),
+        }
     return {}
 
 
-CLIENT_NAMES = {"roslibjs": "roslibjs-style (JSON, no throttle, no queue)",
-                "careful": "careful (camera CBOR, throttle_rate 66, queue_length 1)",
-                "console": "the console in Chromium", "phone": "the console in Chromium on a phone's screen"}
+CLIENT_NAMES = {
+    "roslibjs": "roslibjs-style (JSON, no throttle, no queue)",
+    "careful": "careful (camera CBOR, throttle_rate 66, queue_length 1)",
+    "console": "the console in Chromium",
+    "phone": "the console in Chromium on a phone's screen",
+}
 
 
 def table(results, capacity):
     primary = "bridge" if any(k[3] == "bridge" for k in results) else "before"
-    t = Table([server for server in ("before", "reference") if server in EXTRA and server != primary
-               and any(k[3] == server for k in results)])
+    t = Table(
+        [
+            server
+            for server in ("before", "reference")
+            if server in EXTRA and server != primary and any(k[3] == server for k in results)
+        ]
+    )
     for mbit in sorted({k[0] for k in results}, reverse=True):
         if mbit in capacity:
-            t.row(f"{mbit} Mbit/s link: raw TCP goodput through it (one bulk sender)", capacity[mbit], "Mbit/s",
-                  "", None)
+            t.row(
+                f"{mbit} Mbit/s link: raw TCP goodput through it (one bulk sender)", capacity[mbit], "Mbit/s", "", None
+            )
         for kind in CLIENTS:
             if kind == "driver":
                 continue
@@ -503,14 +609,28 @@ def table(results, capacity):
 
                 def row(key, label, unit):
                     target, test = g.get(key, ("", None))
-                    t.row(f"{where}: {label}", bridge.get(key), unit, base, plain.get(key), target,
-                          test(bridge.get(key)) if test else None, {k: v.get(key) for k, v in others.items()})
+                    t.row(
+                        f"{where}: {label}",
+                        bridge.get(key),
+                        unit,
+                        base,
+                        plain.get(key),
+                        target,
+                        test(bridge.get(key)) if test else None,
+                        {k: v.get(key) for k, v in others.items()},
+                    )
 
                 def trend(key, label):
                     def text(f):
                         return f"{fmt(f.get(key + '_first'), ms)} -> {fmt(f.get(key + '_last'), ms)}" if f else ""
-                    t.text_row(f"{where}: {label} age p95, first third of the window -> last third", text(bridge),
-                               f"{base}: {text(plain)}" if plain else "", {k: text(v) for k, v in others.items()})
+
+                    t.text_row(
+                        f"{where}: {label} age p95, first third of the window -> last third",
+                        text(bridge),
+                        f"{base}: {text(plain)}" if plain else "",
+                        {k: text(v) for k, v in others.items()},
+                    )
+
                 if kind != "console":
                     row("small_delivered", f"small topic delivered (within {GRACE:.0f} s)", "%")
                 else:
@@ -534,20 +654,45 @@ def table(results, capacity):
 
             def zero(f, key):
                 return f.get(key) if f.get(key) is not None else (None if not f else float("nan"))
+
             if how == "kill":
-                t.row(f"{where}, killed: zero Twist after its connection's end", zero(driven, "zero_after_end"),
-                      "ms", "", None, "<= 0.5 s", (driven.get("zero_after_end") or 9) <= 0.5,
-                      {k: zero(v, "zero_after_end") for k, v in others.items()})
+                t.row(
+                    f"{where}, killed: zero Twist after its connection's end",
+                    zero(driven, "zero_after_end"),
+                    "ms",
+                    "",
+                    None,
+                    "<= 0.5 s",
+                    (driven.get("zero_after_end") or 9) <= 0.5,
+                    {k: zero(v, "zero_after_end") for k, v in others.items()},
+                )
             else:
-                t.row(f"{where}, its link cut (no FIN): zero Twist after the last Twist that arrived",
-                      zero(driven, "zero_after_last"), "ms", "", None, "<= 1 s (the timeout)",
-                      (driven.get("zero_after_last") or 9) <= 1.0,
-                      {k: zero(v, "zero_after_last") for k, v in others.items()})
-                t.row(f"{where}: Twist age at the rover p50 / p95 / max (client -> ROS while the camera fills the "
-                      "link)", driven.get("twist_p95"), "ms", "", None, "", None,
-                      {k: v.get("twist_p95") for k, v in others.items()})
-                t.rows[-1][1] = "/".join(fmt(driven.get(k), "ms").replace(" ms", "")
-                                         for k in ("twist_p50", "twist_p95", "twist_max")) + " ms"
+                t.row(
+                    f"{where}, its link cut (no FIN): zero Twist after the last Twist that arrived",
+                    zero(driven, "zero_after_last"),
+                    "ms",
+                    "",
+                    None,
+                    "<= 1 s (the timeout)",
+                    (driven.get("zero_after_last") or 9) <= 1.0,
+                    {k: zero(v, "zero_after_last") for k, v in others.items()},
+                )
+                t.row(
+                    f"{where}: Twist age at the rover p50 / p95 / max (client -> ROS while the camera fills the link)",
+                    driven.get("twist_p95"),
+                    "ms",
+                    "",
+                    None,
+                    "",
+                    None,
+                    {k: v.get("twist_p95") for k, v in others.items()},
+                )
+                t.rows[-1][1] = (
+                    "/".join(
+                        fmt(driven.get(k), "ms").replace(" ms", "") for k in ("twist_p50", "twist_p95", "twist_max")
+                    )
+                    + " ms"
+                )
     return t
 
 
@@ -555,19 +700,23 @@ def notes(results):
     lines = []
     for (mbit, kind, picture, server), f in sorted(results.items()):
         if kind == "driver":
-            lines.append(f"- {mbit} Mbit/s, driver {picture}, {server}: {f['zeros']} zero Twist(s) after the end, "
-                         f"{f['twist_rate']:.1f} Twists/s arrived before it" + (f", code `{f['code']}`"
-                                                                               if f.get("code") else ""))
+            lines.append(
+                f"- {mbit} Mbit/s, driver {picture}, {server}: {f['zeros']} zero Twist(s) after the end, "
+                f"{f['twist_rate']:.1f} Twists/s arrived before it" + (f", code `{f['code']}`" if f.get("code") else "")
+            )
             continue
-        bits = [f"CPU {f['cpu_share'] * 100:.0f} %", f"tbf drops {f['tbf_drops']}",
-                f"tbf queue p50 {f['tbf_backlog_p50'] / 1e3:.0f} kB, max {f['tbf_backlog_max'] / 1e3:.0f} kB"]
+        bits = [
+            f"CPU {f['cpu_share'] * 100:.0f} %",
+            f"tbf drops {f['tbf_drops']}",
+            f"tbf queue p50 {f['tbf_backlog_p50'] / 1e3:.0f} kB, max {f['tbf_backlog_max'] / 1e3:.0f} kB",
+        ]
         if kind == "console":
             bits += [f"page {f['page_fps']:.0f} frames/s", f"picture read from `{f.get('element')}`"]
             if f.get("both_on_screen") is not None:
                 bits.append(f"camera and small topic both on screen {f['both_on_screen'] * 100:.0f} % of the time")
             readouts = [text for _, text in f.get("readouts") or []]
             if readouts:
-                bits.append(f"its own readout at the end: \"{readouts[-1].strip()}\"")
+                bits.append(f'its own readout at the end: "{readouts[-1].strip()}"')
         else:
             bits += [f"{f['kbyte_s']:.0f} kB/s to the client", f"{f['status_count']} status ops"]
             if f.get("statuses"):
@@ -576,8 +725,12 @@ def notes(results):
                 bits.append("**the connection was closed**")
         if f.get("code"):
             bits.append(f"code `{f['code']}`")
-        lines.append(f"- {mbit} Mbit/s, {kind}" + (f", {picture}" if kind == "console" else "") + f", {server}: "
-                     + ", ".join(bits))
+        lines.append(
+            f"- {mbit} Mbit/s, {kind}"
+            + (f", {picture}" if kind == "console" else "")
+            + f", {server}: "
+            + ", ".join(bits)
+        )
     return "\n".join(lines)
 
 
@@ -585,21 +738,42 @@ def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--links", type=int, nargs="+", default=list(LINKS), help="Mbit/s")
     p.add_argument("--clients", nargs="+", choices=CLIENTS, default=list(CLIENTS))
-    p.add_argument("--pictures", nargs="+", choices=PICTURES, default=list(PICTURES),
-                   help="for the console (the websocket clients get the raw rgb8 picture: camera-like only)")
-    p.add_argument("--servers", nargs="+", choices=SERVERS, default=list(SERVERS),
-                   help="reference: rosbridge_server 0.11.17, for the websocket clients (it serves no console)")
+    p.add_argument(
+        "--pictures",
+        nargs="+",
+        choices=PICTURES,
+        default=list(PICTURES),
+        help="for the console (the websocket clients get the raw rgb8 picture: camera-like only)",
+    )
+    p.add_argument(
+        "--servers",
+        nargs="+",
+        choices=SERVERS,
+        default=list(SERVERS),
+        help="reference: rosbridge_server 0.11.17, for the websocket clients (it serves no console)",
+    )
     p.add_argument("--seconds", type=float, default=20.0, help="measured per case, after --warmup")
     p.add_argument("--warmup", type=float, default=5.0)
-    p.add_argument("--before", metavar="COMMIT",
-                   help="also measure the bridge (and its page) of this commit, built from git in ~/.cache/turtlesim")
+    p.add_argument(
+        "--before",
+        metavar="COMMIT",
+        help="also measure the bridge (and its page) of this commit, built from git in ~/.cache/turtlesim",
+    )
     peers.add_arguments(p)
     p.add_argument("--phone", action="store_true", help="the console on a phone's screen (390x844), not a desktop's")
-    p.add_argument("--no-deflate", action="store_true", help="the websocket clients offer no permessage-deflate "
-                   "(browsers and roslibjs in Node offer it; the console's Chromium always does)")
+    p.add_argument(
+        "--no-deflate",
+        action="store_true",
+        help="the websocket clients offer no permessage-deflate "
+        "(browsers and roslibjs in Node offer it; the console's Chromium always does)",
+    )
     p.add_argument("--no-readme", action="store_true")
-    p.add_argument("--render", metavar="DIR", help="print (and with --readme, write) the text of an earlier run "
-                   "from its directory's run.json, measuring nothing")
+    p.add_argument(
+        "--render",
+        metavar="DIR",
+        help="print (and with --readme, write) the text of an earlier run "
+        "from its directory's run.json, measuring nothing",
+    )
     p.add_argument("--readme", action="store_true", help="with --render: write the README sections")
     a = p.parse_args()
     global PHONE
@@ -609,8 +783,9 @@ def main():
         EXTRA.update(run["extra"])
         PHONE = run.get("phone", False)
         results = {tuple(json.loads(k)): v for k, v in run["results"].items()}
-        text = render(results, {int(k): v for k, v in run["capacity"].items()}, run["sizes"], run["remarks"],
-                      run["footer"])
+        text = render(
+            results, {int(k): v for k, v in run["capacity"].items()}, run["sizes"], run["remarks"], run["footer"]
+        )
         print(text)
         if a.readme:
             reporting.write_section(MARKERS, text)
@@ -620,13 +795,24 @@ def main():
         raise SystemExit(f"badlink: {reason}")
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: sys.exit("badlink: stopped by signal"))
-    full = (a.links == list(LINKS) and a.clients == list(CLIENTS) and a.pictures == list(PICTURES)
-            and a.servers == list(SERVERS) and not a.phone and not a.no_deflate)
+    full = (
+        a.links == list(LINKS)
+        and a.clients == list(CLIENTS)
+        and a.pictures == list(PICTURES)
+        and a.servers == list(SERVERS)
+        and not a.phone
+        and not a.no_deflate
+    )
     started, load_before = time.monotonic(), os.getloadavg()[0]
     workdir = Path(tempfile.mkdtemp(prefix="badlink-"))
-    remarks = [("The roslibjs-style and careful clients and the driver offered no permessage-deflate (--no-deflate)."
-                if a.no_deflate else "The roslibjs-style and careful clients and the driver offered permessage-deflate "
-                "(`permessage-deflate; client_max_window_bits`), as browsers and roslibjs in Node do.")]
+    remarks = [
+        (
+            "The roslibjs-style and careful clients and the driver offered no permessage-deflate (--no-deflate)."
+            if a.no_deflate
+            else "The roslibjs-style and careful clients and the driver offered permessage-deflate "
+            "(`permessage-deflate; client_max_window_bits`), as browsers and roslibjs in Node do."
+        )
+    ]
     if "reference" in a.servers:
         why = peers.reference_missing(a)
         if why:
@@ -637,11 +823,16 @@ def main():
     if a.before:
         before_ws, commit = before_workspace(a.before, workdir / "before-build.log")
         a.servers.insert(1, "before")
-        when = subprocess.run(["git", "-C", str(REPO), "log", "-1", "--format=%cd", "--date=format:%Y-%m-%d %H:%M",
-                               commit], capture_output=True, text=True).stdout.strip()
+        when = subprocess.run(
+            ["git", "-C", str(REPO), "log", "-1", "--format=%cd", "--date=format:%Y-%m-%d %H:%M", commit],
+            capture_output=True,
+            text=True,
+        ).stdout.strip()
         EXTRA["before"] = f"the bridge before: `{commit[:7]}`"
-        remarks.append(f"\"The bridge before\": the bridge and its page as of commit `{commit[:7]}` ({when}), "
-                       "built from git and measured in the same run.")
+        remarks.append(
+            f'"The bridge before": the bridge and its page as of commit `{commit[:7]}` ({when}), '
+            "built from git and measured in the same run."
+        )
     bench = Bench(workdir, a)
     bench.before_ws = before_ws
     results, capacity, sizes = {}, {}, {}
@@ -663,8 +854,10 @@ def main():
                         try:
                             results[(mbit, kind, picture, server)] = bench.case(mbit, kind, picture, server)
                         except Exception as error:  # (one broken case, e.g. a bridge mid-edit, ends no run)
-                            remarks.append(f"{mbit} Mbit/s, {kind}, {picture}, {server}: the case failed: "
-                                           f"{str(error).strip().splitlines()[0][:200]} (logs: {workdir})")
+                            remarks.append(
+                                f"{mbit} Mbit/s, {kind}, {picture}, {server}: the case failed: "
+                                f"{str(error).strip().splitlines()[0][:200]} (logs: {workdir})"
+                            )
                             print(f"badlink: {remarks[-1]}", file=sys.stderr, flush=True)
         if "driver" in a.clients:  # (the dead-man stop does not depend on the rate: the narrowest link)
             for how in DRIVER_CUTS:
@@ -674,21 +867,35 @@ def main():
                     try:
                         results[(min(a.links), "driver", how, server)] = bench.drive(min(a.links), server, how)
                     except Exception as error:
-                        remarks.append(f"driver {how}, {server}: the case failed: "
-                                       f"{str(error).strip().splitlines()[0][:200]} (logs: {workdir})")
+                        remarks.append(
+                            f"driver {how}, {server}: the case failed: "
+                            f"{str(error).strip().splitlines()[0][:200]} (logs: {workdir})"
+                        )
                         print(f"badlink: {remarks[-1]}", file=sys.stderr, flush=True)
     finally:
         bench.close()
     sizes = {picture: bench.sizes[picture] for picture in PICTURES if picture in bench.sizes}
     elapsed = time.monotonic() - started
-    footer = (f"Measured {time.strftime('%Y-%m-%d %H:%M')} at {reporting.git_head()} on {os.cpu_count()} CPUs, "
-              f"{a.seconds:.0f} s per case after {a.warmup:.0f} s of warm-up; took {elapsed:.0f} s; load average "
-              f"{load_before:.1f} before, {os.getloadavg()[0]:.1f} after (the machine's other work shares its 2 "
-              f"cores with the rover, the servers, the clients and Chromium). Logs, screenshots and raw records: "
-              f"{workdir}")
-    (workdir / "run.json").write_text(json.dumps({
-        "results": {json.dumps(k): v for k, v in results.items()}, "capacity": capacity, "sizes": sizes,
-        "remarks": remarks, "footer": footer, "extra": EXTRA, "phone": PHONE}))
+    footer = (
+        f"Measured {time.strftime('%Y-%m-%d %H:%M')} at {reporting.git_head()} on {os.cpu_count()} CPUs, "
+        f"{a.seconds:.0f} s per case after {a.warmup:.0f} s of warm-up; took {elapsed:.0f} s; load average "
+        f"{load_before:.1f} before, {os.getloadavg()[0]:.1f} after (the machine's other work shares its 2 "
+        f"cores with the rover, the servers, the clients and Chromium). Logs, screenshots and raw records: "
+        f"{workdir}"
+    )
+    (workdir / "run.json").write_text(
+        json.dumps(
+            {
+                "results": {json.dumps(k): v for k, v in results.items()},
+                "capacity": capacity,
+                "sizes": sizes,
+                "remarks": remarks,
+                "footer": footer,
+                "extra": EXTRA,
+                "phone": PHONE,
+            }
+        )
+    )
     text = render(results, capacity, sizes, remarks, footer)
     print(text)
     if full and not a.no_readme:
@@ -696,15 +903,21 @@ def main():
 
 
 def render(results, capacity, sizes, remarks, footer):
-    return "\n\n".join([
-        table(results, capacity).markdown(),
-        "Pictures (JPEG q50 with Pillow, mean of the 30 frames; raw rgb8 is 921,600 B): " + ", ".join(
-            f"{s['picture']} {s['jpeg_q50_bytes'] / 1e3:.1f} kB (deflated raw: {s['deflate_bytes'] / 1e3:.0f} kB)"
-            for s in sizes.values()) + ".",
-        *remarks,
-        "Per case (server CPU as a share of one core; the server side's tbf queue, sampled every 0.5 s; for the "
-        "bridge, the code it ran: HEAD and a digest of uncommitted changes in src/ and web/):\n\n" + notes(results),
-        footer])
+    return "\n\n".join(
+        [
+            table(results, capacity).markdown(),
+            "Pictures (JPEG q50 with Pillow, mean of the 30 frames; raw rgb8 is 921,600 B): "
+            + ", ".join(
+                f"{s['picture']} {s['jpeg_q50_bytes'] / 1e3:.1f} kB (deflated raw: {s['deflate_bytes'] / 1e3:.0f} kB)"
+                for s in sizes.values()
+            )
+            + ".",
+            *remarks,
+            "Per case (server CPU as a share of one core; the server side's tbf queue, sampled every 0.5 s; for the "
+            "bridge, the code it ran: HEAD and a digest of uncommitted changes in src/ and web/):\n\n" + notes(results),
+            footer,
+        ]
+    )
 
 
 if __name__ == "__main__":

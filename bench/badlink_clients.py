@@ -22,6 +22,7 @@ link). One role per process:
 Protocol: READY when connected and subscribed; then each line on stdin is a command: `result` prints
 `RESULT <json>` (everything recorded, wall times in seconds), `shot <path>` saves a screenshot (console),
 `quit` ends."""
+
 import argparse
 import asyncio
 import base64
@@ -49,11 +50,18 @@ def main():
     p.add_argument("--listen", help="sink: address:port")
     p.add_argument("--window", default="1280,1100", help="console: the browser's viewport, width,height")
     p.add_argument("--phone", action="store_true", help="console: a phone's screen (390x844 at 3x, touch)")
-    p.add_argument("--no-deflate", action="store_true",
-                   help="ws, driver: offer no permessage-deflate (browsers and roslibjs in Node offer it)")
+    p.add_argument(
+        "--no-deflate",
+        action="store_true",
+        help="ws, driver: offer no permessage-deflate (browsers and roslibjs in Node offer it)",
+    )
     a = p.parse_args()
-    {"ws": lambda: asyncio.run(ws_client(a)), "console": lambda: console(a), "sink": lambda: sink(a),
-     "driver": lambda: asyncio.run(driver(a))}[a.role]()
+    {
+        "ws": lambda: asyncio.run(ws_client(a)),
+        "console": lambda: console(a),
+        "sink": lambda: sink(a),
+        "driver": lambda: asyncio.run(driver(a)),
+    }[a.role]()
 
 
 def commands():
@@ -67,6 +75,7 @@ def commands():
             event.set()
         lines.append(["quit"])
         event.set()
+
     threading.Thread(target=read, daemon=True).start()
     return lines, event
 
@@ -77,13 +86,14 @@ def report(**values):
 
 # ---- ws ----------------------------------------------------------------------------------------------------
 
+
 def subscribe_ops(a):
     roslibjs = {"compression": "none", "throttle_rate": 0, "queue_length": 0}
     camera = roslibjs if a.style == "roslibjs" else {"compression": "cbor", "throttle_rate": 66, "queue_length": 1}
-    return [{"op": "subscribe", "id": f"subscribe:{a.small}:1", "type": "std_msgs/Float64", "topic": a.small,
-             **roslibjs},
-            {"op": "subscribe", "id": f"subscribe:{a.camera}:2", "type": "sensor_msgs/Image", "topic": a.camera,
-             **camera}]
+    return [
+        {"op": "subscribe", "id": f"subscribe:{a.small}:1", "type": "std_msgs/Float64", "topic": a.small, **roslibjs},
+        {"op": "subscribe", "id": f"subscribe:{a.camera}:2", "type": "sensor_msgs/Image", "topic": a.camera, **camera},
+    ]
 
 
 def deflate_offer(a):
@@ -120,8 +130,9 @@ async def ws_client(a):
         else:
             statuses.append((now, f"op {kind}"))
 
-    ws = await websocket_connect(a.url, max_message_size=64 << 20, on_message_callback=on_frame,
-                                 compression_options=deflate_offer(a))
+    ws = await websocket_connect(
+        a.url, max_message_size=64 << 20, on_message_callback=on_frame, compression_options=deflate_offer(a)
+    )
     if a.style == "careful":  # (it wants to hear what its link cost it: the bridge tells that as warnings)
         await ws.write_message(json.dumps({"op": "set_level", "level": "warning"}))
     for op in subscribe_ops(a):
@@ -133,9 +144,15 @@ async def ws_client(a):
             await asyncio.sleep(0.05)
         words = lines.pop(0)
         if words[:1] == ["result"]:
-            report(small=small, camera=camera, statuses=statuses[:20], status_count=len(statuses), closed=closed,
-                   deflate=ws.headers.get("Sec-WebSocket-Extensions"),
-                   wire_bytes=ws.protocol._wire_bytes_in)  # (Tornado's own count of what the socket read)
+            report(
+                small=small,
+                camera=camera,
+                statuses=statuses[:20],
+                status_count=len(statuses),
+                closed=closed,
+                deflate=ws.headers.get("Sec-WebSocket-Extensions"),
+                wire_bytes=ws.protocol._wire_bytes_in,
+            )  # (Tornado's own count of what the socket read)
         elif words[:1] == ["quit"]:
             break
     ws.close()
@@ -144,12 +161,23 @@ async def ws_client(a):
 async def driver(a):
     from tornado.websocket import websocket_connect
 
-    ws = await websocket_connect(a.url, max_message_size=64 << 20, on_message_callback=lambda frame: None,
-                                 compression_options=deflate_offer(a))
+    ws = await websocket_connect(
+        a.url, max_message_size=64 << 20, on_message_callback=lambda frame: None, compression_options=deflate_offer(a)
+    )
     ws.stream.set_nodelay(True)
     await ws.write_message(json.dumps({"op": "advertise", "topic": a.cmd_vel, "type": "geometry_msgs/Twist"}))
-    await ws.write_message(json.dumps({"op": "subscribe", "topic": a.camera, "type": "sensor_msgs/Image",
-                                       "compression": "cbor", "throttle_rate": 66, "queue_length": 1}))
+    await ws.write_message(
+        json.dumps(
+            {
+                "op": "subscribe",
+                "topic": a.camera,
+                "type": "sensor_msgs/Image",
+                "compression": "cbor",
+                "throttle_rate": 66,
+                "queue_length": 1,
+            }
+        )
+    )
     period, due, n = 0.05, time.monotonic(), 0
     while True:
         twist = {"linear": {"x": 1.0, "y": 0.0, "z": time.time()}, "angular": {"x": 0.0, "y": 0.0, "z": 0.0}}
@@ -163,10 +191,20 @@ async def driver(a):
 
 # ---- console -----------------------------------------------------------------------------------------------
 
-CHROMIUM_FLAGS = ["--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--disable-quic",
-                  "--no-first-run", "--disable-background-networking", "--disable-component-update",
-                  "--disable-sync", "--disable-background-timer-throttling",
-                  "--disable-renderer-backgrounding", "--disable-backgrounding-occluded-windows"]
+CHROMIUM_FLAGS = [
+    "--headless=new",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-dev-shm-usage",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--disable-background-timer-throttling",
+    "--disable-renderer-backgrounding",
+    "--disable-backgrounding-occluded-windows",
+]
 
 
 def wait(what, predicate, timeout=60):
@@ -184,10 +222,15 @@ def open_console(driver, a):
     """The console as a driver sets it up: the small topic opened in the Topics panel, the camera chosen in the
     Camera panel, both shown at once (the console's tabs show one at a time: the Topics tab is kept visible
     beside the Camera tab, as bench/page_bench.py does)."""
-    wait("the page connected", lambda: driver.execute_script(
-        "return document.querySelector('#conn')?.dataset.state") == "connected")
-    open_small = """const row = document.querySelector('tr[data-topic="%s"] button');
-                    if (row) row.click(); return Boolean(row);""" % a.small
+    wait(
+        "the page connected",
+        lambda: driver.execute_script("return document.querySelector('#conn')?.dataset.state") == "connected",
+    )
+    open_small = (
+        """const row = document.querySelector('tr[data-topic="%s"] button');
+                    if (row) row.click(); return Boolean(row);"""
+        % a.small
+    )
     wait(f"{a.small} listed in Topics", lambda: driver.execute_script(open_small))
     choose = """const button = document.getElementById('tab-button-camera'); if (button) button.click();
                 const select = document.getElementById('camera-topic');
@@ -211,22 +254,30 @@ def console(a):
     options.add_argument(f"--user-data-dir={profile}")
     options.add_argument(f"--window-size={width},{height}")
     if a.phone:  # (as test/browser's phone screen)
-        options.add_experimental_option("mobileEmulation", {"deviceMetrics": {
-            "width": width, "height": height, "pixelRatio": 3, "touch": True}})
+        options.add_experimental_option(
+            "mobileEmulation", {"deviceMetrics": {"width": width, "height": height, "pixelRatio": 3, "touch": True}}
+        )
     driver = webdriver.Chrome(service=Service(executable_path="/usr/bin/chromedriver"), options=options)
     try:
         if not a.phone:
-            driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride", {
-                "width": width, "height": height, "deviceScaleFactor": 1, "mobile": False})
+            driver.execute_cdp_cmd(
+                "Emulation.setDeviceMetricsOverride",
+                {"width": width, "height": height, "deviceScaleFactor": 1, "mobile": False},
+            )
         driver.set_script_timeout(30)
         driver.get(a.url)
         if a.mode == "bridge":
             open_console(driver, a)
         small_selectors = [f'.open-topic[data-topic="{a.small}"] .message', "#small"]
-        driver.execute_script(f"window.badlinkConfig = {json.dumps({'smallSelectors': small_selectors})};\n"
-                              + (BENCH / "badlink_page.js").read_text())
-        wait("a camera picture with a readable stamp", lambda: driver.execute_script(
-            "return window.badlink.camera.length > 0"), timeout=90)
+        driver.execute_script(
+            f"window.badlinkConfig = {json.dumps({'smallSelectors': small_selectors})};\n"
+            + (BENCH / "badlink_page.js").read_text()
+        )
+        wait(
+            "a camera picture with a readable stamp",
+            lambda: driver.execute_script("return window.badlink.camera.length > 0"),
+            timeout=90,
+        )
         print("READY", flush=True)
         lines, event = commands()
         while True:
@@ -236,16 +287,20 @@ def console(a):
                 words = lines.pop(0)
                 if words[:1] == ["result"]:
                     got = driver.execute_script("return window.badlink")
-                    report(camera=[[t / 1000, age / 1000] for t, age in got["camera"]],
-                           small=[[t / 1000, age / 1000] for t, age in got["small"]],
-                           frames=[t / 1000 for t in got["frames"]], readouts=got["readouts"][-40:],
-                           in_view=[[t / 1000, camera, small] for t, camera, small in got["inView"]],
-                           element=got["element"])
+                    report(
+                        camera=[[t / 1000, age / 1000] for t, age in got["camera"]],
+                        small=[[t / 1000, age / 1000] for t, age in got["small"]],
+                        frames=[t / 1000 for t in got["frames"]],
+                        readouts=got["readouts"][-40:],
+                        in_view=[[t / 1000, camera, small] for t, camera, small in got["inView"]],
+                        element=got["element"],
+                    )
                 elif words[:1] == ["shot"]:  # the whole page, not only the viewport (from its top: a sticky
                     driver.execute_script("window.scrollTo(0, 0)")  # header would be drawn where it is scrolled to)
                     time.sleep(0.3)
-                    shot = driver.execute_cdp_cmd("Page.captureScreenshot",
-                                                  {"format": "png", "captureBeyondViewport": True})
+                    shot = driver.execute_cdp_cmd(
+                        "Page.captureScreenshot", {"format": "png", "captureBeyondViewport": True}
+                    )
                     Path(words[1]).write_bytes(base64.b64decode(shot["data"]))
                     print(f"SHOT {words[1]}", flush=True)
                 elif words[:1] == ["quit"]:
@@ -256,6 +311,7 @@ def console(a):
 
 
 # ---- sink --------------------------------------------------------------------------------------------------
+
 
 def sink(a):
     host, port = a.listen.rsplit(":", 1)

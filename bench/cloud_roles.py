@@ -11,6 +11,7 @@
          than SEQ). A rospy subscriber is no ceiling here: its reading costs more than the whole bridge's does.
 
 Same protocol with bench/suite.py as ros_roles.py: READY when ready, `RESULT <json>` at the end."""
+
 import argparse
 import asyncio
 import http.client
@@ -58,6 +59,7 @@ def fetch(a):
             elif answer.status != 204:  # (204: none newer yet, ask again)
                 problems.append(f"{answer.status} {body[:200]!r}")
                 time.sleep(0.5)
+
     threading.Thread(target=ask, daemon=True).start()
     print("READY", flush=True)
     seen.wait(a.count, a.idle, a.timeout)
@@ -79,12 +81,21 @@ class Newest:
 
     def answer(self, max_points):
         from rosbridge.http.cloud import decimate, read_cloud
+
         if max_points not in self.made:
             cloud = read_cloud(self.raw)
             body, kept, total, third = decimate(cloud, max_points)
-            self.made[max_points] = ({"X-Seq": str(self.seq), "X-Points": str(kept), "X-Points-Total": str(total),
-                                      "X-Third": third, "X-Frame-Id": cloud.frame_id,
-                                      "X-Timestamp": f"{cloud.stamp:.6f}"}, body)
+            self.made[max_points] = (
+                {
+                    "X-Seq": str(self.seq),
+                    "X-Points": str(kept),
+                    "X-Points-Total": str(total),
+                    "X-Third": third,
+                    "X-Frame-Id": cloud.frame_id,
+                    "X-Timestamp": f"{cloud.stamp:.6f}",
+                },
+                body,
+            )
         return self.made[max_points]
 
 
@@ -93,13 +104,15 @@ def publisher_address(topic, callerid, timeout):
     import xmlrpc.client
 
     import rosgraph
+
     master = rosgraph.Master(callerid)
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         publishers = dict(master.getSystemState()[0]).get(topic)
         if publishers:
             code, message, protocol = xmlrpc.client.ServerProxy(master.lookupNode(publishers[0])).requestTopic(
-                callerid, topic, [["TCPROS"]])
+                callerid, topic, [["TCPROS"]]
+            )
             if code == 1:
                 return protocol[1], protocol[2]
         time.sleep(0.1)
@@ -113,6 +126,7 @@ def receive(topic, deliver, timeout):
     from sensor_msgs.msg import PointCloud2
 
     from rosbridge.ros_side import tcpros
+
     callerid = "/cloud_ceiling"
     sock = socket.create_connection(publisher_address(topic, callerid, timeout))
     sock.sendall(tcpros.encode_header(tcpros.subscriber_header(topic, PointCloud2, callerid)))
@@ -126,6 +140,7 @@ def receive(topic, deliver, timeout):
                 raise SystemExit("the publisher left")
             got += count
         return buffer
+
     reply = tcpros.decode_header(bytes(exactly(tcpros.header_size(exactly(4)))))
     if "error" in reply:
         raise SystemExit(f"the publisher refused: {reply['error']}")
@@ -148,7 +163,7 @@ async def serve(a):
             while newest.raw is None or newest.seq <= after:
                 try:
                     await asyncio.wait_for(newest.newer.wait(), deadline - loop.time())
-                except asyncio.TimeoutError:
+                except TimeoutError:
                     self.set_status(204)
                     return
             headers, body = newest.answer(max_points)
@@ -158,8 +173,11 @@ async def serve(a):
             self.finish(body)
 
     tornado.web.Application([("/cloud", CloudHandler)]).listen(a.port, "127.0.0.1")
-    threading.Thread(target=receive, args=(a.topic, lambda raw: loop.call_soon_threadsafe(newest.deliver, raw),
-                                           a.timeout), daemon=True).start()
+    threading.Thread(
+        target=receive,
+        args=(a.topic, lambda raw: loop.call_soon_threadsafe(newest.deliver, raw), a.timeout),
+        daemon=True,
+    ).start()
     print("READY", flush=True)
     await asyncio.Event().wait()
 

@@ -14,6 +14,7 @@ the last; what it still holds after the last (all medians over --rounds runs). N
 
     export PATH=/usr/bin:$PATH; source .build/setup.bash; python3 bench/convert_bench.py [--before REV]
 """
+
 import argparse
 import ctypes
 import gc
@@ -30,16 +31,15 @@ import types
 import geometry_msgs.msg
 import nav_msgs.msg
 import sensor_msgs.msg
+from nav_messages import deserialized, laser_scan, occupancy_grid, point_cloud, serialized
 
-from rosbridge.codec.json_values import dumps, from_json, to_json
 from rosbridge.codec.cbor import cbor_parts, to_cbor_value
-from rosbridge.codec.wrapping import png_frame
-from rosbridge.protocol.encoded import Utf8Text, cbor_frame
 from rosbridge.codec.json_to_ros import packer
+from rosbridge.codec.json_values import dumps, from_json, to_json
 from rosbridge.codec.ros_to_cbor import cbor_value
 from rosbridge.codec.ros_to_json import SPLICE_MARK, json_parts, json_text
-
-from nav_messages import deserialized, laser_scan, occupancy_grid, point_cloud, serialized
+from rosbridge.codec.wrapping import png_frame
+from rosbridge.protocol.encoded import Utf8Text, cbor_frame
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 TOPIC = "/bench"
@@ -54,12 +54,15 @@ def best_microseconds(function, repeats=5):
 def samples():
     twist = geometry_msgs.msg.Twist()
     twist.linear.x, twist.angular.z = 1.5, -0.25
-    image = sensor_msgs.msg.Image(height=480, width=640, encoding="rgb8", step=640 * 3,
-                                  data=bytes(range(256)) * (640 * 480 * 3 // 256))
+    image = sensor_msgs.msg.Image(
+        height=480, width=640, encoding="rgb8", step=640 * 3, data=bytes(range(256)) * (640 * 480 * 3 // 256)
+    )
     image.header.frame_id = "camera"
-    return {"geometry_msgs/Twist": twist, "sensor_msgs/LaserScan 1081 rays": deserialized(sensor_msgs.msg.LaserScan,
-                                                                                        serialized(laser_scan())),
-            "sensor_msgs/Image 640x480 rgb8": image}
+    return {
+        "geometry_msgs/Twist": twist,
+        "sensor_msgs/LaserScan 1081 rays": deserialized(sensor_msgs.msg.LaserScan, serialized(laser_scan())),
+        "sensor_msgs/Image 640x480 rgb8": image,
+    }
 
 
 def micro_table():
@@ -89,14 +92,17 @@ def micro_table():
 # ---------------------------------------------------------------------------------------------------------
 # Big messages
 
-BIG = {"nav_msgs/OccupancyGrid 4000x4000": lambda: (nav_msgs.msg.OccupancyGrid, serialized(occupancy_grid())),
-       "sensor_msgs/PointCloud2 300k points": lambda: (sensor_msgs.msg.PointCloud2, serialized(point_cloud()))}
+BIG = {
+    "nav_msgs/OccupancyGrid 4000x4000": lambda: (nav_msgs.msg.OccupancyGrid, serialized(occupancy_grid())),
+    "sensor_msgs/PointCloud2 300k points": lambda: (sensor_msgs.msg.PointCloud2, serialized(point_cloud())),
+}
 
 
 def module_at(revision, path, name):
     """The module at `path` as it was at git `revision` (its imports from the rosbridge package of today)."""
-    source = subprocess.run(["git", "-C", REPO, "show", f"{revision}:{path}"], capture_output=True, text=True,
-                            check=True).stdout
+    source = subprocess.run(
+        ["git", "-C", REPO, "show", f"{revision}:{path}"], capture_output=True, text=True, check=True
+    ).stdout
     module = types.ModuleType(name)
     module.__file__ = f"{revision}:{path}"
     sys.modules[name] = module
@@ -122,8 +128,9 @@ def encoder(road, encoding, before=None):
     if road == "genpy" and encoding == "json":
         return lambda cls, data: json_publish(dumps(to_json(deserialized(cls, data))), [])
     if road == "genpy":
-        return lambda cls, data: cbor_parts({"op": "publish", "topic": TOPIC,
-                                             "msg": to_cbor_value(deserialized(cls, data))})
+        return lambda cls, data: cbor_parts(
+            {"op": "publish", "topic": TOPIC, "msg": to_cbor_value(deserialized(cls, data))}
+        )
     if encoding == "json":  # before: REV's ros_to_json
         old = module_at(before, "src/rosbridge/codec/ros_to_json.py", "ros_to_json_before")
         return lambda cls, data: json_publish(*old.json_parts(cls)(data))
@@ -133,8 +140,9 @@ def encoder(road, encoding, before=None):
         return lambda cls, data: cbor_parts({"op": "publish", "topic": TOPIC, "msg": old.cbor_value(cls)(data)})
     except subprocess.CalledProcessError:
         old_cbor = module_at(before, "src/rosbridge/codec/cbor.py", "cbor_before")
-        return lambda cls, data: old_cbor.cbor_parts({"op": "publish", "topic": TOPIC,
-                                                      "msg": old_cbor.to_cbor_value(deserialized(cls, data))})
+        return lambda cls, data: old_cbor.cbor_parts(
+            {"op": "publish", "topic": TOPIC, "msg": old_cbor.to_cbor_value(deserialized(cls, data))}
+        )
 
 
 def _status_kb(*keys):
@@ -160,8 +168,7 @@ def one_road(name, road, encoding, reps, before):
     """In a process of its own: reps encodings of the big message `name`, a cloud and a scan between two; prints
     JSON: [[cpu s, peak kB above idle, kB held after], ...], the frame's size."""
     cls, data = BIG[name]()
-    others = [BIG["sensor_msgs/PointCloud2 300k points"](),
-              (sensor_msgs.msg.LaserScan, serialized(laser_scan()))]
+    others = [BIG["sensor_msgs/PointCloud2 300k points"](), (sensor_msgs.msg.LaserScan, serialized(laser_scan()))]
     encode = encoder(road, encoding, before)
     encode(cls, serialized(cls()))  # (readers generated, modules imported: not counted)
     for other_cls, other in others:
@@ -192,21 +199,35 @@ def big_table(roads, reps, rounds, before):
     for _ in range(rounds):  # (rounds alternate the roads, so a busy moment hits them alike)
         for name, encoding, road in itertools.product(BIG, ("json", "cbor"), roads):
             reps_here = reps if road != "genpy" or encoding == "cbor" else min(reps, 3)  # (3 s a map each)
-            command = [sys.executable, os.path.abspath(__file__), "--one", name, road, encoding, "--reps",
-                       str(reps_here)] + (["--before", before] if before else [])
+            command = [
+                sys.executable,
+                os.path.abspath(__file__),
+                "--one",
+                name,
+                road,
+                encoding,
+                "--reps",
+                str(reps_here),
+            ] + (["--before", before] if before else [])
             out = subprocess.run(command, capture_output=True, text=True, check=True).stdout
             runs.setdefault((name, encoding, road), []).append(json.loads(out))
     label = {"now": "now", "genpy": "genpy", "before": f"before ({before})"}
-    print(f"\n{'big message':36} {'road':22} {'CPU ms: 1st / last':>19} {'ms/MB':>7} "
-          f"{'peak MB: 1st / last':>20} {'held MB':>8} {'frame MB':>9}")
+    print(
+        f"\n{'big message':36} {'road':22} {'CPU ms: 1st / last':>19} {'ms/MB':>7} "
+        f"{'peak MB: 1st / last':>20} {'held MB':>8} {'frame MB':>9}"
+    )
     for (name, encoding, road), results in runs.items():
+
         def median(index, rep):
             return statistics.median(run["results"][rep][index] for run in results)
+
         cpu = statistics.median(statistics.median(rep[0] for rep in run["results"]) for run in results)
         road_name = f"{encoding.upper()}: {label[road]}"
-        print(f"{name:36} {road_name:22} {median(0, 0) * 1e3:9.1f} / {median(0, -1) * 1e3:7.1f} "
-              f"{cpu / results[0]['bytes'] * 1e9:7.2f} {median(1, 0) / 1024:9.0f} / {median(1, -1) / 1024:8.0f} "
-              f"{median(2, -1) / 1024:8.1f} {results[0]['size'] / 1e6:9.1f}")
+        print(
+            f"{name:36} {road_name:22} {median(0, 0) * 1e3:9.1f} / {median(0, -1) * 1e3:7.1f} "
+            f"{cpu / results[0]['bytes'] * 1e9:7.2f} {median(1, 0) / 1024:9.0f} / {median(1, -1) / 1024:8.0f} "
+            f"{median(2, -1) / 1024:8.1f} {results[0]['size'] / 1e6:9.1f}"
+        )
 
 
 def main():

@@ -4,6 +4,7 @@ channels (id, topic, encoding `ros1`, schemaName, schema), polling the master fo
 client subscribes with {"op": "subscribe", "subscriptions": [{"id": N, "channelId": C}]} and gets each message as
 a binary frame: opcode 0x01, the subscription id (u32 LE), the receive time (u64 LE, ns), the message's ROS 1
 bytes."""
+
 import asyncio
 import json
 import struct
@@ -20,7 +21,7 @@ def message_data(frame):
     if len(frame) < _HEAD.size or frame[0] != MESSAGE_DATA:
         return None
     _, subscription, receive_ns = _HEAD.unpack_from(frame)
-    return subscription, receive_ns, memoryview(frame)[_HEAD.size:]
+    return subscription, receive_ns, memoryview(frame)[_HEAD.size :]
 
 
 class Client:
@@ -37,8 +38,14 @@ class Client:
 
     async def connect(self, url, timeout=30):
         from tornado.websocket import websocket_connect
-        self.ws = await websocket_connect(url, subprotocols=[SUBPROTOCOL], max_message_size=64 << 20,
-                                          on_message_callback=self._frame, connect_timeout=timeout)
+
+        self.ws = await websocket_connect(
+            url,
+            subprotocols=[SUBPROTOCOL],
+            max_message_size=64 << 20,
+            on_message_callback=self._frame,
+            connect_timeout=timeout,
+        )
         return self
 
     def _frame(self, frame):
@@ -70,7 +77,7 @@ class Client:
             self.advertised.clear()
             try:
                 await asyncio.wait_for(self.advertised.wait(), 1.0)
-            except asyncio.TimeoutError:
+            except TimeoutError:
                 pass
         subscriptions = []
         for topic in topics:

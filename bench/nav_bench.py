@@ -10,6 +10,7 @@ and maps. The clients (bench/nav_clients.py) check every message they get agains
 
 It starts its own roscore on a free port and stops everything it started at the end, even on failure. A peer that
 is not there (bench/peers.py) is skipped, with the reason, and the rest runs."""
+
 import argparse
 import json
 import os
@@ -25,9 +26,9 @@ from pathlib import Path
 BENCH = Path(__file__).resolve().parent
 REPO = BENCH.parent
 sys.path.insert(0, str(REPO / "test"))
-import harness  # noqa: E402  (private roscore, process groups, logs, /proc readings)
-
 import nav_messages  # noqa: E402
+
+import harness  # noqa: E402  (private roscore, process groups, logs, /proc readings)
 import peers  # noqa: E402
 import reporting  # noqa: E402
 import stats  # noqa: E402
@@ -35,8 +36,12 @@ import stats  # noqa: E402
 PY = "/usr/bin/python3"
 MARKERS = ("<!-- nav:start -->", "<!-- nav:end -->")
 SERVERS = ("bridge", "reference", "ceiling", "foxglove")
-NAMES = {"bridge": "this bridge", "reference": peers.REFERENCE_NAME, "ceiling": "the ceiling",
-         "foxglove": peers.FOXGLOVE_NAME}
+NAMES = {
+    "bridge": "this bridge",
+    "reference": peers.REFERENCE_NAME,
+    "ceiling": "the ceiling",
+    "foxglove": peers.FOXGLOVE_NAME,
+}
 ENCODINGS = ("json", "cbor", "cbor-raw")  # (and, for the map, "fragments"; foxglove: "raw")
 FRAGMENT_SIZE = 100_000
 WARMUP, GRACE = 1.0, 1.0  # s before a window; after it, for what was stamped in it to arrive
@@ -117,11 +122,17 @@ class Bench:
     def server(self, kind, **params):
         if kind == "bridge":
             proc, port = harness.launch_bridge(self.ros, node_name="nav_bridge")
-            server = Server(kind, proc, harness.ProcStat(harness.node_pid(self.ros, "/nav_bridge")),
-                            f"ws://127.0.0.1:{port}/", self.robot)
+            server = Server(
+                kind,
+                proc,
+                harness.ProcStat(harness.node_pid(self.ros, "/nav_bridge")),
+                f"ws://127.0.0.1:{port}/",
+                self.robot,
+            )
         elif kind == "reference":
-            server = Server(kind, *peers.start_reference(self.ros, self.a, name=f"{self.spawned:03d}-reference"),
-                            self.robot)
+            server = Server(
+                kind, *peers.start_reference(self.ros, self.a, name=f"{self.spawned:03d}-reference"), self.robot
+            )
         elif kind == "foxglove":
             server = Server(kind, *peers.start_foxglove(self.ros, self.a, name="nav_foxglove", **params), self.robot)
         else:
@@ -134,8 +145,9 @@ class Bench:
         return server
 
     def client(self, server, specs):
-        proc = self.start([PY, BENCH / "nav_clients.py", server.role, "--url", server.url, *specs],
-                          f"client-{server.kind}")
+        proc = self.start(
+            [PY, BENCH / "nav_clients.py", server.role, "--url", server.url, *specs], f"client-{server.kind}"
+        )
         self.wait_line(proc, r"^READY", 120)
         return proc
 
@@ -178,11 +190,20 @@ class Bench:
             self.quit(client)
         record = got["streams"][name]
         arrived = record["arrivals"][0] if came and record["arrivals"] else None
-        return {"delivered": 1.0 if arrived else 0.0, "after_asked": arrived[0] - record["asked"] if arrived else None,
-                "wire_bytes": arrived[2] if arrived else None, "cpu_s": cpu_s if arrived else None,
-                "cpu": per_unit(cpu_s, 1, self.ros_bytes[name]) if arrived else None, "rss_before": before,
-                "peak_rss": peak, "rss_after": after, "checked": record["checked"], "wrong": record["wrong"],
-                "first_wrong": record["first_wrong"], "statuses": got["statuses"][:3]}
+        return {
+            "delivered": 1.0 if arrived else 0.0,
+            "after_asked": arrived[0] - record["asked"] if arrived else None,
+            "wire_bytes": arrived[2] if arrived else None,
+            "cpu_s": cpu_s if arrived else None,
+            "cpu": per_unit(cpu_s, 1, self.ros_bytes[name]) if arrived else None,
+            "rss_before": before,
+            "peak_rss": peak,
+            "rss_after": after,
+            "checked": record["checked"],
+            "wrong": record["wrong"],
+            "first_wrong": record["first_wrong"],
+            "statuses": got["statuses"][:3],
+        }
 
     def fresh_latched(self, kind, name, encoding, **params):
         """The map on a server started for it (so that nothing of an earlier case is held)."""
@@ -218,16 +239,27 @@ class Bench:
         finally:
             self.quit(client)
             self.stop(server.proc)
-        figures = {"cpu_share": cpu_s / (t1 - t0), "peak_rss": peak, "idle_rss": server.idle_rss,
-                   "statuses": got["statuses"][:3], "status_count": got["status_count"], "streams": {}}
+        figures = {
+            "cpu_share": cpu_s / (t1 - t0),
+            "peak_rss": peak,
+            "idle_rss": server.idle_rss,
+            "statuses": got["statuses"][:3],
+            "status_count": got["status_count"],
+            "streams": {},
+        }
         for name, record in got["streams"].items():
             stream = nav_messages.BY_NAME[name]
             if stream.hz:
                 f = window_figures(record, t0, t1, published[name], self.ros_bytes[name])
             else:
                 first = record["arrivals"][0] if record["arrivals"] else None
-                f = {"delivered": 1.0 if first else 0.0, "after_asked": first[0] - record["asked"] if first else None,
-                     "checked": record["checked"], "wrong": record["wrong"], "first_wrong": record["first_wrong"]}
+                f = {
+                    "delivered": 1.0 if first else 0.0,
+                    "after_asked": first[0] - record["asked"] if first else None,
+                    "checked": record["checked"],
+                    "wrong": record["wrong"],
+                    "first_wrong": record["first_wrong"],
+                }
             figures["streams"][name] = f
         return figures
 
@@ -244,8 +276,10 @@ class Bench:
             clients.append(watcher)
             self.wait_line(watcher, r"^GOT map 1$", 120)
             maps = [self.one_map(server, watcher, 2)]
-            clients += [self.client(server, [spec("points", "json")]),
-                        self.client(server, [spec("points", "cbor"), spec("map", "cbor")])]
+            clients += [
+                self.client(server, [spec("points", "json")]),
+                self.client(server, [spec("points", "cbor"), spec("map", "cbor")]),
+            ]
             end, n = time.monotonic() + run_seconds, 2
             while time.monotonic() < end:
                 self.ask(self.robot, "map")
@@ -279,6 +313,7 @@ class Bench:
 
 # ---- figures -------------------------------------------------------------------------------------------------
 
+
 def window_figures(record, t0, t1, published, ros_bytes):
     """A stream's figures in the window [t0, t1) from a client's record: delivered (of what was published stamped
     in the window, the share that arrived by GRACE after it), ages (arrival - stamp) of what arrived in it, what
@@ -287,11 +322,18 @@ def window_figures(record, t0, t1, published, ros_bytes):
     inside = [(at, stamp, size) for at, stamp, size in arrivals if t0 <= at < t1]
     on_time = {stamp for at, stamp, _ in arrivals if stamp is not None and t0 <= stamp < t1 and at <= t1 + GRACE}
     ages = sorted(at - stamp for at, stamp, _ in inside if stamp is not None)
-    return {"delivered": len(on_time) / published if published else None, "published": published,
-            "in_window": len(inside), "age_p50": stats.percentile(ages, 0.5), "age_p95": stats.percentile(ages, 0.95),
-            "age_max": ages[-1] if ages else None,
-            "wire_bytes": sum(size for _, _, size in inside) / len(inside) if inside else None,
-            "checked": record["checked"], "wrong": record["wrong"], "first_wrong": record["first_wrong"]}
+    return {
+        "delivered": len(on_time) / published if published else None,
+        "published": published,
+        "in_window": len(inside),
+        "age_p50": stats.percentile(ages, 0.5),
+        "age_p95": stats.percentile(ages, 0.95),
+        "age_max": ages[-1] if ages else None,
+        "wire_bytes": sum(size for _, _, size in inside) / len(inside) if inside else None,
+        "checked": record["checked"],
+        "wrong": record["wrong"],
+        "first_wrong": record["first_wrong"],
+    }
 
 
 def per_unit(cpu_s, messages, ros_bytes):
@@ -304,6 +346,7 @@ def per_unit(cpu_s, messages, ros_bytes):
 
 
 # ---- the run ---------------------------------------------------------------------------------------------------
+
 
 def measure(bench, a, remarks, loads):
     """Every case; returns {"streams": {(stream, server, encoding): figures}, "all": {...}, "again": {...}}."""
@@ -331,20 +374,22 @@ def measure(bench, a, remarks, loads):
                     road = "raw" if kind == "foxglove" else encoding
                     print(f"nav: {name} {kind} {road}", file=sys.stderr, flush=True)
                     results["streams"][(name, kind, road)] = attempt(
-                        f"{name}, {kind}, {road}", lambda: bench.streaming(server, name, road))
+                        f"{name}, {kind}, {road}", lambda: bench.streaming(server, name, road)
+                    )
             loads.append((name, os.getloadavg()[0]))
         for name in [n for n in latched if n != "map"]:  # (tf_static: small, on the running servers)
             for kind, server in servers.items():
-                for road in (["raw"] if kind == "foxglove" else ENCODINGS):
+                for road in ["raw"] if kind == "foxglove" else ENCODINGS:
                     results["streams"][(name, kind, road)] = attempt(
-                        f"{name}, {kind}, {road}", lambda: bench.latched(server, name, road))
+                        f"{name}, {kind}, {road}", lambda: bench.latched(server, name, road)
+                    )
     finally:
         bench.stop(*(s.proc for s in servers.values()))
     if "map" in latched:  # (each on a server of its own; rounds alternate the servers)
         runs = {}
         for _ in range(a.map_repeats):
             for kind in servers:
-                for road in (["raw"] if kind == "foxglove" else [*ENCODINGS, "fragments"]):
+                for road in ["raw"] if kind == "foxglove" else [*ENCODINGS, "fragments"]:
                     print(f"nav: map {kind} {road}", file=sys.stderr, flush=True)
                     got = attempt(f"map, {kind}, {road}", lambda: bench.fresh_latched(kind, "map", road))
                     runs.setdefault((kind, road), []).append(got)
@@ -352,16 +397,24 @@ def measure(bench, a, remarks, loads):
             results["streams"][("map", kind, road)] = median_figures([g for g in got if g])
         loads.append(("map", os.getloadavg()[0]))
         if "foxglove" in servers:  # (at its defaults its 10 MB send buffer limit drops the map: one with room)
-            got = attempt("map, foxglove, 100 MB", lambda: bench.fresh_latched(
-                "foxglove", "map", "raw", send_buffer_limit=100_000_000))
+            got = attempt(
+                "map, foxglove, 100 MB",
+                lambda: bench.fresh_latched("foxglove", "map", "raw", send_buffer_limit=100_000_000),
+            )
             results["streams"][("map", "foxglove", "raw, send_buffer_limit 100 MB")] = got
-    for kind, encoding, map_encoding in (("bridge", "json", "json"), ("bridge", "cbor", "cbor"),
-                                         ("bridge", "json", "fragments"), ("reference", "json", "json"),
-                                         ("reference", "json", "fragments"), ("foxglove", "raw", "raw")):
+    for kind, encoding, map_encoding in (
+        ("bridge", "json", "json"),
+        ("bridge", "cbor", "cbor"),
+        ("bridge", "json", "fragments"),
+        ("reference", "json", "json"),
+        ("reference", "json", "fragments"),
+        ("foxglove", "raw", "raw"),
+    ):
         if kind in servers:
             print(f"nav: all at once {kind} {encoding} {map_encoding}", file=sys.stderr, flush=True)
             results["all"][(kind, encoding, map_encoding)] = attempt(
-                f"all at once, {kind}, {map_encoding}", lambda: bench.all_at_once(kind, encoding, map_encoding))
+                f"all at once, {kind}, {map_encoding}", lambda: bench.all_at_once(kind, encoding, map_encoding)
+            )
     loads.append(("all at once", os.getloadavg()[0]))
     if "map" in a.streams and "points" in a.streams and "bridge" in servers:
         print("nav: the map again", file=sys.stderr, flush=True)
@@ -383,6 +436,7 @@ def median_figures(runs):
 
 
 # ---- the report ------------------------------------------------------------------------------------------------
+
 
 def fmt(value, unit=""):
     if value is None:
@@ -414,12 +468,22 @@ def right(f):
 
 
 def streams_table(results, ros_bytes):
-    head = ["Stream", "Encoding", "Bridge CPU", f"{peers.REFERENCE_NAME} (same encoding)", "Ratio",
-            "Ceiling (same bytes)", "Ratio", f"{peers.FOXGLOVE_NAME} (ROS bytes)", "Ratio",
-            "Delivered: bridge / reference / ceiling / foxglove",
-            "Age p95 (latched: arrived after being asked): bridge / reference / ceiling / foxglove",
-            "Peak RSS: bridge / reference / foxglove", "RSS after: bridge / reference / foxglove",
-            "Whole and right: bridge; reference; foxglove"]
+    head = [
+        "Stream",
+        "Encoding",
+        "Bridge CPU",
+        f"{peers.REFERENCE_NAME} (same encoding)",
+        "Ratio",
+        "Ceiling (same bytes)",
+        "Ratio",
+        f"{peers.FOXGLOVE_NAME} (ROS bytes)",
+        "Ratio",
+        "Delivered: bridge / reference / ceiling / foxglove",
+        "Age p95 (latched: arrived after being asked): bridge / reference / ceiling / foxglove",
+        "Peak RSS: bridge / reference / foxglove",
+        "RSS after: bridge / reference / foxglove",
+        "Whole and right: bridge; reference; foxglove",
+    ]
     lines = ["| " + " | ".join(head) + " |", "|" + "|".join(["---"] * 2 + ["---:"] * 11 + ["---"]) + "|"]
     s = results["streams"]
     for stream in nav_messages.STREAMS:
@@ -432,16 +496,28 @@ def streams_table(results, ros_bytes):
             ref = s.get((stream.name, "reference", road)) or {}
             ceiling = s.get((stream.name, "ceiling", road)) or {}
             age = "after_asked" if not stream.hz else "age_p95"
-            lines.append("| " + " | ".join([
-                f"{stream.name} ({_rate(stream)}, {ros_bytes[stream.name]:,} B)", road,
-                fmt(ours.get("cpu"), unit), fmt(_cpu(ref), unit), fmt(ratio(ours.get("cpu"), _cpu(ref)), "x"),
-                fmt(ceiling.get("cpu"), unit), fmt(ratio(ours.get("cpu"), ceiling.get("cpu")), "x"),
-                fmt(_cpu(fox), unit), fmt(ratio(ours.get("cpu"), _cpu(fox)), "x"),
-                " / ".join(fmt(f.get("delivered"), "%") for f in (ours, ref, ceiling, fox)),
-                " / ".join(fmt(f.get(age), "ms") for f in (ours, ref, ceiling, fox)),
-                " / ".join(fmt(f.get("peak_rss"), "MB") for f in (ours, ref, fox)),
-                " / ".join(fmt(f.get("rss_after"), "MB") for f in (ours, ref, fox)),
-                f"{right(ours)}; {right(ref)}; {right(fox)}"]) + " |")
+            lines.append(
+                "| "
+                + " | ".join(
+                    [
+                        f"{stream.name} ({_rate(stream)}, {ros_bytes[stream.name]:,} B)",
+                        road,
+                        fmt(ours.get("cpu"), unit),
+                        fmt(_cpu(ref), unit),
+                        fmt(ratio(ours.get("cpu"), _cpu(ref)), "x"),
+                        fmt(ceiling.get("cpu"), unit),
+                        fmt(ratio(ours.get("cpu"), ceiling.get("cpu")), "x"),
+                        fmt(_cpu(fox), unit),
+                        fmt(ratio(ours.get("cpu"), _cpu(fox)), "x"),
+                        " / ".join(fmt(f.get("delivered"), "%") for f in (ours, ref, ceiling, fox)),
+                        " / ".join(fmt(f.get(age), "ms") for f in (ours, ref, ceiling, fox)),
+                        " / ".join(fmt(f.get("peak_rss"), "MB") for f in (ours, ref, fox)),
+                        " / ".join(fmt(f.get("rss_after"), "MB") for f in (ours, ref, fox)),
+                        f"{right(ours)}; {right(ref)}; {right(fox)}",
+                    ]
+                )
+                + " |"
+            )
     return "\n".join(lines)
 
 
@@ -454,11 +530,14 @@ def _rate(stream):
     return f"{stream.hz} Hz" if stream.hz else "latched"
 
 
-ALL_CASES = {("bridge", "json", "json"): "bridge, JSON", ("bridge", "cbor", "cbor"): "bridge, CBOR",
-             ("bridge", "json", "fragments"): "bridge, JSON, the map in fragments",
-             ("reference", "json", "json"): "reference, JSON",
-             ("reference", "json", "fragments"): "reference, JSON, the map in fragments",
-             ("foxglove", "raw", "raw"): "foxglove_bridge"}
+ALL_CASES = {
+    ("bridge", "json", "json"): "bridge, JSON",
+    ("bridge", "cbor", "cbor"): "bridge, CBOR",
+    ("bridge", "json", "fragments"): "bridge, JSON, the map in fragments",
+    ("reference", "json", "json"): "reference, JSON",
+    ("reference", "json", "fragments"): "reference, JSON, the map in fragments",
+    ("foxglove", "raw", "raw"): "foxglove_bridge",
+}
 
 
 def all_table(results):
@@ -490,20 +569,36 @@ def targets(results, ros_bytes):
     def versus(stream, road, limit, what):
         ours, ref = s.get((stream, "bridge", road)), s.get((stream, "reference", road))
         r = ratio((ours or {}).get("cpu"), _cpu(ref))
-        out.append((f"{what}: bridge CPU per MB <= {limit}x the reference's",
-                    f"{fmt((ours or {}).get('cpu'), 'ms/MB')} against {fmt(_cpu(ref), 'ms/MB')}: {fmt(r, 'x')}",
-                    r is not None and r <= limit))
+        out.append(
+            (
+                f"{what}: bridge CPU per MB <= {limit}x the reference's",
+                f"{fmt((ours or {}).get('cpu'), 'ms/MB')} against {fmt(_cpu(ref), 'ms/MB')}: {fmt(r, 'x')}",
+                r is not None and r <= limit,
+            )
+        )
+
     if ("map", "bridge", "json") in s:
         versus("map", "json", 0.5, "map as JSON")
         ours, ref = s[("map", "bridge", "json")] or {}, s.get(("map", "reference", "json")) or {}
         if ours.get("peak_rss") is not None:
-            out.append(("map as JSON: peak RSS <= the reference's", f"{fmt(ours['peak_rss'], 'MB')} against "
-                        f"{fmt(ref.get('peak_rss'), 'MB')}", ref.get("peak_rss") is not None
-                        and ours["peak_rss"] <= ref["peak_rss"]))
+            out.append(
+                (
+                    "map as JSON: peak RSS <= the reference's",
+                    f"{fmt(ours['peak_rss'], 'MB')} against {fmt(ref.get('peak_rss'), 'MB')}",
+                    ref.get("peak_rss") is not None and ours["peak_rss"] <= ref["peak_rss"],
+                )
+            )
             above, text = ours["peak_rss"] - ours["idle_rss"], (ours.get("wire_bytes") or 0) / 1e6
-            out.append(("map as JSON: peak RSS above idle <= 3x the JSON text", f"{fmt(above, 'MB')} above "
-                        f"{fmt(ours['idle_rss'], 'MB')}, the text {text:.1f} MB: {above / text:.2f}x" if text else
-                        "n/a", bool(text) and above <= 3 * text))
+            out.append(
+                (
+                    "map as JSON: peak RSS above idle <= 3x the JSON text",
+                    f"{fmt(above, 'MB')} above "
+                    f"{fmt(ours['idle_rss'], 'MB')}, the text {text:.1f} MB: {above / text:.2f}x"
+                    if text
+                    else "n/a",
+                    bool(text) and above <= 3 * text,
+                )
+            )
     if ("map", "bridge", "cbor") in s:
         versus("map", "cbor", 0.25, "map as CBOR")
     if ("points", "bridge", "cbor") in s:
@@ -514,27 +609,44 @@ def targets(results, ros_bytes):
         for key, label in (("cpu_s", "CPU"), ("peak_rss", "peak RSS")):
             values = [m[key] for m in again["again"]]
             mid = statistics.median(values)
-            out.append((f"the map (JSON) sent ten times after a run of clouds and maps: its {label} within 10 % of "
-                        "the first time (the median of the ten)",
-                        f"first {_num(first[key], key)}, then median {_num(mid, key)} (lowest "
-                        f"{_num(min(values), key)}, highest {_num(max(values), key)}, 10th {_num(values[-1], key)}): "
-                        f"{mid / first[key]:.2f}x",
-                        abs(mid / first[key] - 1) <= 0.10))
+            out.append(
+                (
+                    f"the map (JSON) sent ten times after a run of clouds and maps: its {label} within 10 % of "
+                    "the first time (the median of the ten)",
+                    f"first {_num(first[key], key)}, then median {_num(mid, key)} (lowest "
+                    f"{_num(min(values), key)}, highest {_num(max(values), key)}, 10th {_num(values[-1], key)}): "
+                    f"{mid / first[key]:.2f}x",
+                    abs(mid / first[key] - 1) <= 0.10,
+                )
+            )
     for key, name in ALL_CASES.items():
         f = results["all"].get(key)
         if not f or key[0] != "bridge":
             continue
         wrong = [n for n, g in f["streams"].items() if g.get("wrong") or not g.get("delivered")]
-        stale = [f"{n} {fmt(g['age_p95'], 'ms')}" for n, g in f["streams"].items()
-                 if nav_messages.BY_NAME[n].hz and (g.get("age_p95") is None or g["age_p95"] > FRESH)]
+        stale = [
+            f"{n} {fmt(g['age_p95'], 'ms')}"
+            for n, g in f["streams"].items()
+            if nav_messages.BY_NAME[n].hz and (g.get("age_p95") is None or g["age_p95"] > FRESH)
+        ]
         tf = f["streams"].get("tf_static", {}).get("after_asked")
-        least = min((g["delivered"] for n, g in f["streams"].items() if nav_messages.BY_NAME[n].hz
-                     and g.get("delivered") is not None), default=None)
-        out.append((f"every stream at once to one client ({name}): every message whole and right, every stream "
-                    f"there, fresh (age p95 <= {FRESH * 1e3:.0f} ms), /tf_static within 1 s of being asked",
-                    f"not right or missing: {', '.join(wrong) or 'none'}; older: {', '.join(stale) or 'none'}; "
-                    f"/tf_static after {fmt(tf, 'ms')}; the least delivered {fmt(least, '%')}",
-                    not wrong and not stale and tf is not None and tf <= 1.0))
+        least = min(
+            (
+                g["delivered"]
+                for n, g in f["streams"].items()
+                if nav_messages.BY_NAME[n].hz and g.get("delivered") is not None
+            ),
+            default=None,
+        )
+        out.append(
+            (
+                f"every stream at once to one client ({name}): every message whole and right, every stream "
+                f"there, fresh (age p95 <= {FRESH * 1e3:.0f} ms), /tf_static within 1 s of being asked",
+                f"not right or missing: {', '.join(wrong) or 'none'}; older: {', '.join(stale) or 'none'}; "
+                f"/tf_static after {fmt(tf, 'ms')}; the least delivered {fmt(least, '%')}",
+                not wrong and not stale and tf is not None and tf <= 1.0,
+            )
+        )
     return out
 
 
@@ -545,30 +657,41 @@ def _num(value, key):
 def render(results, ros_bytes, remarks, footer):
     s = results["streams"]
     goals = targets(results, ros_bytes)
-    parts = [streams_table(results, ros_bytes),
-             "Every stream at once, one client (the window starts once the map is there, and lasts twice as long):",
-             all_table(results) if results["all"] else "(not measured)",
-             "Issue 25's goals, same run:",
-             "\n".join(f"- {goal}: {text}: {'met' if ok else '**missed**'}" for goal, text, ok in goals)]
+    parts = [
+        streams_table(results, ros_bytes),
+        "Every stream at once, one client (the window starts once the map is there, and lasts twice as long):",
+        all_table(results) if results["all"] else "(not measured)",
+        "Issue 25's goals, same run:",
+        "\n".join(f"- {goal}: {text}: {'met' if ok else '**missed**'}" for goal, text, ok in goals),
+    ]
     again = results.get("again")
     if again:
-        parts.append("The map again (JSON, one client; clouds and maps between): CPU / peak RSS / RSS after of each, "
-                     "the first, then the ten: " + "; ".join(
-                         f"{fmt(m['cpu_s'], 'ms')} / {fmt(m['peak_rss'], 'MB')} / {fmt(m['rss_after'], 'MB')}"
-                         for m in [again["first"], *again["again"]]) + f" (idle {fmt(again['idle_rss'], 'MB')}).")
+        parts.append(
+            "The map again (JSON, one client; clouds and maps between): CPU / peak RSS / RSS after of each, "
+            "the first, then the ten: "
+            + "; ".join(
+                f"{fmt(m['cpu_s'], 'ms')} / {fmt(m['peak_rss'], 'MB')} / {fmt(m['rss_after'], 'MB')}"
+                for m in [again["first"], *again["again"]]
+            )
+            + f" (idle {fmt(again['idle_rss'], 'MB')})."
+        )
     fox = s.get(("map", "foxglove", "raw, send_buffer_limit 100 MB"))
     if fox:
-        parts.append(f"foxglove_bridge with `send_buffer_limit` 100 MB (its default, 10 MB, drops the 16 MB map): the "
-                     f"map {fmt(fox.get('cpu'), 'ms/MB')}, after {fmt(fox.get('after_asked'), 'ms')}, peak RSS "
-                     f"{fmt(fox.get('peak_rss'), 'MB')}, right: {right(fox)}.")
+        parts.append(
+            f"foxglove_bridge with `send_buffer_limit` 100 MB (its default, 10 MB, drops the 16 MB map): the "
+            f"map {fmt(fox.get('cpu'), 'ms/MB')}, after {fmt(fox.get('after_asked'), 'ms')}, peak RSS "
+            f"{fmt(fox.get('peak_rss'), 'MB')}, right: {right(fox)}."
+        )
     notes = []
     for (name, kind, road), f in sorted(s.items(), key=lambda kv: str(kv[0])):
         if f and f.get("statuses"):
             notes.append(f"{name}, {kind}, {road}: status `{f['statuses'][0][1][:150]}`")
     for key, f in results["all"].items():
         if f and f.get("status_count"):
-            notes.append(f"all at once, {ALL_CASES[key]}: {f['status_count']} status op(s), the first "
-                         f"`{f['statuses'][0][1][:150]}`")
+            notes.append(
+                f"all at once, {ALL_CASES[key]}: {f['status_count']} status op(s), the first "
+                f"`{f['statuses'][0][1][:150]}`"
+            )
     if notes:
         parts.append("What the servers said (status ops):\n\n" + "\n".join(f"- {n}" for n in notes))
     return "\n\n".join(parts + remarks + [footer])
@@ -581,16 +704,23 @@ def main():
     p.add_argument("--seconds", type=float, default=5.0, help="each streaming case's window, after 1 s of warm-up")
     p.add_argument("--map-repeats", type=int, default=2, help="the map's cases, each on a fresh server (medians)")
     p.add_argument("--no-readme", action="store_true")
-    p.add_argument("--render", metavar="DIR", help="print the text of an earlier run from its directory's run.json, "
-                   "measuring nothing")
+    p.add_argument(
+        "--render",
+        metavar="DIR",
+        help="print the text of an earlier run from its directory's run.json, measuring nothing",
+    )
     peers.add_arguments(p)
     a = p.parse_args()
     if a.render:
         run = json.loads((Path(a.render) / "run.json").read_text())
-        results = {"streams": {tuple(json.loads(k)): v for k, v in run["streams"].items()},
-                   "all": {tuple(json.loads(k)): v for k, v in run["all"].items()}, "again": run["again"]}
-        ros_bytes = run.get("ros_bytes") or {s.name: len(nav_messages.serialized(s.build()))
-                                             for s in nav_messages.STREAMS}
+        results = {
+            "streams": {tuple(json.loads(k)): v for k, v in run["streams"].items()},
+            "all": {tuple(json.loads(k)): v for k, v in run["all"].items()},
+            "again": run["again"],
+        }
+        ros_bytes = run.get("ros_bytes") or {
+            s.name: len(nav_messages.serialized(s.build())) for s in nav_messages.STREAMS
+        }
         print(render(results, ros_bytes, run["remarks"], run["footer"]))
         return
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -611,16 +741,28 @@ def main():
     finally:
         bench.close()
     if reporting.code_digest() != digest:
-        remarks.append(f"The bridge's or the page's code (src/, web/) changed during the run ({code} -> "
-                       f"{reporting.code_state()}).")
-    footer = (f"Measured {time.strftime('%Y-%m-%d %H:%M')} at {reporting.git_head()} (code {code}) on "
-              f"{os.cpu_count()} CPUs, {a.seconds:.0f} s per streaming case after {WARMUP:.0f} s of warm-up, the map "
-              f"{a.map_repeats} times on each road (medians); took {time.monotonic() - started:.0f} s; load average "
-              + ", ".join(f"{load:.1f} ({when})" for when, load in loads) + f". Logs: {workdir}")
-    (workdir / "run.json").write_text(json.dumps({
-        "streams": {json.dumps(k): v for k, v in results["streams"].items()},
-        "all": {json.dumps(k): v for k, v in results["all"].items()}, "again": results["again"],
-        "ros_bytes": bench.ros_bytes, "remarks": remarks, "footer": footer}))
+        remarks.append(
+            f"The bridge's or the page's code (src/, web/) changed during the run ({code} -> {reporting.code_state()})."
+        )
+    footer = (
+        f"Measured {time.strftime('%Y-%m-%d %H:%M')} at {reporting.git_head()} (code {code}) on "
+        f"{os.cpu_count()} CPUs, {a.seconds:.0f} s per streaming case after {WARMUP:.0f} s of warm-up, the map "
+        f"{a.map_repeats} times on each road (medians); took {time.monotonic() - started:.0f} s; load average "
+        + ", ".join(f"{load:.1f} ({when})" for when, load in loads)
+        + f". Logs: {workdir}"
+    )
+    (workdir / "run.json").write_text(
+        json.dumps(
+            {
+                "streams": {json.dumps(k): v for k, v in results["streams"].items()},
+                "all": {json.dumps(k): v for k, v in results["all"].items()},
+                "again": results["again"],
+                "ros_bytes": bench.ros_bytes,
+                "remarks": remarks,
+                "footer": footer,
+            }
+        )
+    )
     text = render(results, bench.ros_bytes, remarks, footer)
     print(text)
     if full:

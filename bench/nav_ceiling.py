@@ -9,6 +9,7 @@ It speaks just enough of rosbridge v2 for nav_clients.py: {"op": "subscribe", "t
 
 Prints READY when it listens. Commands on stdin (answered by `RESULT <json>`): `count T0 T1`, how many messages of
 each stream it pushed stamped in [T0, T1); `quit`."""
+
 import argparse
 import asyncio
 import json
@@ -18,12 +19,13 @@ import threading
 import time
 
 import genpy
+import nav_messages
 import tornado.web
 import tornado.websocket
 
-import nav_messages
-import stats
 from rosbridge.protocol.encoded import SplicedFrame, TopicMessage, Utf8Text
+
+import stats
 
 SECS, NSECS = nav_messages.SENTINEL
 _BIG_ENDIAN_UINT32 = b"\x1a"  # (CBOR's head of a 4-byte unsigned integer)
@@ -45,7 +47,8 @@ class Frames:
         msg = stream.build()
         data, places = nav_messages.sentinel_bytes(msg)
         made = TopicMessage(stream.topic, genpy.message.get_message_class(stream.type), data, time.time()).frames(
-            compression, fragment_size)
+            compression, fragment_size
+        )
         self.frames = [(_SENTINELS.split(bytes(frame)), _is_text(frame)) for frame in made]
         found = sum(len(pieces) // 2 for pieces, _ in self.frames)
         per_stamp = 1 if compression == "cbor-raw" else 2
@@ -55,8 +58,10 @@ class Frames:
     def stamped(self, now):
         secs = int(now)
         nsecs = int((now - secs) * 1e9)
-        return [(b"".join(FILL[piece](secs, nsecs) if i % 2 else piece for i, piece in enumerate(pieces)), text)
-                for pieces, text in self.frames]
+        return [
+            (b"".join(FILL[piece](secs, nsecs) if i % 2 else piece for i, piece in enumerate(pieces)), text)
+            for pieces, text in self.frames
+        ]
 
     def as_made(self):
         return [(b"".join(pieces), text) for pieces, text in self.frames]
@@ -126,9 +131,16 @@ async def main():
     done = loop.create_future()
 
     def serve():
-        stats.commands({"count": lambda t0, t1: {name: stats.count_between(list(stamps), float(t0), float(t1))
-                                                 for name, stamps in Ceiling.pushed.items()}})
+        stats.commands(
+            {
+                "count": lambda t0, t1: {
+                    name: stats.count_between(list(stamps), float(t0), float(t1))
+                    for name, stamps in Ceiling.pushed.items()
+                }
+            }
+        )
         loop.call_soon_threadsafe(lambda: done.done() or done.set_result(None))
+
     print("READY", flush=True)
     threading.Thread(target=serve, daemon=True).start()
     await done

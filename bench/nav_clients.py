@@ -11,13 +11,14 @@ Every message is decoded on arrival, as a client must to use it, and checked aga
 published: every field but the header's seq and stamp (the map's 16 million cells and the cloud's points
 included; a float NaN or inf may come as null in JSON, where it has no number for them); raw ROS bytes byte for
 byte. Decoded small messages are compared field by field for the first 20 of each stream, then one in 10 (a
-Python walk through 50 TF frames at 100 Hz would make this client the slow end); every big one, and every raw one. For each message it records when it arrived (wall time, at its last frame), its stamp and its size on the
-wire.
+Python walk through 50 TF frames at 100 Hz would make this client the slow end); every big one, and every raw one.
+For each message it records when it arrived (wall time, at its last frame), its stamp and its size on the wire.
 
 Prints READY once subscribed, and `GOT <stream> <n>` when the n-th message of a latched stream (tf_static, map)
 arrives (the first of the others). Commands on stdin: `result` prints `RESULT <json>`: for each stream, when it was
 asked for, [[arrived, stamp, bytes], ...], how many messages were checked and how many were not right, with the
 first difference; the status ops received (their first 20); `quit`."""
+
 import argparse
 import asyncio
 import base64
@@ -29,14 +30,24 @@ import time
 from array import array
 
 import cbor2
-
 import foxglove_protocol
 import nav_messages
+
 import stats
 
 CHECK_ALL, CHECK_EVERY = 20, 10  # decoded messages compared field by field: the first 20 of a stream, then 1 in 10
-ARRAY_CODES = {"int8": "b", "uint8": "B", "int16": "h", "uint16": "H", "int32": "i", "uint32": "I",
-               "int64": "q", "uint64": "Q", "float32": "f", "float64": "d"}  # ROS -> Python's array module
+ARRAY_CODES = {
+    "int8": "b",
+    "uint8": "B",
+    "int16": "h",
+    "uint16": "H",
+    "int32": "i",
+    "uint32": "I",
+    "int64": "q",
+    "uint64": "Q",
+    "float32": "f",
+    "float64": "d",
+}  # ROS -> Python's array module
 
 
 def main():
@@ -52,8 +63,10 @@ async def run(a):
     asked = [parse(item) for item in a.streams]
     record = Record({name: nav_messages.BY_NAME[name] for name, _, _ in asked})
     if a.role == "foxglove":
-        client = foxglove_protocol.Client(lambda topic, payload, size, arrived: record.raw(
-            nav_messages.BY_TOPIC[topic].name, payload, size, arrived), record.status)
+        client = foxglove_protocol.Client(
+            lambda topic, payload, size, arrived: record.raw(nav_messages.BY_TOPIC[topic].name, payload, size, arrived),
+            record.status,
+        )
         await client.connect(a.url)
         await client.subscribe([nav_messages.BY_NAME[name].topic for name, _, _ in asked], timeout=60)
         for name, _, _ in asked:
@@ -88,11 +101,19 @@ class Rosbridge:
 
     async def connect(self, url):
         from tornado.websocket import websocket_connect
+
         self.ws = await websocket_connect(url, max_message_size=64 << 20, on_message_callback=self.frame)
 
     async def subscribe(self, stream, encoding, fragment_size):
-        op = {"op": "subscribe", "id": f"subscribe:{stream.topic}", "topic": stream.topic, "type": stream.type,
-              "compression": "none" if encoding == "json" else encoding, "throttle_rate": 0, "queue_length": 0}
+        op = {
+            "op": "subscribe",
+            "id": f"subscribe:{stream.topic}",
+            "topic": stream.topic,
+            "type": stream.type,
+            "compression": "none" if encoding == "json" else encoding,
+            "throttle_rate": 0,
+            "queue_length": 0,
+        }
         if fragment_size:
             op["fragment_size"] = fragment_size
         self.encodings[stream.name] = encoding
@@ -178,9 +199,14 @@ class Record:
         self.statuses.append((time.time(), str(op)[:300]))
 
     def result(self):
-        return {"streams": {name: {"asked": self.asked.get(name), "arrivals": list(self.arrivals[name]),
-                                   **self.checks[name]} for name in self.arrivals},
-                "statuses": self.statuses[:20], "status_count": len(self.statuses)}
+        return {
+            "streams": {
+                name: {"asked": self.asked.get(name), "arrivals": list(self.arrivals[name]), **self.checks[name]}
+                for name in self.arrivals
+            },
+            "statuses": self.statuses[:20],
+            "status_count": len(self.statuses),
+        }
 
 
 class Expected:
@@ -206,7 +232,7 @@ class Expected:
         if len(got) != len(self.raw_bytes):
             return f"{len(got)} ROS bytes, not {len(self.raw_bytes)}"
         for at in self.stamp_places:
-            got[at:at + 8] = nav_messages.SENTINEL_RAW
+            got[at : at + 8] = nav_messages.SENTINEL_RAW
         if self.has_header:
             got[0:4] = bytes(4)
         if got != self.raw_bytes:
@@ -234,6 +260,7 @@ def _first_header(msg):
 
 
 # ---- a decoded message against the one published --------------------------------------------------------
+
 
 def difference(expected, got, path=""):
     """Where the decoded message `got` (JSON or CBOR values) differs from the genpy message `expected`, or None.
@@ -273,8 +300,12 @@ def array_difference(base, want, got, where):
     if base in ("uint8", "char"):
         got = as_bytes(got)
         want = want if isinstance(want, bytes) else bytes(want)
-        return None if got == want else f"{where}: {len(got)} bytes, not the {len(want)} published" + (
-            "" if len(got) != len(want) else " (same length, other bytes)")
+        return (
+            None
+            if got == want
+            else f"{where}: {len(got)} bytes, not the {len(want)} published"
+            + ("" if len(got) != len(want) else " (same length, other bytes)")
+        )
     if isinstance(got, cbor2.CBORTag):
         got = typed_array(got)
     if len(got) != len(want):
@@ -323,7 +354,7 @@ def typed_array(tag):
     if not 0 <= bits < 24 or (bits & 0x10 and (bits & 3) in (0, 3)):
         raise ValueError(f"CBOR tag {tag.tag} is not a typed array this client reads")
     size = bits & 3
-    code = ("efdx"[size] if bits & 0x10 else ("bhiq" if bits & 0x08 else "BHIQ")[size])
+    code = "efdx"[size] if bits & 0x10 else ("bhiq" if bits & 0x08 else "BHIQ")[size]
     values = _from_bytes(code, bytes(tag.value))
     if values.itemsize > 1 and bool(bits & 0x04) != (sys.byteorder == "little"):
         values.byteswap()

@@ -4,6 +4,7 @@ a 300k-point cloud. Each message is built once; a publisher only sets its stamps
 node (nav_robot.py), the ceiling (nav_ceiling.py), the clients that check what arrives (nav_clients.py) and
 convert_bench.py. Needs the ROS message packages (no node); the TF frames and the map's cells come from
 test/sensor_messages.py (shared with the tests)."""
+
 import io
 import math
 import random
@@ -35,15 +36,19 @@ def deserialized(cls, data):
 
 # ---- the messages ------------------------------------------------------------------------------------------
 
+
 def laser_scan():
     """A 1081-ray scan, as a rover's lidar at 40 Hz: ranges with NaN (no return) and inf (out of range)."""
     import sensor_msgs.msg
+
     rng = random.Random(2)
-    scan = sensor_msgs.msg.LaserScan(angle_min=-2.35619, angle_max=2.35619, angle_increment=0.004363323,
-                                     range_min=0.05, range_max=30.0)
+    scan = sensor_msgs.msg.LaserScan(
+        angle_min=-2.35619, angle_max=2.35619, angle_increment=0.004363323, range_min=0.05, range_max=30.0
+    )
     scan.header.frame_id = "laser"
-    scan.ranges = [rng.choice([math.nan, math.inf]) if rng.random() < 0.05 else rng.uniform(0.1, 30)
-                   for _ in range(1081)]
+    scan.ranges = [
+        rng.choice([math.nan, math.inf]) if rng.random() < 0.05 else rng.uniform(0.1, 30) for _ in range(1081)
+    ]
     scan.intensities = [float(rng.randrange(256)) for _ in range(1081)]
     return scan
 
@@ -55,16 +60,19 @@ def tf_frames():
 
 def tf_static():
     """/tf_static: the sensors' mounts on base_link."""
-    mounts = [("base_link", "laser", (0.2, 0.0, 0.3), quaternion()),
-              ("base_link", "imu_link", (0.0, 0.0, 0.1), quaternion()),
-              ("base_link", "gps", (-0.1, 0.0, 0.5), quaternion()),
-              ("base_link", "lidar", (0.1, 0.0, 0.6), quaternion(yaw=math.pi / 2)),
-              ("base_link", "camera", (0.25, 0.0, 0.4), quaternion(pitch=0.2))]
+    mounts = [
+        ("base_link", "laser", (0.2, 0.0, 0.3), quaternion()),
+        ("base_link", "imu_link", (0.0, 0.0, 0.1), quaternion()),
+        ("base_link", "gps", (-0.1, 0.0, 0.5), quaternion()),
+        ("base_link", "lidar", (0.1, 0.0, 0.6), quaternion(yaw=math.pi / 2)),
+        ("base_link", "camera", (0.25, 0.0, 0.4), quaternion(pitch=0.2)),
+    ]
     return tf_message(mounts, genpy.Time())
 
 
 def odometry():
     import nav_msgs.msg
+
     odom = nav_msgs.msg.Odometry(child_frame_id="base_link")
     odom.header.frame_id = "odom"
     odom.pose.pose.position.x, odom.pose.pose.position.y = 12.5, -3.25
@@ -77,6 +85,7 @@ def odometry():
 
 def imu():
     import sensor_msgs.msg
+
     msg = sensor_msgs.msg.Imu()
     msg.header.frame_id = "imu_link"
     msg.orientation.x, msg.orientation.w = 0.0998, 0.995
@@ -90,9 +99,14 @@ def imu():
 
 def nav_sat_fix():
     import sensor_msgs.msg
-    fix = sensor_msgs.msg.NavSatFix(latitude=48.858370, longitude=2.294481, altitude=35.2,
-                                    position_covariance=[1.2, 0, 0, 0, 1.2, 0, 0, 0, 4.0],
-                                    position_covariance_type=sensor_msgs.msg.NavSatFix.COVARIANCE_TYPE_APPROXIMATED)
+
+    fix = sensor_msgs.msg.NavSatFix(
+        latitude=48.858370,
+        longitude=2.294481,
+        altitude=35.2,
+        position_covariance=[1.2, 0, 0, 0, 1.2, 0, 0, 0, 4.0],
+        position_covariance_type=sensor_msgs.msg.NavSatFix.COVARIANCE_TYPE_APPROXIMATED,
+    )
     fix.header.frame_id = "gps"
     fix.status.status, fix.status.service = sensor_msgs.msg.NavSatStatus.STATUS_FIX, 1
     return fix
@@ -102,15 +116,26 @@ def diagnostics():
     """Statuses whose names, messages and values are not ASCII (a French and a Japanese driver), one with no
     values."""
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+
     array = DiagnosticArray()
     array.status = [
-        DiagnosticStatus(level=DiagnosticStatus.OK, name="batterie: état", message="Chargée à 87 % ✓",
-                         hardware_id="bms-01",
-                         values=[KeyValue("tension", "25,2 V"), KeyValue("température", "31 °C")]),
-        DiagnosticStatus(level=DiagnosticStatus.WARN, name="モーター 左", message="温度が高い (72 °C)",
-                         hardware_id="motor-left", values=[KeyValue("電流", "3.4 A")]),
-        DiagnosticStatus(level=DiagnosticStatus.ERROR, name="lidar", message="no data for 2 s — is it 🔌?",
-                         hardware_id="", values=[]),
+        DiagnosticStatus(
+            level=DiagnosticStatus.OK,
+            name="batterie: état",
+            message="Chargée à 87 % ✓",
+            hardware_id="bms-01",
+            values=[KeyValue("tension", "25,2 V"), KeyValue("température", "31 °C")],
+        ),
+        DiagnosticStatus(
+            level=DiagnosticStatus.WARN,
+            name="モーター 左",
+            message="温度が高い (72 °C)",
+            hardware_id="motor-left",
+            values=[KeyValue("電流", "3.4 A")],
+        ),
+        DiagnosticStatus(
+            level=DiagnosticStatus.ERROR, name="lidar", message="no data for 2 s — is it 🔌?", hardware_id="", values=[]
+        ),
     ]
     return array
 
@@ -118,18 +143,24 @@ def diagnostics():
 def joint_states():
     """Four wheels' positions; velocity and effort empty, as a driver that does not measure them sends them."""
     import sensor_msgs.msg
-    return sensor_msgs.msg.JointState(name=["wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr"],
-                                      position=[0.5, -1.25, 3.0, 12.75], velocity=[], effort=[])
+
+    return sensor_msgs.msg.JointState(
+        name=["wheel_fl", "wheel_fr", "wheel_rl", "wheel_rr"], position=[0.5, -1.25, 3.0, 12.75], velocity=[], effort=[]
+    )
 
 
 def point_cloud(points=300_000):
     """An unorganised cloud of x, y, z, intensity (float32 each: 16 bytes a point), as a lidar driver sends it."""
     import sensor_msgs.msg
-    cloud = sensor_msgs.msg.PointCloud2(height=1, width=points, is_bigendian=False, point_step=16,
-                                        row_step=16 * points, is_dense=True)
+
+    cloud = sensor_msgs.msg.PointCloud2(
+        height=1, width=points, is_bigendian=False, point_step=16, row_step=16 * points, is_dense=True
+    )
     cloud.header.frame_id = "lidar"
-    cloud.fields = [sensor_msgs.msg.PointField(name=name, offset=4 * i, datatype=7, count=1)
-                    for i, name in enumerate(("x", "y", "z", "intensity"))]
+    cloud.fields = [
+        sensor_msgs.msg.PointField(name=name, offset=4 * i, datatype=7, count=1)
+        for i, name in enumerate(("x", "y", "z", "intensity"))
+    ]
     cloud.data = random.Random(1).randbytes(16 * points)
     return cloud
 
@@ -148,6 +179,7 @@ def occupancy_grid_class():
                 self.data = cells
             buff.write(head[:-4] + struct.pack("<I", len(cells)))
             buff.write(cells)
+
     return BigOccupancyGrid
 
 
@@ -179,6 +211,7 @@ BY_TOPIC = {stream.topic: stream for stream in STREAMS}
 
 # ---- stamps ------------------------------------------------------------------------------------------------
 
+
 def headers(msg):
     """The std_msgs/Header objects in msg (its own, those of an array of messages such as TF's transforms), found
     once: stamp() then sets them."""
@@ -189,7 +222,7 @@ def headers(msg):
         if "/" not in kind:
             continue
         value = getattr(msg, name)
-        for item in (value if kind.endswith("]") else [value]):
+        for item in value if kind.endswith("]") else [value]:
             found += headers(item)
     return found
 

@@ -9,13 +9,14 @@ Prints READY once the latched topics are out. Then each line on stdin is a comma
   count T0 T1   how many messages of each stream went to at least one subscriber stamped in [T0, T1) (wall time)
   map           the map again, stamped now (its subscribers get it again): {"stamp": its stamp}
   quit"""
+
 import threading
 import time
 
 import genpy
+import nav_messages
 import rospy
 
-import nav_messages
 import stats
 
 
@@ -58,10 +59,16 @@ def main():
         else:
             stream.publish()  # (latched: rospy keeps it for every subscriber that comes)
     print("READY", flush=True)
-    stats.commands({
-        "count": lambda t0, t1: {name: stats.count_between(list(s.stamps), float(t0), float(t1))
-                                 for name, s in streams.items() if s.stream.hz},
-        "map": lambda: {"stamp": streams["map"].publish()}})
+    stats.commands(
+        {
+            "count": lambda t0, t1: {
+                name: stats.count_between(list(s.stamps), float(t0), float(t1))
+                for name, s in streams.items()
+                if s.stream.hz
+            },
+            "map": lambda: {"stamp": streams["map"].publish()},
+        }
+    )
     rospy.signal_shutdown("quit")
 
 

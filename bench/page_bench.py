@@ -13,6 +13,7 @@
 
 Run by bench/suite.py (needs a roscore: ROS_MASTER_URI); prints markdown tables. Uses the test venv's Selenium.
 --screenshot PATH keeps a full-page picture of the robot's console while measured."""
+
 import argparse
 import os
 import statistics
@@ -30,16 +31,24 @@ from tf2_msgs.msg import TFMessage
 
 TEST = Path(__file__).resolve().parent.parent / "test"
 sys.path[:0] = [str(TEST), str(TEST / "browser")]
+from test_viewers import open_viewer, text_of  # noqa: E402  (the viewers opened as a person does, as the tests do)
+
 import harness  # noqa: E402
 from sensor_messages import Publishing, moving_frames, wide_scan  # noqa: E402
-from test_viewers import open_viewer, text_of  # noqa: E402  (the viewers opened as a person does, as the tests do)
 
 WIDTH, HEIGHT = 640, 480
 MEASURE_S = 10.0
 TREE_TOPIC, CAMERA_TOPIC = "/bench_page/pose", "/bench_page/camera"
 SCAN_TOPIC, SCAN_HZ, TF_HZ = "/bench_page/scan", 40, 100
-CHROMIUM_FLAGS = ["--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-                  "--no-first-run", "--disable-background-networking", "--window-size=1280,1600"]
+CHROMIUM_FLAGS = [
+    "--headless=new",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-dev-shm-usage",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--window-size=1280,1600",
+]
 
 # In the page: the time of each animation frame (camera frames' ages are recorded by show_console_camera).
 PROBE = """
@@ -70,13 +79,15 @@ new ROSLIB.Topic({ ros, name: '%s', messageType: 'sensor_msgs/Image' }).subscrib
 
 def frames():
     """Four camera pictures (made once: making them must not cost the publisher each time)."""
-    pictures = [bytes([(x * 255 // WIDTH + shift) % 256 for x in range(WIDTH)] * 3) * HEIGHT
-                for shift in (0, 64, 128, 192)]
+    pictures = [
+        bytes([(x * 255 // WIDTH + shift) % 256 for x in range(WIDTH)] * 3) * HEIGHT for shift in (0, 64, 128, 192)
+    ]
 
     def make(n):
         msg = Image(height=HEIGHT, width=WIDTH, encoding="rgb8", step=WIDTH * 3, data=pictures[n % 4])
         msg.header.stamp = rospy.Time.now()
         return msg
+
     return make
 
 
@@ -89,15 +100,21 @@ def pose(n):
 
 def open_console(driver, url):
     driver.get(url)
-    harness.wait_for(lambda: driver.execute_script(
-        "return document.querySelector('#conn')?.dataset.state") == "connected", 30, what="the page connected")
+    harness.wait_for(
+        lambda: driver.execute_script("return document.querySelector('#conn')?.dataset.state") == "connected",
+        30,
+        what="the page connected",
+    )
     driver.execute_script(PROBE)
 
 
 def show_tree_and_plot(driver):
     """Opens the 100 Hz topic in the Topics tab and plots its pose.position.x, as a person clicks them."""
-    click = """const row = document.querySelector('#tab-topics tr[data-topic="%s"] button');
-               if (row) row.click(); return Boolean(row);""" % TREE_TOPIC
+    click = (
+        """const row = document.querySelector('#tab-topics tr[data-topic="%s"] button');
+               if (row) row.click(); return Boolean(row);"""
+        % TREE_TOPIC
+    )
     harness.wait_for(lambda: driver.execute_script(click), 30, what=f"{TREE_TOPIC} listed")
     plot_x = """const leaf = [...document.querySelectorAll('.open-topic li.plottable')]
                   .find(li => li.dataset.path === JSON.stringify(['pose', 'position', 'x']));
@@ -111,7 +128,9 @@ def show_console_camera(driver):
     choose = """const select = document.getElementById('camera-topic');
                 if (![...select.options].some(o => o.value === '%s')) return false;
                 select.value = '%s'; select.dispatchEvent(new Event('change')); return true;""" % (
-        CAMERA_TOPIC, CAMERA_TOPIC)
+        CAMERA_TOPIC,
+        CAMERA_TOPIC,
+    )
     harness.wait_for(lambda: driver.execute_script(choose), 30, what="the camera listed")
     driver.execute_script("""
       window.benchAges = [];
@@ -164,8 +183,11 @@ def show_robot_console(console):
 
 def laser_counts(console, canvas):
     """(scans that reached the laser viewer, scans it drew) so far."""
-    return console.js("const c = document.querySelector(arguments[0]); "
-                      "return [Number(c.dataset.received), Number(c.dataset.paints)];", canvas)
+    return console.js(
+        "const c = document.querySelector(arguments[0]); "
+        "return [Number(c.dataset.received), Number(c.dataset.paints)];",
+        canvas,
+    )
 
 
 def measure(console, cpu_of, laser_canvas=None, scans=None):
@@ -176,16 +198,22 @@ def measure(console, cpu_of, laser_canvas=None, scans=None):
     cpu = {name: CpuShare(pids) for name, pids in cpu_of.items()}
     time.sleep(MEASURE_S)
     times, ages = console.js("return [window.benchFrameTimes, window.benchAges];")
-    got = {"fps": len(times) / MEASURE_S, "camera_fps": len(ages) / MEASURE_S,
-           "cpu": {name: share.percent() for name, share in cpu.items()}, "load": os.getloadavg()[0]}
+    got = {
+        "fps": len(times) / MEASURE_S,
+        "camera_fps": len(ages) / MEASURE_S,
+        "cpu": {name: share.percent() for name, share in cpu.items()},
+        "load": os.getloadavg()[0],
+    }
     got.update(frame_rates(times))
     ages_ms = sorted(age * 1000 for age in ages) or [float("nan")]
-    got.update(age_p50=statistics.median(ages_ms), age_p95=ages_ms[int(0.95 * (len(ages_ms) - 1))],
-               age_max=ages_ms[-1])
+    got.update(age_p50=statistics.median(ages_ms), age_p95=ages_ms[int(0.95 * (len(ages_ms) - 1))], age_max=ages_ms[-1])
     if laser_canvas:
         received, drawn = (after - before for after, before in zip(laser_counts(console, laser_canvas), counted))
-        got["scans"] = {"published": (scans.published - published) / MEASURE_S, "received": received / MEASURE_S,
-                        "drawn": drawn / MEASURE_S}
+        got["scans"] = {
+            "published": (scans.published - published) / MEASURE_S,
+            "received": received / MEASURE_S,
+            "drawn": drawn / MEASURE_S,
+        }
     return got
 
 
@@ -198,8 +226,11 @@ def frame_rates(times):
         second = int((t - times[0]) // 1000)
         if second < len(per_second):
             per_second[second] += 1
-    return {"fps_p50": statistics.median(per_second), "fps_min": min(per_second),
-            "longest_ms": max(b - a for a, b in zip(times, times[1:]))}
+    return {
+        "fps_p50": statistics.median(per_second),
+        "fps_min": min(per_second),
+        "longest_ms": max(b - a for a, b in zip(times, times[1:])),
+    }
 
 
 def browser():
@@ -239,8 +270,7 @@ def main():
                 driver.quit()
         publishing.pop().stop()  # (the tree's topic)
         scans = Publishing(rospy, SCAN_TOPIC, LaserScan, lambda n: wide_scan(n, rospy.Time.now()), SCAN_HZ)
-        publishing += [scans, Publishing(rospy, "/tf", TFMessage, lambda n: moving_frames(n, rospy.Time.now()),
-                                         TF_HZ)]
+        publishing += [scans, Publishing(rospy, "/tf", TFMessage, lambda n: moving_frames(n, rospy.Time.now()), TF_HZ)]
         for variant in ("idle", "robot"):
             driver = browser()
             try:
@@ -248,8 +278,11 @@ def main():
                 open_console(driver, url)
                 canvas = show_robot_console(console) if variant == "robot" else None
                 time.sleep(3)  # settle
-                cpu_of = {"bridge": [bridge_pid], "chromium": harness.descendants(driver.service.process.pid),
-                          "publishers": [os.getpid()]}
+                cpu_of = {
+                    "bridge": [bridge_pid],
+                    "chromium": harness.descendants(driver.service.process.pid),
+                    "publishers": [os.getpid()],
+                }
                 results[variant] = measure(console, cpu_of, canvas, scans if canvas else None)
                 if canvas and a.screenshot:
                     save_full_page(driver, a.screenshot)
@@ -265,43 +298,63 @@ def main():
 
 def save_full_page(driver, path):
     import base64
+
     shot = driver.execute_cdp_cmd("Page.captureScreenshot", {"captureBeyondViewport": True})
     path.write_bytes(base64.b64decode(shot["data"]))
 
 
 def print_tables(results):
-    names = {"console": "the console's camera (the bridge's JPEG stream, adaptive; newest frame only)",
-             "json": "a usual roslibjs camera (JSON, base64, every frame)"}
-    print("| camera shown with a 100 Hz topic tree and a plot | page frames/s | camera frames drawn/s | "
-          "frame age p50 / p95 / max | goal |")
+    names = {
+        "console": "the console's camera (the bridge's JPEG stream, adaptive; newest frame only)",
+        "json": "a usual roslibjs camera (JSON, base64, every frame)",
+    }
+    print(
+        "| camera shown with a 100 Hz topic tree and a plot | page frames/s | camera frames drawn/s | "
+        "frame age p50 / p95 / max | goal |"
+    )
     print("|---|---:|---:|---:|---|")
     for variant in ("console", "json"):
         got = results[variant]
         met = got["fps"] >= 50 and got["age_max"] <= 100
         goal = ("met" if met else "**missed**") if variant == "console" else "(for comparison)"
-        print(f"| {names[variant]} | {got['fps']:.0f} | {got['camera_fps']:.1f} | {got['age_p50']:.0f} / "
-              f"{got['age_p95']:.0f} / {got['age_max']:.0f} ms | {goal} |")
-    print(f"\nGoal: at least 50 page frames/s and no camera frame older than 100 ms when drawn; {MEASURE_S:.0f} s "
-          "each, after 3 s to settle. Both panels (Topics and Camera) shown at once.\n")
+        print(
+            f"| {names[variant]} | {got['fps']:.0f} | {got['camera_fps']:.1f} | {got['age_p50']:.0f} / "
+            f"{got['age_p95']:.0f} / {got['age_max']:.0f} ms | {goal} |"
+        )
+    print(
+        f"\nGoal: at least 50 page frames/s and no camera frame older than 100 ms when drawn; {MEASURE_S:.0f} s "
+        "each, after 3 s to settle. Both panels (Topics and Camera) shown at once.\n"
+    )
     idle, robot = results["idle"], results["robot"]
-    print(f"| a robot's console: shown at once | page frames/s, median / lowest second (vs nothing shown) | "
-          f"longest frame | scans/s published / reaching the page / drawn | camera frames drawn/s, age p50 / max | "
-          f"CPU, % of a core: bridge / Chromium / publishers | load (1 min) | goal |")
+    print(
+        "| a robot's console: shown at once | page frames/s, median / lowest second (vs nothing shown) | "
+        "longest frame | scans/s published / reaching the page / drawn | camera frames drawn/s, age p50 / max | "
+        "CPU, % of a core: bridge / Chromium / publishers | load (1 min) | goal |"
+    )
     print("|---|---:|---:|---:|---:|---:|---:|---|")
-    for name, got in (("nothing (the page connected, the same publishers running)", idle),
-                      (f"Laser (1081 rays, {SCAN_HZ} Hz), TF tree ({TF_HZ} Hz, 50 frames), camera "
-                       f"({WIDTH}x{HEIGHT} rgb8, 30 Hz)", robot)):
+    for name, got in (
+        ("nothing (the page connected, the same publishers running)", idle),
+        (
+            f"Laser (1081 rays, {SCAN_HZ} Hz), TF tree ({TF_HZ} Hz, 50 frames), camera ({WIDTH}x{HEIGHT} rgb8, 30 Hz)",
+            robot,
+        ),
+    ):
         scans = got.get("scans")
         cpu = got["cpu"]
         versus = f" ({got['fps_p50'] / idle['fps_p50']:.2f}x)" if got is robot and idle["fps_p50"] else ""
-        print(f"| {name} | {got['fps_p50']:.0f} / {got['fps_min']:.0f}{versus} | {got['longest_ms']:.0f} ms | "
-              + (f"{scans['published']:.1f} / {scans['received']:.1f} / {scans['drawn']:.1f} | " if scans else "| ")
-              + (f"{got['camera_fps']:.1f}, {got['age_p50']:.0f} / {got['age_max']:.0f} ms | " if scans else "| ")
-              + f"{cpu['bridge']:.0f} / {cpu['chromium']:.0f} / {cpu['publishers']:.0f} | {got['load']:.1f} | "
-              + (("met" if got["fps_min"] >= 50 else "**missed**") if scans else "(baseline)") + " |")
-    print(f"\nGoal: the page keeps at least 50 frames/s (every second of the {MEASURE_S:.0f} s, after 3 s to settle) "
-          "with the three shown at once. Scans not drawn: those merged on the way (the viewer asks the bridge for "
-          "one per animation frame at most) or two in one animation frame (the newest drawn).")
+        print(
+            f"| {name} | {got['fps_p50']:.0f} / {got['fps_min']:.0f}{versus} | {got['longest_ms']:.0f} ms | "
+            + (f"{scans['published']:.1f} / {scans['received']:.1f} / {scans['drawn']:.1f} | " if scans else "| ")
+            + (f"{got['camera_fps']:.1f}, {got['age_p50']:.0f} / {got['age_max']:.0f} ms | " if scans else "| ")
+            + f"{cpu['bridge']:.0f} / {cpu['chromium']:.0f} / {cpu['publishers']:.0f} | {got['load']:.1f} | "
+            + (("met" if got["fps_min"] >= 50 else "**missed**") if scans else "(baseline)")
+            + " |"
+        )
+    print(
+        f"\nGoal: the page keeps at least 50 frames/s (every second of the {MEASURE_S:.0f} s, after 3 s to settle) "
+        "with the three shown at once. Scans not drawn: those merged on the way (the viewer asks the bridge for "
+        "one per animation frame at most) or two in one animation frame (the newest drawn)."
+    )
 
 
 if __name__ == "__main__":

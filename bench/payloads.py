@@ -1,6 +1,7 @@
 """The messages the benchmarks send, in both forms: the JSON a rosbridge client sends and the rospy message
 object a plain ROS node publishes. Both forms describe the same message, so the bridge and its plain-rospy
 baseline move exactly the same data. Each payload carries a sequence number so receivers can check loss."""
+
 import base64
 import json
 import random
@@ -61,8 +62,14 @@ def json_msg(kind, seq=0):
 
 def _image_fields(seq):
     """An image's fields but its data."""
-    return {"header": {"seq": seq, "stamp": {"secs": 0, "nsecs": 0}, "frame_id": "camera"},
-            "height": IMAGE_H, "width": IMAGE_W, "encoding": "rgb8", "is_bigendian": 0, "step": IMAGE_W * 3}
+    return {
+        "header": {"seq": seq, "stamp": {"secs": 0, "nsecs": 0}, "frame_id": "camera"},
+        "height": IMAGE_H,
+        "width": IMAGE_W,
+        "encoding": "rgb8",
+        "is_bigendian": 0,
+        "step": IMAGE_W * 3,
+    }
 
 
 def publish_frame(kind, topic, seq=0):
@@ -73,6 +80,7 @@ def publish_frame(kind, topic, seq=0):
 def cbor_frame(kind, topic, seq=0):
     """The same `publish` op as CBOR, binary fields as byte strings (what a CBOR subscriber gets)."""
     import cbor2
+
     msg = {**_image_fields(seq), "data": _cached("image", _image_bytes)} if kind == "image" else json_msg(kind, seq)
     return cbor2.dumps({"op": "publish", "topic": topic, "msg": msg})
 
@@ -81,20 +89,32 @@ def ros_msg(kind, seq=0):
     """The same message as a rospy message object (imports ROS message packages, so only in ROS processes)."""
     if kind == "twist":
         from geometry_msgs.msg import Twist, Vector3
+
         return Twist(linear=Vector3(x=float(seq)), angular=Vector3(z=1.5))
     if kind == "float":
         from std_msgs.msg import Float64
+
         return Float64(data=float(seq))
     if kind == "string":
         from std_msgs.msg import String
+
         return String(data=_cached("text", _text))
     if kind == "image":
         from sensor_msgs.msg import Image
         from std_msgs.msg import Header
-        return Image(header=Header(seq=seq, frame_id="camera"), height=IMAGE_H, width=IMAGE_W, encoding="rgb8",
-                     is_bigendian=0, step=IMAGE_W * 3, data=_cached("image", _image_bytes))
+
+        return Image(
+            header=Header(seq=seq, frame_id="camera"),
+            height=IMAGE_H,
+            width=IMAGE_W,
+            encoding="rgb8",
+            is_bigendian=0,
+            step=IMAGE_W * 3,
+            data=_cached("image", _image_bytes),
+        )
     if kind == "cloud":  # (test/sensor_messages.py: the cloud the viewer's tests draw; on PYTHONPATH in the suite)
         from sensor_messages import big_cloud
+
         return _cached("cloud", big_cloud)
     raise ValueError(f"unknown payload kind {kind!r}")
 
@@ -104,8 +124,13 @@ def seq_of(kind, msg):
     cbor-raw's {"bytes": ...} or foxglove_bridge's payload)."""
     msg = _ros_bytes(msg)
     if isinstance(msg, (bytes, memoryview)):  # (twist: linear.x first; float: data; image, cloud: header.seq)
-        return int(struct.unpack_from("<d", msg)[0]) if kind in ("twist", "float") else \
-            struct.unpack_from("<I", msg)[0] if kind in ("image", "cloud") else 0
+        return (
+            int(struct.unpack_from("<d", msg)[0])
+            if kind in ("twist", "float")
+            else struct.unpack_from("<I", msg)[0]
+            if kind in ("image", "cloud")
+            else 0
+        )
     if isinstance(msg, dict):
         if kind == "twist":
             return int(msg["linear"]["x"])

@@ -10,6 +10,7 @@ peer that is not there is skipped, with the reason (`missing()`), and the rest o
 - foxglove_bridge 0.8.5's ROS 1 nodelet (foxglove/ros-foxglove-bridge, tag 0.8.5, with ros_babel_fish): a catkin
   workspace (`--foxglove-ws`, else $FOXGLOVE_WS, else /tmp/foxglove_ws). Run as `nodelet standalone`, at its
   defaults. Its protocol: foxglove_protocol.py."""
+
 import os
 import socket
 import subprocess
@@ -25,15 +26,25 @@ CACHE = Path.home() / ".cache" / "turtlesim"
 
 
 def add_arguments(parser):
-    parser.add_argument("--reference-ws", type=Path, default=Path(os.environ.get(
-        "REFERENCE_WS", CACHE / f"rosbridge-{REFERENCE_TAG}-venv-ws")),
-        help=f"the catkin workspace of {REFERENCE_NAME}, built beforehand (default: $REFERENCE_WS, else %(default)s)")
-    parser.add_argument("--reference-venv", type=Path, default=Path(os.environ.get(
-        "REFERENCE_VENV", CACHE / "reference-venv")),
-        help="the venv whose Python it was built with (default: $REFERENCE_VENV, else %(default)s)")
-    parser.add_argument("--foxglove-ws", type=Path, default=Path(os.environ.get("FOXGLOVE_WS", "/tmp/foxglove_ws")),
-                        help=f"the catkin workspace of {FOXGLOVE_NAME}'s ROS 1 nodelet, built beforehand "
-                        "(default: $FOXGLOVE_WS, else %(default)s)")
+    parser.add_argument(
+        "--reference-ws",
+        type=Path,
+        default=Path(os.environ.get("REFERENCE_WS", CACHE / f"rosbridge-{REFERENCE_TAG}-venv-ws")),
+        help=f"the catkin workspace of {REFERENCE_NAME}, built beforehand (default: $REFERENCE_WS, else %(default)s)",
+    )
+    parser.add_argument(
+        "--reference-venv",
+        type=Path,
+        default=Path(os.environ.get("REFERENCE_VENV", CACHE / "reference-venv")),
+        help="the venv whose Python it was built with (default: $REFERENCE_VENV, else %(default)s)",
+    )
+    parser.add_argument(
+        "--foxglove-ws",
+        type=Path,
+        default=Path(os.environ.get("FOXGLOVE_WS", "/tmp/foxglove_ws")),
+        help=f"the catkin workspace of {FOXGLOVE_NAME}'s ROS 1 nodelet, built beforehand "
+        "(default: $FOXGLOVE_WS, else %(default)s)",
+    )
 
 
 def reference_missing(a):
@@ -48,7 +59,8 @@ def reference_missing(a):
 
 def foxglove_missing(a):
     if not (a.foxglove_ws / "devel" / "setup.bash").exists() or not any(
-            (a.foxglove_ws / "devel" / "lib").glob("libfoxglove_bridge_nodelet.so")):
+        (a.foxglove_ws / "devel" / "lib").glob("libfoxglove_bridge_nodelet.so")
+    ):
         return f"{FOXGLOVE_NAME} is not built in {a.foxglove_ws} (see bench/README.md: the peers)"
     return None
 
@@ -57,8 +69,15 @@ def start_reference(ros, a, address="127.0.0.1", name="reference"):
     """The reference, with its launch file (its node: /rosbridge_websocket, with /rosapi beside it; so never at
     the same time as another bridge of that name): (Proc, ProcStat of its websocket node, websocket URL)."""
     port = harness.free_port()
-    proc = ros.spawn(["bash", "-c", f"source {a.reference_ws}/devel/setup.bash && exec roslaunch rosbridge_server "
-                      f"rosbridge_websocket.launch port:={port} address:={address}"], name)
+    proc = ros.spawn(
+        [
+            "bash",
+            "-c",
+            f"source {a.reference_ws}/devel/setup.bash && exec roslaunch rosbridge_server "
+            f"rosbridge_websocket.launch port:={port} address:={address}",
+        ],
+        name,
+    )
     harness.wait_for(lambda: listening(address, port, proc), 60, what=f"{REFERENCE_NAME} listening")
     return proc, harness.ProcStat(harness.node_pid(ros, "/rosbridge_websocket")), f"ws://{address}:{port}/"
 
@@ -68,8 +87,15 @@ def start_foxglove(ros, a, address="127.0.0.1", name="foxglove_bridge", **params
     (Proc, ProcStat, websocket URL)."""
     port = harness.free_port()
     settings = " ".join(f"_{key}:={value}" for key, value in {"port": port, "address": address, **params}.items())
-    proc = ros.spawn(["bash", "-c", f"source {a.foxglove_ws}/devel/setup.bash && exec rosrun nodelet nodelet "
-                      f"standalone foxglove_bridge/foxglove_bridge_nodelet __name:={name} {settings}"], name)
+    proc = ros.spawn(
+        [
+            "bash",
+            "-c",
+            f"source {a.foxglove_ws}/devel/setup.bash && exec rosrun nodelet nodelet "
+            f"standalone foxglove_bridge/foxglove_bridge_nodelet __name:={name} {settings}",
+        ],
+        name,
+    )
     harness.wait_for(lambda: listening(address, port, proc), 60, what=f"{FOXGLOVE_NAME} listening")
     return proc, harness.ProcStat(harness.node_pid(ros, f"/{name}")), f"ws://{address}:{port}/"
 

@@ -14,6 +14,7 @@ page that shows the camera as JPEG in an <img> and the small topic's value as te
 the console's baseline (rosboard's way of showing a camera). The websocket is at /ws.
 
 Prints READY when it listens."""
+
 import argparse
 import asyncio
 import base64
@@ -91,9 +92,15 @@ def as_dict(msg):
     if isinstance(msg, Float64):
         return {"data": msg.data}
     h = msg.header
-    return {"header": {"seq": h.seq, "stamp": {"secs": h.stamp.secs, "nsecs": h.stamp.nsecs}, "frame_id": h.frame_id},
-            "height": msg.height, "width": msg.width, "encoding": msg.encoding, "is_bigendian": msg.is_bigendian,
-            "step": msg.step, "data": msg.data}
+    return {
+        "header": {"seq": h.seq, "stamp": {"secs": h.stamp.secs, "nsecs": h.stamp.nsecs}, "frame_id": h.frame_id},
+        "height": msg.height,
+        "width": msg.width,
+        "encoding": msg.encoding,
+        "is_bigendian": msg.is_bigendian,
+        "step": msg.step,
+        "data": msg.data,
+    }
 
 
 def encode(topic, msg, compression):
@@ -112,10 +119,12 @@ def encode(topic, msg, compression):
 
 def forward(loop, topic):
     """A rospy callback (rospy's thread): encode once per way asked for, then write to each client (the loop)."""
+
     def received(msg):
         wanted = {ws.topics[topic] for ws in list(Forwarder.clients) if topic in ws.topics}
         frames = {c: encode(topic, msg, c) for c in wanted}
         loop.add_callback(send, topic, frames)
+
     return received
 
 
@@ -141,8 +150,10 @@ async def main():
     loop = tornado.ioloop.IOLoop.current()
     rospy.Subscriber(a.small, Float64, forward(loop, a.small), queue_size=None)
     rospy.Subscriber(a.camera, Image, forward(loop, a.camera), queue_size=None, buff_size=1 << 24)
-    app = tornado.web.Application([("/", Page, {"html": PAGE % {"small": a.small, "camera": a.camera}}),
-                                   ("/ws", Forwarder)], websocket_max_message_size=64 << 20)
+    app = tornado.web.Application(
+        [("/", Page, {"html": PAGE % {"small": a.small, "camera": a.camera}}), ("/ws", Forwarder)],
+        websocket_max_message_size=64 << 20,
+    )
     app.listen(a.port, a.address)
     print("READY", flush=True)
     await asyncio.Event().wait()

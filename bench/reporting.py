@@ -2,6 +2,7 @@
 while a run goes on), and its own section of bench/README.template.md and bench/README.md, between its two
 markers, which the bad-link bench (badlink.py) and the rover bench (nav_bench.py) rewrite after a full run (the suite,
 suite.py, writes the rest of README.md from the template)."""
+
 import hashlib
 import subprocess
 import sys
@@ -26,8 +27,11 @@ def write_section(markers, text):
 def _uncommitted():
     """A digest of the uncommitted changes to src/ and web/ (tracked and new files), and whether there are any."""
     diff = subprocess.run(["git", "-C", str(REPO), "diff", "HEAD", "--", "src", "web"], capture_output=True)
-    untracked = subprocess.run(["git", "-C", str(REPO), "ls-files", "--others", "--exclude-standard", "src", "web"],
-                               capture_output=True, text=True).stdout.split()
+    untracked = subprocess.run(
+        ["git", "-C", str(REPO), "ls-files", "--others", "--exclude-standard", "src", "web"],
+        capture_output=True,
+        text=True,
+    ).stdout.split()
     digest = hashlib.sha1(diff.stdout)
     for name in sorted(untracked):
         digest.update((REPO / name).read_bytes() if (REPO / name).is_file() else b"")
@@ -47,11 +51,13 @@ def git_head():
     head = subprocess.run(["git", "-C", str(REPO), "log", "-1", "--format=%h %s"], capture_output=True, text=True)
     if head.returncode:
         return "an unknown commit"
-    dirty = subprocess.run(["git", "-C", str(REPO), "status", "--porcelain", "--", "src", "web"],
-                           capture_output=True, text=True).stdout.split("\n")
+    dirty = subprocess.run(
+        ["git", "-C", str(REPO), "status", "--porcelain", "--", "src", "web"], capture_output=True, text=True
+    ).stdout.split("\n")
     dirty = [line[3:] for line in dirty if line.strip()]
     return f"commit `{head.stdout.strip()[:70]}`" + (
-        f" with uncommitted changes in {', '.join(dirty[:8])}{' ...' if len(dirty) > 8 else ''}" if dirty else "")
+        f" with uncommitted changes in {', '.join(dirty[:8])}{' ...' if len(dirty) > 8 else ''}" if dirty else ""
+    )
 
 
 def code_digest():

@@ -7,6 +7,7 @@
 
 Protocol with bench/suite.py: a role prints READY when it is connected, waits for a line on stdin when it is
 an actor that must start on cue, and prints one `RESULT <json>` line at the end."""
+
 import argparse
 import sys
 import threading
@@ -26,11 +27,18 @@ def main():
     p.add_argument("--kind", default="twist", choices=sorted(payloads.TYPES))
     p.add_argument("--count", type=int, default=1000)
     p.add_argument("--rate", type=float, default=0.0, help="Hz; 0 = as fast as possible")
-    p.add_argument("--queue-size", type=int, default=100,
-                   help="pub: rospy's queue_size (100: what roslibjs asks the bridge for); 0 = synchronous publisher")
+    p.add_argument(
+        "--queue-size",
+        type=int,
+        default=100,
+        help="pub: rospy's queue_size (100: what roslibjs asks the bridge for); 0 = synchronous publisher",
+    )
     p.add_argument("--subscribers", type=int, default=1, help="pub: connections to wait for before READY")
-    p.add_argument("--warmup", action="store_true",
-                   help="pub: publish seq -1 at --rate until told to go (lets websocket clients see the topic live)")
+    p.add_argument(
+        "--warmup",
+        action="store_true",
+        help="pub: publish seq -1 at --rate until told to go (lets websocket clients see the topic live)",
+    )
     p.add_argument("--idle", type=float, default=2.0, help="count: stop this long after the last message")
     p.add_argument("--timeout", type=float, default=60.0)
     a = p.parse_args()
@@ -57,8 +65,11 @@ def pub(a):
         stats.wait_until(lambda: publisher.get_num_connections() >= a.subscribers, a.timeout, "subscribers")
         print("READY", flush=True)
         go.wait()
-    msgs = [payloads.ros_msg(a.kind, i) for i in range(min(a.count, 1000))] if a.kind in ("twist", "float") \
+    msgs = (
+        [payloads.ros_msg(a.kind, i) for i in range(min(a.count, 1000))]
+        if a.kind in ("twist", "float")
         else [payloads.ros_msg(a.kind, 0)]
+    )
     start = time.monotonic()
     for i in range(a.count):
         msg = msgs[i % len(msgs)]
@@ -76,8 +87,13 @@ def pub(a):
 
 def count(a):
     seen = stats.Arrivals()
-    sub = rospy.Subscriber(a.topic, msg_class(a.kind), lambda m: seen.add(payloads.seq_of(a.kind, m)),
-                           queue_size=a.count, buff_size=1 << 24)
+    sub = rospy.Subscriber(
+        a.topic,
+        msg_class(a.kind),
+        lambda m: seen.add(payloads.seq_of(a.kind, m)),
+        queue_size=a.count,
+        buff_size=1 << 24,
+    )
     stats.wait_until(lambda: sub.get_num_connections() >= 1, a.timeout, "a publisher")
     print("READY", flush=True)
     seen.wait(a.count, a.idle, a.timeout)

@@ -22,6 +22,7 @@ Protocol with bench/badlink.py: prints the pictures' sizes, then READY once publ
 `count <t0> <t1>` on stdin answers `RESULT {"small": n, "camera": m}`: how many of each it published with a
 stamp in [t0, t1) (wall seconds); `twists` answers `RESULT {"twists": [[arrived, linear.x, linear.z], ...]}`,
 the Twists received since the last time asked."""
+
 import argparse
 import io
 import json
@@ -42,8 +43,10 @@ DATA_BITS, CHECK_BITS = 24, 6
 MODULO = 1 << DATA_BITS  # ms: wraps every 4.66 hours; the reader takes the age modulo this
 
 # (blur, shapes, texture sigma, sensor noise sigma): tuned with --check to about 34 kB and 77 kB at q50
-PICTURES = {"camera-like": dict(shapes=60, blur=2.0, texture=21, sensor=5),
-            "busy": dict(shapes=700, blur=0.3, texture=92, sensor=18)}
+PICTURES = {
+    "camera-like": dict(shapes=60, blur=2.0, texture=21, sensor=5),
+    "busy": dict(shapes=700, blur=0.3, texture=92, sensor=18),
+}
 
 
 def check_bits(data):
@@ -70,29 +73,34 @@ def stamp_band(ms):
 def read_stamp(picture):
     """A PIL picture (of any size) -> the 24-bit stamp its barcode shows, or None when it shows none."""
     from PIL import Image
-    band = picture.convert("L").resize((CELLS * 4, 4), Image.BILINEAR,
-                                       box=(0, 0, picture.width, picture.height * BAND_H / H))
+
+    band = picture.convert("L").resize(
+        (CELLS * 4, 4), Image.BILINEAR, box=(0, 0, picture.width, picture.height * BAND_H / H)
+    )
     row = [band.getpixel((4 * i + 2, 2)) for i in range(CELLS)]  # each block's middle
     black, white = row[0], row[1]
     if white - black < 80:
         return None
     bits = [v > (black + white) / 2 for v in row]
-    data = sum(b << (DATA_BITS - 1 - i) for i, b in enumerate(bits[2:2 + DATA_BITS]))
-    check = sum(b << (CHECK_BITS - 1 - i) for i, b in enumerate(bits[2 + DATA_BITS:]))
+    data = sum(b << (DATA_BITS - 1 - i) for i, b in enumerate(bits[2 : 2 + DATA_BITS]))
+    check = sum(b << (CHECK_BITS - 1 - i) for i, b in enumerate(bits[2 + DATA_BITS :]))
     return data if check == check_bits(data) else None
 
 
 def make_frames(picture, count=FRAMES):
     """`count` rgb8 frames (bytes) of the picture, panning; the barcode band is written over each at publish."""
     from PIL import Image, ImageChops, ImageDraw, ImageFilter
+
     p = PICTURES[picture]
     rng = random.Random(1)
     world = Image.new("RGB", (W + PAN_PX * count, H))
     draw = ImageDraw.Draw(world)
     for y in range(H):  # sky, then ground
         sky = y < H * 0.45
-        draw.line([(0, y), (world.width, y)],
-                  fill=(90 + y // 6, 120 + y // 8, 200 - y // 4) if sky else (80 + y // 10, 70 + y // 12, 50 + y // 16))
+        draw.line(
+            [(0, y), (world.width, y)],
+            fill=(90 + y // 6, 120 + y // 8, 200 - y // 4) if sky else (80 + y // 10, 70 + y // 12, 50 + y // 16),
+        )
     for _ in range(p["shapes"]):
         x, y, s = rng.randrange(world.width), rng.randrange(H), rng.randrange(8, 90)
         colour = tuple(rng.randrange(256) for _ in range(3))
@@ -112,12 +120,13 @@ def make_frames(picture, count=FRAMES):
 
 
 def with_stamp(frame, ms):
-    return stamp_band(ms) + frame[len(_BLOCKS[0]) * CELLS * BAND_H:]
+    return stamp_band(ms) + frame[len(_BLOCKS[0]) * CELLS * BAND_H :]
 
 
 def sizes(picture, frames, ms=None):
     """What one picture weighs: JPEG at q50 (mean over the frames), deflated raw, raw."""
     from PIL import Image
+
     ms = time.time() * 1000 if ms is None else ms
     jpegs = []
     for frame in frames:
@@ -125,13 +134,18 @@ def sizes(picture, frames, ms=None):
         Image.frombytes("RGB", (W, H), with_stamp(frame, ms)).save(out, "JPEG", quality=50)
         jpegs.append(len(out.getvalue()))
     raw = with_stamp(frames[0], ms)
-    return {"picture": picture, "jpeg_q50_bytes": round(sum(jpegs) / len(jpegs)),
-            "deflate_bytes": len(zlib.compress(raw, 6)), "raw_bytes": len(raw)}
+    return {
+        "picture": picture,
+        "jpeg_q50_bytes": round(sum(jpegs) / len(jpegs)),
+        "deflate_bytes": len(zlib.compress(raw, 6)),
+        "raw_bytes": len(raw),
+    }
 
 
 def check(picture, frames):
     """The barcode read back after JPEG q20 and scaling to 0.35x (both orders), at many stamps."""
     from PIL import Image
+
     failures = 0
     rng = random.Random(2)
     for n in range(40):
@@ -145,6 +159,7 @@ def check(picture, frames):
 
 def jpeg_again(img, quality):
     from PIL import Image
+
     out = io.BytesIO()
     img.save(out, "JPEG", quality=quality)
     return Image.open(io.BytesIO(out.getvalue()))
@@ -152,8 +167,8 @@ def jpeg_again(img, quality):
 
 def publish(a, frames):
     import rospy
-    from sensor_msgs.msg import Image
     from geometry_msgs.msg import Twist
+    from sensor_msgs.msg import Image
     from std_msgs.msg import Float64, Header
 
     rospy.init_node("rover", disable_signals=True)
@@ -176,8 +191,15 @@ def publish(a, frames):
         period, due, n = 1.0 / CAMERA_HZ, time.monotonic(), 0
         while True:
             now = time.time()
-            msg = Image(header=Header(seq=n, stamp=rospy.Time.from_sec(now), frame_id="camera"), height=H, width=W,
-                        encoding="rgb8", is_bigendian=0, step=3 * W, data=with_stamp(frames[n % len(frames)], now * 1000))
+            msg = Image(
+                header=Header(seq=n, stamp=rospy.Time.from_sec(now), frame_id="camera"),
+                height=H,
+                width=W,
+                encoding="rgb8",
+                is_bigendian=0,
+                step=3 * W,
+                data=with_stamp(frames[n % len(frames)], now * 1000),
+            )
             camera.publish(msg)
             with lock:
                 stamps["camera"].append(now)
@@ -190,6 +212,7 @@ def publish(a, frames):
     def driven(msg):
         with lock:
             twists.append((time.time(), msg.linear.x, msg.linear.z))
+
     rospy.Subscriber(a.cmd_vel, Twist, driven, tcp_nodelay=True)
 
     for loop in (small_loop, camera_loop):
@@ -226,8 +249,10 @@ def main():
             print("PICTURE " + json.dumps({**sizes(picture, frames), "barcode_failures": failures}), flush=True)
             if a.save:
                 from PIL import Image
+
                 Image.frombytes("RGB", (W, H), with_stamp(frames[0], time.time() * 1000)).save(
-                    f"{a.save}/rover-{picture}.png")
+                    f"{a.save}/rover-{picture}.png"
+                )
         sys.exit(1 if bad else 0)
     frames = make_frames(a.picture)
     print("PICTURE " + json.dumps(sizes(a.picture, frames)), flush=True)

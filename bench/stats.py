@@ -1,4 +1,5 @@
 """Small measuring tools shared by the benchmark roles and the suite (standard library only)."""
+
 import asyncio
 import bisect
 import json
@@ -6,6 +7,7 @@ import statistics
 import sys
 import threading
 import time
+
 
 def wait_until(predicate, timeout, what, fail=True, interval=0.02):
     deadline = time.monotonic() + timeout
@@ -32,6 +34,7 @@ def cue():
     def read():
         sys.stdin.readline()
         loop.call_soon_threadsafe(lambda: done.done() or done.set_result(None))
+
     threading.Thread(target=read, daemon=True).start()
     return done
 
@@ -64,8 +67,13 @@ class Arrivals:
 
     def summary(self):
         span = (self.last - self.first) if self.n > 1 else 0.0
-        return {"received": self.n, "unique": len(self.seqs), "seconds": span,
-                "rate": (self.n - 1) / span if span > 0 else 0.0, "bytes": self.bytes}
+        return {
+            "received": self.n,
+            "unique": len(self.seqs),
+            "seconds": span,
+            "rate": (self.n - 1) / span if span > 0 else 0.0,
+            "bytes": self.bytes,
+        }
 
 
 def latency_summary(rtts, sent):

@@ -1,5 +1,6 @@
 """The benchmark suite: runs every measurement `--rounds` times against baselines measured in the same run,
 prints a markdown table of medians and writes bench/README.md. Start it with `bash bench/run`."""
+
 import argparse
 import json
 import os
@@ -19,7 +20,6 @@ import harness  # noqa: E402  (the tests' process tools: private roscore, proces
 
 sys.path.insert(0, str(REPO / "test" / "integration"))
 import hostile  # noqa: E402  (the isolation tests' hostile clients and their victim)
-
 import payloads  # noqa: E402
 import peers  # noqa: E402
 import stats  # noqa: E402
@@ -48,8 +48,11 @@ class Run:
     def role(self, script, *args, name=None):
         """Starts one bench role (ros_roles.py / ws_roles.py / transport_server.py); stdin is its cue."""
         self.spawned += 1  # (log files are named by this count: harness's own count shrinks as we stop procs)
-        return self.ros.spawn([PY, str(BENCH / script), *map(str, args)],
-                              f"{name or script.split('.')[0]}-{self.spawned}", stdin=subprocess.PIPE)
+        return self.ros.spawn(
+            [PY, str(BENCH / script), *map(str, args)],
+            f"{name or script.split('.')[0]}-{self.spawned}",
+            stdin=subprocess.PIPE,
+        )
 
     @staticmethod
     def ready(proc, timeout=30):
@@ -66,6 +69,7 @@ class Run:
     def result(proc, timeout=120):
         def found():
             return re.findall(r"^RESULT (.*)$", proc.output(), re.M) or (not proc.alive() and ["dead"])
+
         last = harness.wait_for(found, timeout, what=f"RESULT of {proc.args[2:4]}")[-1]
         if last == "dead":
             raise RuntimeError(f"{proc.args[2:4]} died:\n{proc.output()[-2000:]}")
@@ -111,19 +115,36 @@ class Cpu:
 
 # ---- measurements: each returns a dict of figures for one round ------------------------------------------
 
+
 def rospy_pubsub(run, kind, count, rate=0, queue_size=100):
     """Plain rospy publisher (queued, or synchronous with queue_size 0) -> rospy subscriber: delivered rate, and
     each node's CPU per message."""
     topic = run.topic("plain")
     sub = run.role("ros_roles.py", "count", "--topic", topic, "--kind", kind, "--count", count)
-    pub = run.role("ros_roles.py", "pub", "--topic", topic, "--kind", kind, "--count", count, "--rate", rate,
-                   "--queue-size", queue_size)
+    pub = run.role(
+        "ros_roles.py",
+        "pub",
+        "--topic",
+        topic,
+        "--kind",
+        kind,
+        "--count",
+        count,
+        "--rate",
+        rate,
+        "--queue-size",
+        queue_size,
+    )
     run.ready(pub), run.ready(sub)
     pub_cpu, sub_cpu = Cpu(harness.ProcStat(pub.pid)), Cpu(harness.ProcStat(sub.pid))
     run.go(pub)
     got = run.result(sub)
-    figures = {"rate": got["rate"], "delivered": got["received"] / count,
-               "pub_us": pub_cpu.us_per(count), "sub_us": sub_cpu.us_per(got["received"])}
+    figures = {
+        "rate": got["rate"],
+        "delivered": got["received"] / count,
+        "pub_us": pub_cpu.us_per(count),
+        "sub_us": sub_cpu.us_per(got["received"]),
+    }
     run.stop(pub, sub)
     return figures
 
@@ -135,20 +156,37 @@ def bridge_in(run, url, server, kind, count, rate=0, client_args=()):
     """Websocket client publishes (as fast as it can, or at `rate` Hz) through the bridge -> rospy subscriber."""
     topic = run.topic("in")
     sub = run.role("ros_roles.py", "count", "--topic", topic, "--kind", kind, "--count", count)
-    client = run.role("ws_roles.py", "publish", "--url", url, "--topic", topic, "--kind", kind, "--count", count,
-                      "--publish-rate", rate, *client_args)
+    client = run.role(
+        "ws_roles.py",
+        "publish",
+        "--url",
+        url,
+        "--topic",
+        topic,
+        "--kind",
+        kind,
+        "--count",
+        count,
+        "--publish-rate",
+        rate,
+        *client_args,
+    )
     run.ready(client), run.ready(sub)
     cpu = Cpu(server)
     run.go(client)
     got = run.result(sub)
-    figures = {"rate": got["received"] and got["rate"], "delivered": got["received"] / count,
-               "server_us": cpu.us_per(got["received"])}
+    figures = {
+        "rate": got["received"] and got["rate"],
+        "delivered": got["received"] / count,
+        "server_us": cpu.us_per(got["received"]),
+    }
     run.stop(client, sub)
     return figures
 
 
-def bridge_out(run, url, server, kind, count, compression="none", rate=0, queue_size=100, clients=1,
-               protocol="rosbridge"):
+def bridge_out(
+    run, url, server, kind, count, compression="none", rate=0, queue_size=100, clients=1, protocol="rosbridge"
+):
     """rospy publisher (at full speed, or `rate` Hz; queued, or synchronous with queue_size 0) -> the bridge ->
     `clients` subscribed websocket clients (one process each). With several, `delivered` is the least any client
     got and the CPU is per message published (`server_us_delivered`: per message delivered to any client), `age_p95`
@@ -157,11 +195,39 @@ def bridge_out(run, url, server, kind, count, compression="none", rate=0, queue_
     is a roscpp subscriber of its own, on the one connection roscpp keeps per topic, added a moment after the
     client's request)."""
     topic = run.topic("out")
-    pub = run.role("ros_roles.py", "pub", "--topic", topic, "--kind", kind, "--count", count, "--rate", rate,
-                   "--queue-size", queue_size)
-    subscribers = [run.role("ws_roles.py", "subscribe", "--url", url, "--topic", topic, "--kind", kind,
-                            "--count", count, "--compression", compression, "--protocol", protocol)
-                   for _ in range(clients)]
+    pub = run.role(
+        "ros_roles.py",
+        "pub",
+        "--topic",
+        topic,
+        "--kind",
+        kind,
+        "--count",
+        count,
+        "--rate",
+        rate,
+        "--queue-size",
+        queue_size,
+    )
+    subscribers = [
+        run.role(
+            "ws_roles.py",
+            "subscribe",
+            "--url",
+            url,
+            "--topic",
+            topic,
+            "--kind",
+            kind,
+            "--count",
+            count,
+            "--compression",
+            compression,
+            "--protocol",
+            protocol,
+        )
+        for _ in range(clients)
+    ]
     for client in subscribers:
         run.ready(client, timeout=60)
     run.ready(pub)
@@ -173,11 +239,14 @@ def bridge_out(run, url, server, kind, count, compression="none", rate=0, queue_
     got = min(results, key=lambda r: r["received"])
     ages = [r["age_p95"] for r in results if r.get("age_p95") is not None]
     spent, delivered = cpu.us_per(1), sum(r["received"] for r in results)  # (µs: all of it)
-    figures = {"rate": got["rate"], "delivered": got["received"] / count,
-               "server_us": spent / (got["received"] if clients == 1 else count) if got["received"] else None,
-               "server_us_delivered": spent / delivered if delivered else None,
-               "age_p95": max(ages) if ages else None,
-               "wire_bytes": got["bytes"] / got["received"] if got["received"] else None}
+    figures = {
+        "rate": got["rate"],
+        "delivered": got["received"] / count,
+        "server_us": spent / (got["received"] if clients == 1 else count) if got["received"] else None,
+        "server_us_delivered": spent / delivered if delivered else None,
+        "age_p95": max(ages) if ages else None,
+        "wire_bytes": got["bytes"] / got["received"] if got["received"] else None,
+    }
     if got["statuses"]:
         figures["status"] = got["statuses"]
     run.stop(*subscribers, pub)
@@ -207,19 +276,46 @@ def foxglove_rows(run, table, label, bridged, fox_rounds, limit, key="server_us"
 
     def at_most(mine, theirs, factor):
         return mine is not None and theirs is not None and mine <= factor * theirs
+
     for client, r in bridged.items():
-        table.row(f"{label} ({client}): bridge CPU per message{' delivered' if key != 'server_us' else ''}",
-                  r.get(key), "µs", peer, fox.get(key), f"<= {limit}x", at_most(r.get(key), fox.get(key), limit))
+        table.row(
+            f"{label} ({client}): bridge CPU per message{' delivered' if key != 'server_us' else ''}",
+            r.get(key),
+            "µs",
+            peer,
+            fox.get(key),
+            f"<= {limit}x",
+            at_most(r.get(key), fox.get(key), limit),
+        )
         if lossless:
-            table.row(f"{label} ({client}): messages delivered", r["delivered"], "%", peer, fox["delivered"],
-                      "100%", r["delivered"] >= 1.0)
+            table.row(
+                f"{label} ({client}): messages delivered",
+                r["delivered"],
+                "%",
+                peer,
+                fox["delivered"],
+                "100%",
+                r["delivered"] >= 1.0,
+            )
         if age:
             ms = [f.get("age_p95") and f["age_p95"] * 1e3 for f in (r, fox)]
-            table.row(f"{label} ({client}): age p95 at the client", ms[0], "ms", peer, ms[1], "no higher",
-                      at_most(ms[0], ms[1], 1.0))
+            table.row(
+                f"{label} ({client}): age p95 at the client",
+                ms[0],
+                "ms",
+                peer,
+                ms[1],
+                "no higher",
+                at_most(ms[0], ms[1], 1.0),
+            )
     if not lossless:
-        table.row(f"{label}: messages delivered (the least any client got)",
-                  min(r["delivered"] for r in bridged.values()), "%", peer, fox["delivered"])
+        table.row(
+            f"{label}: messages delivered (the least any client got)",
+            min(r["delivered"] for r in bridged.values()),
+            "%",
+            peer,
+            fox["delivered"],
+        )
 
 
 def transport_in(run, count, rate=0, forward=False, client_args=()):
@@ -229,8 +325,7 @@ def transport_in(run, count, rate=0, forward=False, client_args=()):
         run.ready(sink)
     forwarding = ("--forward", re.search(r"PORT (\d+)", sink.output()).group(1)) if sink else ()
     server, url, stat = run.transport("--no-echo", *forwarding)
-    client = run.role("ws_roles.py", "publish", "--url", url, "--count", count, "--publish-rate", rate,
-                      *client_args)
+    client = run.role("ws_roles.py", "publish", "--url", url, "--count", count, "--publish-rate", rate, *client_args)
     run.ready(client)
     cpu = Cpu(stat)
     run.go(client)
@@ -257,8 +352,22 @@ def transport_out(run, count, rate=0, kind="twist", cbor=False):
 
 def ws_rtt(run, url, ping, pong, count=300):
     """A websocket client's round trips at 100 Hz: it publishes on `ping` and times what comes back on `pong`."""
-    client = run.role("ws_roles.py", "rtt", "--url", url, "--kind", "float", "--topic", ping, "--out", pong,
-                      "--count", count, "--rate", 100)
+    client = run.role(
+        "ws_roles.py",
+        "rtt",
+        "--url",
+        url,
+        "--kind",
+        "float",
+        "--topic",
+        ping,
+        "--out",
+        pong,
+        "--count",
+        count,
+        "--rate",
+        100,
+    )
     got = run.result(client)
     run.stop(client)
     return got
@@ -273,8 +382,9 @@ def rtt(run, url=None):
     if url:
         got = ws_rtt(run, url, ping, pong)
     else:
-        client = run.role("ros_roles.py", "rtt", "--kind", "float", "--topic", ping, "--out", pong,
-                          "--count", 300, "--rate", 100)
+        client = run.role(
+            "ros_roles.py", "rtt", "--kind", "float", "--topic", ping, "--out", pong, "--count", 300, "--rate", 100
+        )
         got = run.result(client)
         run.stop(client)
     run.stop(echo)
@@ -303,9 +413,24 @@ def fanout(run, clients, messages=30):
     idle_rss, idle_threads = server.rss_mb(), server.threads()
     topic = run.topic("fan")
     procs = max(1, min(2, clients // 300))  # the clients, multiplexed in one or two processes
-    groups = [run.role("ws_roles.py", "fanout", "--url", url, "--topic", topic, "--count", messages,
-                       "--clients", clients // procs + (i < clients % procs), "--timeout", 90, name="fanout")
-              for i in range(procs)]
+    groups = [
+        run.role(
+            "ws_roles.py",
+            "fanout",
+            "--url",
+            url,
+            "--topic",
+            topic,
+            "--count",
+            messages,
+            "--clients",
+            clients // procs + (i < clients % procs),
+            "--timeout",
+            90,
+            name="fanout",
+        )
+        for i in range(procs)
+    ]
     pub = run.role("ros_roles.py", "pub", "--topic", topic, "--count", messages, "--rate", 10, "--warmup")
     for g in groups:
         run.ready(g, timeout=120)
@@ -319,16 +444,22 @@ def fanout(run, clients, messages=30):
             time.sleep(0.2)
         results.append(run.result(g))
     delivered = sum(r["delivered"] for r in results)
-    figures = {"delivered": delivered / (messages * clients),
-               "complete_clients": sum(r["complete"] for r in results),
-               "idle_rss": idle_rss, "rss": max(rss), "idle_threads": idle_threads, "threads": max(threads),
-               "server_us": cpu.us_per(delivered),
-               "connect_s": max(r["connect_seconds"] for r in results)}
+    figures = {
+        "delivered": delivered / (messages * clients),
+        "complete_clients": sum(r["complete"] for r in results),
+        "idle_rss": idle_rss,
+        "rss": max(rss),
+        "idle_threads": idle_threads,
+        "threads": max(threads),
+        "server_us": cpu.us_per(delivered),
+        "connect_s": max(r["connect_seconds"] for r in results),
+    }
     run.stop(pub, *groups, bridge)
     return figures
 
 
 # ---- the suite -------------------------------------------------------------------------------------------
+
 
 def medians(rounds):
     keys = [k for k in rounds[0] if isinstance(rounds[0][k], (int, float))]
@@ -344,9 +475,16 @@ class Table:
 
     def row(self, figure, value, unit, baseline_name, baseline, target="", ok=None):
         ratio = value / baseline if value is not None and baseline else None
-        self.rows.append((figure, fmt(value, unit), f"{baseline_name}: {fmt(baseline, unit)}" if baseline_name
-                          else "", f"{ratio:.2f}x" if ratio is not None else "", target,
-                          "" if ok is None else ("met" if ok else "**missed**")))
+        self.rows.append(
+            (
+                figure,
+                fmt(value, unit),
+                f"{baseline_name}: {fmt(baseline, unit)}" if baseline_name else "",
+                f"{ratio:.2f}x" if ratio is not None else "",
+                target,
+                "" if ok is None else ("met" if ok else "**missed**"),
+            )
+        )
 
     def markdown(self):
         lines = ["| Figure | Bridge | Baseline (same run) | Ratio | Target | |", "|---|---:|---|---:|---|---|"]
@@ -387,39 +525,107 @@ def section_throughput(run, table, rounds, count):
         run.stop(bridge)
         paced_fox.append(foxglove_out(run, "twist", count))
     queued, sync, ceil_in, ceil_out, into, out, paced, ceil_in_single, into_single = map(
-        medians, (queued, sync, ceil_in, ceil_out, into, out, paced, ceil_in_single, into_single))
-    for client, bridged, ceiling in (("batching client", into, ceil_in),
-                                     ("one frame per write", into_single, ceil_in_single)):
-        table.row(f"client -> ROS ({client}): Twist delivered to a rospy subscriber", bridged["rate"], "msg/s",
-                  "bare Tornado+JSON server receiving", ceiling["rate"], ">= 0.6x",
-                  bridged["rate"] >= 0.6 * ceiling["rate"])
-        table.row(f"client -> ROS ({client}): messages delivered", bridged["delivered"], "%", "all sent", 1.0,
-                  "100%", bridged["delivered"] >= 1.0)
-        table.row(f"client -> ROS ({client}): bridge CPU per message", bridged["server_us"], "µs",
-                  "bare Tornado+JSON server", ceiling["server_us"], "<= 1.5x",
-                  bridged["server_us"] <= 1.5 * ceiling["server_us"])
-    table.row("client -> ROS: vs plain rospy, queued publisher (queue_size=100)", into["rate"], "msg/s",
-              "rospy pub -> sub", queued["rate"])
-    table.row("client -> ROS: vs plain rospy, synchronous publisher", into["rate"], "msg/s",
-              "rospy pub -> sub", sync["rate"])
-    table.row("ROS -> client: Twist delivered to a websocket client (synchronous rospy publisher)", out["rate"],
-              "msg/s", "bare Tornado+JSON server pushing", ceil_out["rate"])
+        medians, (queued, sync, ceil_in, ceil_out, into, out, paced, ceil_in_single, into_single)
+    )
+    for client, bridged, ceiling in (
+        ("batching client", into, ceil_in),
+        ("one frame per write", into_single, ceil_in_single),
+    ):
+        table.row(
+            f"client -> ROS ({client}): Twist delivered to a rospy subscriber",
+            bridged["rate"],
+            "msg/s",
+            "bare Tornado+JSON server receiving",
+            ceiling["rate"],
+            ">= 0.6x",
+            bridged["rate"] >= 0.6 * ceiling["rate"],
+        )
+        table.row(
+            f"client -> ROS ({client}): messages delivered",
+            bridged["delivered"],
+            "%",
+            "all sent",
+            1.0,
+            "100%",
+            bridged["delivered"] >= 1.0,
+        )
+        table.row(
+            f"client -> ROS ({client}): bridge CPU per message",
+            bridged["server_us"],
+            "µs",
+            "bare Tornado+JSON server",
+            ceiling["server_us"],
+            "<= 1.5x",
+            bridged["server_us"] <= 1.5 * ceiling["server_us"],
+        )
+    table.row(
+        "client -> ROS: vs plain rospy, queued publisher (queue_size=100)",
+        into["rate"],
+        "msg/s",
+        "rospy pub -> sub",
+        queued["rate"],
+    )
+    table.row(
+        "client -> ROS: vs plain rospy, synchronous publisher", into["rate"], "msg/s", "rospy pub -> sub", sync["rate"]
+    )
+    table.row(
+        "ROS -> client: Twist delivered to a websocket client (synchronous rospy publisher)",
+        out["rate"],
+        "msg/s",
+        "bare Tornado+JSON server pushing",
+        ceil_out["rate"],
+    )
     # (a client that reads slower than the burst comes gets the newest of the topic, the older ones skipped: the
     # freshness every client gets, issue 26, told at status level warning; lossless is the paced rows' goal)
-    table.row("ROS -> client: messages delivered (the client reads slower than they come: each topic kept fresh)",
-              out["delivered"], "%", "all sent", 1.0)
-    table.row("ROS -> client: bridge CPU per message", out["server_us"], "µs", "bare Tornado+JSON server",
-              ceil_out["server_us"], "<= 1.5x", out["server_us"] <= 1.5 * ceil_out["server_us"])
-    table.row("ROS -> client: vs a rospy subscriber node's CPU per message", out["server_us"], "µs",
-              "rospy subscriber (synchronous publisher)", sync["sub_us"])
+    table.row(
+        "ROS -> client: messages delivered (the client reads slower than they come: each topic kept fresh)",
+        out["delivered"],
+        "%",
+        "all sent",
+        1.0,
+    )
+    table.row(
+        "ROS -> client: bridge CPU per message",
+        out["server_us"],
+        "µs",
+        "bare Tornado+JSON server",
+        ceil_out["server_us"],
+        "<= 1.5x",
+        out["server_us"] <= 1.5 * ceil_out["server_us"],
+    )
+    table.row(
+        "ROS -> client: vs a rospy subscriber node's CPU per message",
+        out["server_us"],
+        "µs",
+        "rospy subscriber (synchronous publisher)",
+        sync["sub_us"],
+    )
     # (its messages come one by one, but faster than read_pace.COALESCE_RATE: read once a millisecond, in batches)
-    table.row(f"ROS -> client from a queued rospy publisher ({paced['rate']:,.0f} msg/s): bridge CPU per message",
-              paced["server_us"], "µs", "bare Tornado+JSON server at full speed", ceil_out["server_us"], "<= 1.2x",
-              paced["server_us"] <= 1.2 * ceil_out["server_us"])
-    table.row("ROS -> client from a queued rospy publisher: messages delivered", paced["delivered"], "%",
-              "plain rospy", queued["delivered"])
-    foxglove_rows(run, table, f"ROS -> client from a queued rospy publisher ({paced['rate']:,.0f} msg/s)",
-                  {"JSON": paced, "cbor-raw": medians(paced_raw)}, paced_fox, limit=0.8, lossless=True)
+    table.row(
+        f"ROS -> client from a queued rospy publisher ({paced['rate']:,.0f} msg/s): bridge CPU per message",
+        paced["server_us"],
+        "µs",
+        "bare Tornado+JSON server at full speed",
+        ceil_out["server_us"],
+        "<= 1.2x",
+        paced["server_us"] <= 1.2 * ceil_out["server_us"],
+    )
+    table.row(
+        "ROS -> client from a queued rospy publisher: messages delivered",
+        paced["delivered"],
+        "%",
+        "plain rospy",
+        queued["delivered"],
+    )
+    foxglove_rows(
+        run,
+        table,
+        f"ROS -> client from a queued rospy publisher ({paced['rate']:,.0f} msg/s)",
+        {"JSON": paced, "cbor-raw": medians(paced_raw)},
+        paced_fox,
+        limit=0.8,
+        lossless=True,
+    )
 
 
 RATES = ((100, 10.0), (1000, 5.0))  # Hz, seconds: most robot topics run at 10-1000 Hz, not in floods
@@ -446,15 +652,27 @@ def section_rates(run, table, rounds):
         ceil_in, ceil_out, into, out, forwarding = map(medians, (ceil_in, ceil_out, into, out, forwarding))
         goal, limit = ("<= 1.3x", 1.3) if hz >= 1000 else ("", None)
         for way, bridge_r, ceil in (("client -> ROS", into, ceil_in), ("ROS -> client", out, ceil_out)):
-            table.row(f"{way} at {hz:,} Hz: bridge CPU per message", bridge_r["server_us"], "µs",
-                      f"bare Tornado+JSON server at {hz:,} Hz", ceil["server_us"], goal,
-                      None if limit is None else bridge_r["server_us"] <= limit * ceil["server_us"])
+            table.row(
+                f"{way} at {hz:,} Hz: bridge CPU per message",
+                bridge_r["server_us"],
+                "µs",
+                f"bare Tornado+JSON server at {hz:,} Hz",
+                ceil["server_us"],
+                goal,
+                None if limit is None else bridge_r["server_us"] <= limit * ceil["server_us"],
+            )
             table.row(f"{way} at {hz:,} Hz: messages delivered", bridge_r["delivered"], "%", "all sent", 1.0)
-        table.row(f"client -> ROS at {hz:,} Hz: vs the bare server that also writes each message to a TCP reader",
-                  into["server_us"], "µs", "bare Tornado+JSON server + one send per message", forwarding["server_us"])
+        table.row(
+            f"client -> ROS at {hz:,} Hz: vs the bare server that also writes each message to a TCP reader",
+            into["server_us"],
+            "µs",
+            "bare Tornado+JSON server + one send per message",
+            forwarding["server_us"],
+        )
         if raw:
-            foxglove_rows(run, table, f"ROS -> client at {hz:,} Hz", {"JSON": out, "cbor-raw": medians(raw)}, fox,
-                          limit=0.9)
+            foxglove_rows(
+                run, table, f"ROS -> client at {hz:,} Hz", {"JSON": out, "cbor-raw": medians(raw)}, fox, limit=0.9
+            )
 
 
 def section_latency(run, table, rounds):
@@ -467,38 +685,85 @@ def section_latency(run, table, rounds):
         bridge_rtts.append(rtt(run, url))
         run.stop(bridge)
     plain, ceil, bridge_rtts, loop_rtts = map(medians, (plain, ceil, bridge_rtts, loop_rtts))
-    table.row("round trip p50 at 100 Hz through the bridge alone (client -> bridge -> ROS topic -> bridge -> client)",
-              loop_rtts["p50_ms"], "ms", "bare Tornado echo", ceil["p50_ms"], "<= 1.5x",
-              loop_rtts["p50_ms"] <= 1.5 * ceil["p50_ms"])
-    table.row("round trip p99 at 100 Hz through the bridge alone", loop_rtts["p99_ms"], "ms", "bare Tornado echo",
-              ceil["p99_ms"])
+    table.row(
+        "round trip p50 at 100 Hz through the bridge alone (client -> bridge -> ROS topic -> bridge -> client)",
+        loop_rtts["p50_ms"],
+        "ms",
+        "bare Tornado echo",
+        ceil["p50_ms"],
+        "<= 1.5x",
+        loop_rtts["p50_ms"] <= 1.5 * ceil["p50_ms"],
+    )
+    table.row(
+        "round trip p99 at 100 Hz through the bridge alone",
+        loop_rtts["p99_ms"],
+        "ms",
+        "bare Tornado echo",
+        ceil["p99_ms"],
+    )
     for q in ("p50", "p99"):
-        table.row(f"round trip {q} at 100 Hz through an echo node (client -> bridge -> echo node -> bridge -> client)",
-                  bridge_rtts[f"{q}_ms"], "ms", "plain rospy round trip via the same echo node", plain[f"{q}_ms"])
-    table.row("round trip p50 through an echo node: vs websocket transport ceiling", bridge_rtts["p50_ms"], "ms",
-              "bare Tornado echo", ceil["p50_ms"])
-    table.row("round trip p50 through an echo node: vs the two trips it is made of", bridge_rtts["p50_ms"], "ms",
-              "bare Tornado echo + plain rospy round trip", ceil["p50_ms"] + plain["p50_ms"])
-    table.row("round trips answered", min(r["echoed"] / r["sent"] for r in (bridge_rtts, loop_rtts)), "%",
-              "plain rospy", plain["echoed"] / plain["sent"])
+        table.row(
+            f"round trip {q} at 100 Hz through an echo node (client -> bridge -> echo node -> bridge -> client)",
+            bridge_rtts[f"{q}_ms"],
+            "ms",
+            "plain rospy round trip via the same echo node",
+            plain[f"{q}_ms"],
+        )
+    table.row(
+        "round trip p50 through an echo node: vs websocket transport ceiling",
+        bridge_rtts["p50_ms"],
+        "ms",
+        "bare Tornado echo",
+        ceil["p50_ms"],
+    )
+    table.row(
+        "round trip p50 through an echo node: vs the two trips it is made of",
+        bridge_rtts["p50_ms"],
+        "ms",
+        "bare Tornado echo + plain rospy round trip",
+        ceil["p50_ms"] + plain["p50_ms"],
+    )
+    table.row(
+        "round trips answered",
+        min(r["echoed"] / r["sent"] for r in (bridge_rtts, loop_rtts)),
+        "%",
+        "plain rospy",
+        plain["echoed"] / plain["sent"],
+    )
 
 
 def section_fanout(run, table, rounds, sizes):
     results = {n: medians([fanout(run, n) for _ in range(rounds)]) for n in sizes}
     base = results[sizes[0]]
     for n, r in results.items():
-        table.row(f"fan-out, {n} clients on a 10 Hz topic: messages delivered to every client", r["delivered"],
-                  "%", "", None, "100%", r["delivered"] == 1.0)
+        table.row(
+            f"fan-out, {n} clients on a 10 Hz topic: messages delivered to every client",
+            r["delivered"],
+            "%",
+            "",
+            None,
+            "100%",
+            r["delivered"] == 1.0,
+        )
         table.row(f"fan-out, {n} clients: bridge RSS", r["rss"], "MB", "idle bridge", r["idle_rss"])
-        table.row(f"fan-out, {n} clients: bridge threads", r["threads"], "", f"{sizes[0]} client(s)",
-                  base["threads"], "constant", r["threads"] <= base["threads"])
+        table.row(
+            f"fan-out, {n} clients: bridge threads",
+            r["threads"],
+            "",
+            f"{sizes[0]} client(s)",
+            base["threads"],
+            "constant",
+            r["threads"] <= base["threads"],
+        )
         if n >= 100:  # (with fewer, the 10 ms CPU clock ticks swamp the few messages)
             table.row(f"fan-out, {n} clients: bridge CPU per delivered message", r["server_us"], "µs", "", None)
     if len(sizes) > 1:
         hi, lo = results[sizes[-1]], results[sizes[0]]
         per_client = (hi["rss"] - lo["rss"]) * 1e3 / (sizes[-1] - sizes[0])
-        table.notes.append(f"Fan-out memory: {per_client:.0f} kB of bridge RSS per extra client "
-                           f"({lo['rss']:.1f} MB with {sizes[0]}, {hi['rss']:.1f} MB with {sizes[-1]}).")
+        table.notes.append(
+            f"Fan-out memory: {per_client:.0f} kB of bridge RSS per extra client "
+            f"({lo['rss']:.1f} MB with {sizes[0]}, {hi['rss']:.1f} MB with {sizes[-1]})."
+        )
 
 
 CAMERA_HZ = 30
@@ -527,8 +792,9 @@ def section_large(run, table, rounds, count):
             if kind == "image":  # (issue 25: beside foxglove_bridge, one client and twenty)
                 raw.append(bridge_out(run, url, server, kind, count, "cbor-raw", rate=CAMERA_HZ))
                 for c in to_twenty:
-                    to_twenty[c].append(bridge_out(run, url, server, kind, count, c.lower(), rate=CAMERA_HZ,
-                                                   clients=TWENTY))
+                    to_twenty[c].append(
+                        bridge_out(run, url, server, kind, count, c.lower(), rate=CAMERA_HZ, clients=TWENTY)
+                    )
             run.stop(bridge)
             if kind == "image":
                 fox.append(foxglove_out(run, kind, count, rate=CAMERA_HZ))
@@ -536,38 +802,98 @@ def section_large(run, table, rounds, count):
         plain, paced, into = medians(plain), medians(paced), medians(into)
         outs = {c: medians(v) for c, v in outs.items()}
         ceilings = {c: medians(v) for c, v in ceilings.items()}
-        table.row(f"{label}, client -> ROS, as fast as possible", into["rate"], "msg/s",
-                  "plain rospy pub -> sub", plain["rate"])
-        table.row(f"{label}, client -> ROS: bridge CPU per message", into["server_us"], "µs",
-                  "rospy publisher node", plain["pub_us"])
+        table.row(
+            f"{label}, client -> ROS, as fast as possible",
+            into["rate"],
+            "msg/s",
+            "plain rospy pub -> sub",
+            plain["rate"],
+        )
+        table.row(
+            f"{label}, client -> ROS: bridge CPU per message",
+            into["server_us"],
+            "µs",
+            "rospy publisher node",
+            plain["pub_us"],
+        )
         for c, r in outs.items():
-            table.row(f"{label}, ROS -> client at {CAMERA_HZ} Hz ({c}): delivered", r["delivered"], "%",
-                      "plain rospy", paced["delivered"])
-            table.row(f"{label}, ROS -> client ({c}): bytes on the wire per message", r["wire_bytes"], "B",
-                      "JSON (none)", outs["none"]["wire_bytes"])
+            table.row(
+                f"{label}, ROS -> client at {CAMERA_HZ} Hz ({c}): delivered",
+                r["delivered"],
+                "%",
+                "plain rospy",
+                paced["delivered"],
+            )
+            table.row(
+                f"{label}, ROS -> client ({c}): bytes on the wire per message",
+                r["wire_bytes"],
+                "B",
+                "JSON (none)",
+                outs["none"]["wire_bytes"],
+            )
             if c in ceilings:
                 ceiling = ceilings[c]["server_us"]
-                table.row(f"{label}, ROS -> client ({c}): bridge CPU per message", r["server_us"], "µs",
-                          f"bare Tornado server pushing {'CBOR' if c == 'cbor' else 'JSON'}", ceiling,
-                          "<= 1.0x" if kind == "image" else "", r["server_us"] <= ceiling if kind == "image" else None)
+                table.row(
+                    f"{label}, ROS -> client ({c}): bridge CPU per message",
+                    r["server_us"],
+                    "µs",
+                    f"bare Tornado server pushing {'CBOR' if c == 'cbor' else 'JSON'}",
+                    ceiling,
+                    "<= 1.0x" if kind == "image" else "",
+                    r["server_us"] <= ceiling if kind == "image" else None,
+                )
             else:
-                table.row(f"{label}, ROS -> client ({c}): bridge CPU per message", r["server_us"], "µs",
-                          "JSON (none)", outs["none"]["server_us"])
+                table.row(
+                    f"{label}, ROS -> client ({c}): bridge CPU per message",
+                    r["server_us"],
+                    "µs",
+                    "JSON (none)",
+                    outs["none"]["server_us"],
+                )
         for c, runs in to_three.items():
             r = medians(runs)
-            table.row(f"{label}, ROS -> 3 clients at {CAMERA_HZ} Hz ({c}): delivered to each", r["delivered"], "%",
-                      "plain rospy", paced["delivered"], "100%", r["delivered"] >= 1.0)
-            table.row(f"{label}, ROS -> 3 clients ({c}): bridge CPU per image published", r["server_us"], "µs",
-                      "one client", outs[c]["server_us"])
-        table.row(f"{label}, ROS -> client (none): vs a rospy subscriber node's CPU", outs["none"]["server_us"],
-                  "µs", "rospy subscriber node", paced["sub_us"])
+            table.row(
+                f"{label}, ROS -> 3 clients at {CAMERA_HZ} Hz ({c}): delivered to each",
+                r["delivered"],
+                "%",
+                "plain rospy",
+                paced["delivered"],
+                "100%",
+                r["delivered"] >= 1.0,
+            )
+            table.row(
+                f"{label}, ROS -> 3 clients ({c}): bridge CPU per image published",
+                r["server_us"],
+                "µs",
+                "one client",
+                outs[c]["server_us"],
+            )
+        table.row(
+            f"{label}, ROS -> client (none): vs a rospy subscriber node's CPU",
+            outs["none"]["server_us"],
+            "µs",
+            "rospy subscriber node",
+            paced["sub_us"],
+        )
         if raw:
-            foxglove_rows(run, table, f"{label}, ROS -> client at {CAMERA_HZ} Hz",
-                          {"JSON": outs["none"], "CBOR": outs["cbor"], "cbor-raw": medians(raw)}, fox, limit=1.0,
-                          age=True)
-            foxglove_rows(run, table, f"{label}, ROS -> {TWENTY} clients at {CAMERA_HZ} Hz",
-                          {c: medians(v) for c, v in to_twenty.items()}, fox_twenty, limit=0.5,
-                          key="server_us_delivered")
+            foxglove_rows(
+                run,
+                table,
+                f"{label}, ROS -> client at {CAMERA_HZ} Hz",
+                {"JSON": outs["none"], "CBOR": outs["cbor"], "cbor-raw": medians(raw)},
+                fox,
+                limit=1.0,
+                age=True,
+            )
+            foxglove_rows(
+                run,
+                table,
+                f"{label}, ROS -> {TWENTY} clients at {CAMERA_HZ} Hz",
+                {c: medians(v) for c, v in to_twenty.items()},
+                fox_twenty,
+                limit=0.5,
+                key="server_us_delivered",
+            )
 
 
 CLOUD_HZ, CLOUD_COUNT = 5, 100  # a 300k-point lidar at 5 Hz, for 20 s (5 ms a cloud: 50 CPU ticks of 10 ms)
@@ -579,16 +905,20 @@ def cloud_out(run, url, server, topic):
     delivered, the server's CPU per cloud delivered, bytes per cloud on the wire."""
     fetch = run.role("cloud_roles.py", "fetch", "--url", url, "--topic", topic, "--count", CLOUD_COUNT)
     run.ready(fetch)
-    pub = run.role("ros_roles.py", "pub", "--topic", topic, "--kind", "cloud", "--count", CLOUD_COUNT,
-                   "--rate", CLOUD_HZ)
+    pub = run.role(
+        "ros_roles.py", "pub", "--topic", topic, "--kind", "cloud", "--count", CLOUD_COUNT, "--rate", CLOUD_HZ
+    )
     run.ready(pub, timeout=60)  # (once the server subscribed: at the client's first request for the bridge)
     cpu = Cpu(server)
     run.go(pub)
     got = run.result(fetch)
     if got["problems"]:
         raise RuntimeError(f"/cloud answered {got['problems']}")
-    figures = {"delivered": got["unique"] / CLOUD_COUNT, "server_us": cpu.us_per(got["unique"]),
-               "wire_bytes": got["bytes"] / got["received"] if got["received"] else None}
+    figures = {
+        "delivered": got["unique"] / CLOUD_COUNT,
+        "server_us": cpu.us_per(got["unique"]),
+        "wire_bytes": got["bytes"] / got["received"] if got["received"] else None,
+    }
     run.stop(fetch, pub)
     return figures
 
@@ -598,6 +928,7 @@ def decimation_ms(reps=20):
     import io
 
     from rosbridge.http.cloud import decimate, read_cloud
+
     buffer = io.BytesIO()
     payloads.ros_msg("cloud").serialize(buffer)
     raw = buffer.getvalue()
@@ -627,14 +958,34 @@ def section_cloud(run, table, rounds):
     label = f"300k-point PointCloud2 at {CLOUD_HZ} Hz, ROS -> /cloud -> a client asking as the Cloud viewer does"
     ceiling_name = "bare TCPROS read + the same decimation + bare Tornado HTTP"
     table.row(f"{label}: clouds delivered", bridged["delivered"], "%", ceiling_name, ceiling["delivered"])
-    table.row("point cloud: bridge CPU per delivered (decimated) cloud", bridged["server_us"] / 1e3, "ms",
-              ceiling_name, ceiling["server_us"] / 1e3)
-    table.row("point cloud: bridge CPU per delivered cloud, vs a rospy node only receiving the clouds",
-              bridged["server_us"] / 1e3, "ms", "rospy subscriber (PointCloud2)", plain["sub_us"] / 1e3)
-    table.row("point cloud: of the ceiling's CPU, the decimation alone (read_cloud + decimate, no I/O)", decimation,
-              "ms", ceiling_name, ceiling["server_us"] / 1e3)
-    table.row("point cloud: bytes on the wire per cloud (20,000 points asked)", bridged["wire_bytes"], "B",
-              "the ceiling's", ceiling["wire_bytes"])
+    table.row(
+        "point cloud: bridge CPU per delivered (decimated) cloud",
+        bridged["server_us"] / 1e3,
+        "ms",
+        ceiling_name,
+        ceiling["server_us"] / 1e3,
+    )
+    table.row(
+        "point cloud: bridge CPU per delivered cloud, vs a rospy node only receiving the clouds",
+        bridged["server_us"] / 1e3,
+        "ms",
+        "rospy subscriber (PointCloud2)",
+        plain["sub_us"] / 1e3,
+    )
+    table.row(
+        "point cloud: of the ceiling's CPU, the decimation alone (read_cloud + decimate, no I/O)",
+        decimation,
+        "ms",
+        ceiling_name,
+        ceiling["server_us"] / 1e3,
+    )
+    table.row(
+        "point cloud: bytes on the wire per cloud (20,000 points asked)",
+        bridged["wire_bytes"],
+        "B",
+        "the ceiling's",
+        ceiling["wire_bytes"],
+    )
 
 
 def section_isolation(run, table):
@@ -649,10 +1000,24 @@ def section_isolation(run, table):
             bridge, url, server = run.bridge()
             got = hostile.measure(run.ros, url, server, abuse, seconds=6.0)
             run.stop(bridge)
-            table.row(f"isolation, {abuse}: victim's largest gap in a 62.5 Hz topic", got["gap"], "s", "", None,
-                      "< 0.5 s", got["gap"] < 0.5)
-            table.row(f"isolation, {abuse}: victim's slowest /rosapi/get_time", got["slowest_call"], "s", "", None,
-                      "< 1 s", got["slowest_call"] < 1.0)
+            table.row(
+                f"isolation, {abuse}: victim's largest gap in a 62.5 Hz topic",
+                got["gap"],
+                "s",
+                "",
+                None,
+                "< 0.5 s",
+                got["gap"] < 0.5,
+            )
+            table.row(
+                f"isolation, {abuse}: victim's slowest /rosapi/get_time",
+                got["slowest_call"],
+                "s",
+                "",
+                None,
+                "< 1 s",
+                got["slowest_call"] < 1.0,
+            )
             table.row(f"isolation, {abuse}: bridge RSS growth", got["rss_growth"], "MB", "", None)
     finally:
         run.stop(turtle)
@@ -663,23 +1028,28 @@ def other_bench(run, script, title, code_block=False, python=PY, args=()):
     path = BENCH / script
     if not path.exists():
         return f"### {title}\n\n(bench/{script} is not there yet)"
-    res = subprocess.run([python, str(path), *map(str, args)], env=run.ros.env, capture_output=True, text=True,
-                         timeout=300)
+    res = subprocess.run(
+        [python, str(path), *map(str, args)], env=run.ros.env, capture_output=True, text=True, timeout=300
+    )
     if res.returncode != 0:
         return f"### {title}\n\n(bench/{script} failed, exit {res.returncode}:\n\n```\n{res.stderr[-1500:]}\n```)"
     out = res.stdout.strip()
     return f"### {title}\n\n" + (f"```\n{out}\n```" if code_block else out)
 
 
-SECTIONS = ("throughput", "rates", "latency", "fanout", "large", "cloud", "isolation", "turtlesim", "convert",
-            "page")
+SECTIONS = ("throughput", "rates", "latency", "fanout", "large", "cloud", "isolation", "turtlesim", "convert", "page")
 
 
 def main():
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--rounds", type=int, default=3, help="runs of each measurement; the table shows medians")
     p.add_argument("--only", nargs="+", choices=SECTIONS, default=list(SECTIONS))
-    p.add_argument("--count", type=int, default=50000, help="Twist messages per throughput run (enough CPU ticks: /proc counts in 10 ms)")
+    p.add_argument(
+        "--count",
+        type=int,
+        default=50000,
+        help="Twist messages per throughput run (enough CPU ticks: /proc counts in 10 ms)",
+    )
     p.add_argument("--fanout", type=int, nargs="+", default=[1, 100, 1000], help="client counts")
     p.add_argument("--no-readme", action="store_true", help="print the table only")
     peers.add_arguments(p)
@@ -693,20 +1063,26 @@ def main():
     table, extras = Table(), []
     run = Run(tempfile.mkdtemp(prefix="bench-"), a)
     try:
-        sections = {"throughput": lambda: section_throughput(run, table, a.rounds, a.count),
-                    "rates": lambda: section_rates(run, table, a.rounds),
-                    "latency": lambda: section_latency(run, table, a.rounds),
-                    "isolation": lambda: section_isolation(run, table),
-                    "fanout": lambda: section_fanout(run, table, a.rounds, a.fanout),
-                    "large": lambda: section_large(run, table, a.rounds, 120),
-                    "cloud": lambda: section_cloud(run, table, a.rounds),
-                    "turtlesim": lambda: other_bench(run, "turtlesim_bench.py",
-                                                     "turtlesim_node (bench/turtlesim_bench.py)"),
-                    "convert": lambda: other_bench(run, "convert_bench.py",
-                                                   "ROS <-> JSON conversion (bench/convert_bench.py)", code_block=True),
-                    "page": lambda: other_bench(run, "page_bench.py", "The page in Chromium (bench/page_bench.py)",
-                                                python=str(REPO / ".build" / "venv" / "bin" / "python"),
-                                                args=["--screenshot", run.workdir / "page-robot-console.png"])}
+        sections = {
+            "throughput": lambda: section_throughput(run, table, a.rounds, a.count),
+            "rates": lambda: section_rates(run, table, a.rounds),
+            "latency": lambda: section_latency(run, table, a.rounds),
+            "isolation": lambda: section_isolation(run, table),
+            "fanout": lambda: section_fanout(run, table, a.rounds, a.fanout),
+            "large": lambda: section_large(run, table, a.rounds, 120),
+            "cloud": lambda: section_cloud(run, table, a.rounds),
+            "turtlesim": lambda: other_bench(run, "turtlesim_bench.py", "turtlesim_node (bench/turtlesim_bench.py)"),
+            "convert": lambda: other_bench(
+                run, "convert_bench.py", "ROS <-> JSON conversion (bench/convert_bench.py)", code_block=True
+            ),
+            "page": lambda: other_bench(
+                run,
+                "page_bench.py",
+                "The page in Chromium (bench/page_bench.py)",
+                python=str(REPO / ".build" / "venv" / "bin" / "python"),
+                args=["--screenshot", run.workdir / "page-robot-console.png"],
+            ),
+        }
         for name in a.only:
             t = time.monotonic()
             extra = sections[name]()
@@ -716,12 +1092,21 @@ def main():
     finally:
         run.close()
     elapsed = time.monotonic() - started
-    results = "\n\n".join(filter(None, [
-        table.markdown(), "\n".join(f"- {n}" for n in table.notes), *extras,
-        f"Measured {time.strftime('%Y-%m-%d')} on {os.cpu_count()} CPUs, {a.rounds} rounds (medians), "
-        f"suite took {elapsed:.0f} s; load average {load_before:.1f} before, {os.getloadavg()[0]:.1f} after "
-        f"(other work on the machine slows the baselines and the bridge alike; the ratios are what to compare). "
-        f"Logs: {run.workdir}"]))
+    results = "\n\n".join(
+        filter(
+            None,
+            [
+                table.markdown(),
+                "\n".join(f"- {n}" for n in table.notes),
+                *extras,
+                f"Measured {time.strftime('%Y-%m-%d')} on {os.cpu_count()} CPUs, {a.rounds} rounds (medians), "
+                f"suite took {elapsed:.0f} s; load average {load_before:.1f} before, {os.getloadavg()[0]:.1f} after "
+                "(other work on the machine slows the baselines and the bridge alike; the ratios are what to "
+                "compare). "
+                f"Logs: {run.workdir}",
+            ],
+        )
+    )
     print(results)
     if not a.no_readme and set(a.only) == set(SECTIONS):
         template = (BENCH / "README.template.md").read_text()

@@ -8,6 +8,7 @@ It speaks just enough of the rosbridge protocol for the bench clients in ws_role
   subscribe  the connection gets the pushed messages: on a line on stdin, `--count` publish ops of `--kind`
              (sequence numbers 0..count-1), as fast as each socket takes them, or at `--rate` Hz; JSON text, or
              CBOR with `--cbor` (each message encoded for each push, as a bridge must)"""
+
 import argparse
 import asyncio
 import json
@@ -19,7 +20,6 @@ import tornado.websocket
 
 import payloads
 import stats
-
 
 # what a bridge writes to a ROS subscriber for one Twist: the 4-byte length, then 6 float64s
 TWIST_FRAME = struct.pack("<I", 48) + bytes(48)

@@ -5,6 +5,7 @@ driving in circles (so every tick also draws trail), headless and with a window 
 Starts its own roscore on a free port. Prints a markdown table. Target: 62.5 Hz +-2 % per turtle.
 Run from the repository with the workspace sourced:
     source .build/setup.bash && /usr/bin/python3 bench/turtlesim_bench.py [--seconds 10]"""
+
 import argparse
 import math
 import os
@@ -23,6 +24,7 @@ TURN = 0.8  # rad/s: every turtle drives in circles
 
 def measure(ros, rospy, turtles, display, seconds):
     from geometry_msgs.msg import Twist
+
     from turtlesim.msg import Pose
     from turtlesim.srv import Spawn
 
@@ -32,8 +34,7 @@ def measure(ros, rospy, turtles, display, seconds):
         node.wait_output("Spawning turtle [turtle1]", 30)
         rospy.wait_for_service("/spawn", 30)
         spawn = rospy.ServiceProxy("/spawn", Spawn)
-        names = ["turtle1"] + [spawn(1.0 + (i % 9), 1.0 + (i // 9) * 1.5, 0.0, "").name
-                               for i in range(turtles - 1)]
+        names = ["turtle1"] + [spawn(1.0 + (i % 9), 1.0 + (i // 9) * 1.5, 0.0, "").name for i in range(turtles - 1)]
         counts = dict.fromkeys(names, 0)
         turned = dict.fromkeys(names, 0.0)  # radians since the start, from theta steps
         last_theta = {}
@@ -94,19 +95,25 @@ def main():
     ros = RosMaster(make_workdir("turtlesim-bench-")).start()
     os.environ.update({k: ros.env[k] for k in ("ROS_MASTER_URI", "ROS_IP", "ROS_HOME", "ROS_LOG_DIR")})
     import rospy
+
     rospy.init_node("turtlesim_bench", anonymous=True, disable_signals=True)
     xvfb, display = ros.start_xvfb()
     try:
         print(f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} at the start\n")
-        print("| turtles | view | pose rate per turtle, Hz (min / mean / max) | within 62.5 Hz +-2 % | "
-              "ticks simulated, Hz | node CPU, % of one core |")
+        print(
+            "| turtles | view | pose rate per turtle, Hz (min / mean / max) | within 62.5 Hz +-2 % | "
+            "ticks simulated, Hz | node CPU, % of one core |"
+        )
         print("|---|---|---|---|---|---|")
         for turtles in args.turtles:
             for view in (None, display):
                 low, mean, high, ticks, cpu = measure(ros, rospy, turtles, view, args.seconds)
                 ok = "yes" if abs(low - TARGET_HZ) <= 0.02 * TARGET_HZ and high <= TARGET_HZ * 1.02 else "NO"
-                print(f"| {turtles} | {'Xvfb window' if view else 'headless'} | "
-                      f"{low:.2f} / {mean:.2f} / {high:.2f} | {ok} | {ticks:.2f} | {cpu:.0f} |", flush=True)
+                print(
+                    f"| {turtles} | {'Xvfb window' if view else 'headless'} | "
+                    f"{low:.2f} / {mean:.2f} / {high:.2f} | {ok} | {ticks:.2f} | {cpu:.0f} |",
+                    flush=True,
+                )
     finally:
         xvfb.stop()
         rospy.signal_shutdown("done")

@@ -9,6 +9,7 @@
   fanout     opens `clients` connections, all subscribed to one topic, and checks every one gets every message
 
 Same protocol with bench/suite.py as bench/ros_roles.py: READY, a line on stdin as the cue, `RESULT <json>`."""
+
 import argparse
 import asyncio
 import base64
@@ -21,10 +22,10 @@ import sys
 import time
 
 import cbor2
+import foxglove_protocol
 from tornado.util import _websocket_mask  # (the client's masking cost is not what is measured)
 from tornado.websocket import websocket_connect
 
-import foxglove_protocol
 import payloads
 import stats
 
@@ -42,8 +43,12 @@ def main():
     p.add_argument("--rate", type=float, default=100.0, help="rtt: pings per second")
     p.add_argument("--publish-rate", type=float, default=0.0, help="publish: Hz; 0 = as fast as possible")
     p.add_argument("--compression", default="none", choices=["none", "png", "cbor", "cbor-raw"])
-    p.add_argument("--protocol", default="rosbridge", choices=["rosbridge", "foxglove"],
-                   help="subscribe: a rosbridge server, or foxglove_bridge (foxglove_protocol.py: the ROS bytes)")
+    p.add_argument(
+        "--protocol",
+        default="rosbridge",
+        choices=["rosbridge", "foxglove"],
+        help="subscribe: a rosbridge server, or foxglove_bridge (foxglove_protocol.py: the ROS bytes)",
+    )
     p.add_argument("--clients", type=int, default=1)
     p.add_argument("--idle", type=float, default=2.0)
     p.add_argument("--timeout", type=float, default=60.0)
@@ -98,8 +103,10 @@ def publish_frame_by_frame(a):
     sock = socket.create_connection((host, int(port)))
     sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
     key = base64.b64encode(os.urandom(16)).decode()
-    sock.sendall(f"GET / HTTP/1.1\r\nHost: {host}:{port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
-                 f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n\r\n".encode())
+    sock.sendall(
+        f"GET / HTTP/1.1\r\nHost: {host}:{port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+        f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n\r\n".encode()
+    )
     answer = b""
     while b"\r\n\r\n" not in answer:
         answer += sock.recv(4096)
@@ -107,8 +114,11 @@ def publish_frame_by_frame(a):
 
     def frame(text):
         data, mask = text.encode(), os.urandom(4)
-        head = struct.pack("!BB", 0x81, 0x80 | len(data)) if len(data) < 126 else \
-            struct.pack("!BBH", 0x81, 0x80 | 126, len(data))
+        head = (
+            struct.pack("!BB", 0x81, 0x80 | len(data))
+            if len(data) < 126
+            else struct.pack("!BBH", 0x81, 0x80 | 126, len(data))
+        )
         return head + mask + _websocket_mask(mask, data)
 
     sock.sendall(frame(json.dumps({"op": "advertise", "topic": a.topic, "type": payloads.TYPES[a.kind]})))
@@ -147,21 +157,34 @@ async def subscribe(a):
             statuses.append(msg or frame)
 
     if a.protocol == "foxglove":
-        ws = await foxglove_protocol.Client(lambda topic, payload, size, arrived: message(payload, size, arrived),
-                                            statuses.append).connect(a.url)
+        ws = await foxglove_protocol.Client(
+            lambda topic, payload, size, arrived: message(payload, size, arrived), statuses.append
+        ).connect(a.url)
         await ws.subscribe([a.topic], timeout=a.timeout)
     else:
         ws = await websocket_connect(a.url, max_message_size=MAX_FRAME, on_message_callback=on_frame)
-        await send(ws, {"op": "subscribe", "topic": a.topic, "type": payloads.TYPES[a.kind],
-                        "compression": a.compression, "queue_length": 0})
+        await send(
+            ws,
+            {
+                "op": "subscribe",
+                "topic": a.topic,
+                "type": payloads.TYPES[a.kind],
+                "compression": a.compression,
+                "queue_length": 0,
+            },
+        )
     print("READY", flush=True)
     deadline = time.monotonic() + a.timeout
     while seen.n < a.count and time.monotonic() < deadline:
         if seen.last is not None and time.monotonic() - seen.last > a.idle:
             break
         await asyncio.sleep(0.02)
-    stats.result(**seen.summary(), statuses=[str(s)[:200] for s in statuses[:3]],
-                 age_p50=stats.percentile(ages, 0.5), age_p95=stats.percentile(ages, 0.95))
+    stats.result(
+        **seen.summary(),
+        statuses=[str(s)[:200] for s in statuses[:3]],
+        age_p50=stats.percentile(ages, 0.5),
+        age_p95=stats.percentile(ages, 0.95),
+    )
     ws.close()
 
 
@@ -193,7 +216,7 @@ async def rtt(a):
         await ws.write_message(payloads.publish_frame(a.kind, a.topic, -1))
         try:
             await asyncio.wait_for(echoed.wait(), 0.2)
-        except asyncio.TimeoutError:
+        except TimeoutError:
             pass
     print("READY", flush=True)
     period = 1.0 / a.rate
@@ -227,6 +250,7 @@ async def fanout(a):
                     warm[i] = True
                 else:
                     received[i].append(seq)
+
         return on_frame
 
     sub = json.dumps({"op": "subscribe", "topic": a.topic, "type": payloads.TYPES[a.kind]})
@@ -252,10 +276,15 @@ async def fanout(a):
         await asyncio.sleep(0.05)
     await asyncio.sleep(0.3)  # duplicates, if any, would arrive now
     expected = set(range(a.count))
-    stats.result(clients=a.clients, connect_seconds=connect_seconds, expected=a.count * a.clients,
-                 delivered=sum(len(expected & set(r)) for r in received),
-                 duplicates=sum(len(r) - len(set(r)) for r in received),
-                 complete=sum(set(r) >= expected for r in received), closed=len(closed))
+    stats.result(
+        clients=a.clients,
+        connect_seconds=connect_seconds,
+        expected=a.count * a.clients,
+        delivered=sum(len(expected & set(r)) for r in received),
+        duplicates=sum(len(r) - len(set(r)) for r in received),
+        complete=sum(set(r) >= expected for r in received),
+        closed=len(closed),
+    )
     await stats.cue()  # hold the connections open while the suite reads the bridge's memory
     for ws in sockets:
         ws.close()

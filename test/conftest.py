@@ -28,6 +28,7 @@ def ros(tmp_path_factory):
 def node(ros):
     """rospy, initialised once in the test process as an anonymous node on the private master."""
     import rospy
+
     rospy.init_node("pytest", anonymous=True, disable_signals=True)
     return rospy
 
@@ -37,7 +38,9 @@ def laser_settings(node):
     """A dynamic_reconfigure client of the demo laser /turtle_laser (started by the test module, e.g. with rosrun);
     its settings are set back to their defaults (cfg/Laser.cfg's) after the test."""
     from dynamic_reconfigure.client import Client
+
     from turtlesim.cfg import LaserConfig
+
     client = Client("/turtle_laser", timeout=30)
     yield client
     client.update_configuration(LaserConfig.defaults)

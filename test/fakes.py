@@ -1,5 +1,6 @@
 """Stand-ins for time and Tornado's IOLoop in the unit tests of pure parts: what a test moves by hand. Only the
 clock and the loop are faked; everything else the tests touch is the real code."""
+
 import queue
 import time
 

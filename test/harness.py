@@ -1,5 +1,6 @@
 """Real processes for the tests: a private roscore per session, nodes started with rosrun/roslaunch,
 and the stock CLI tools. Every process is started in its own process group and killed at teardown."""
+
 import os
 import random
 import re
@@ -71,8 +72,9 @@ class Proc:
         self.args = args
         self.log_path = Path(log_path)
         self._log = open(self.log_path, "wb")
-        self.popen = subprocess.Popen(args, env=env, stdout=self._log, stderr=subprocess.STDOUT,
-                                      start_new_session=True, **popen_kwargs)
+        self.popen = subprocess.Popen(
+            args, env=env, stdout=self._log, stderr=subprocess.STDOUT, start_new_session=True, **popen_kwargs
+        )
 
     @property
     def pid(self):
@@ -87,6 +89,7 @@ class Proc:
     def wait_line(self, pattern, timeout=10.0, after=0):
         """The first match of the line regex `pattern` (its group, if it has one) after the first `after` matches;
         raises if the process ends first."""
+
         def found():
             hits = re.findall(pattern, self.output(), re.M)
             if len(hits) > after:
@@ -94,6 +97,7 @@ class Proc:
             if not self.alive():
                 raise RuntimeError(f"{self.args[:6]} ended:\n{self.output()[-3000:]}")
             return None
+
         return wait_for(found, timeout, what=f"{pattern} from {self.args[:6]}")[0]
 
     def alive(self):
@@ -144,9 +148,14 @@ class RosMaster:
         self.port = free_port()
         self.uri = f"http://{host}:{self.port}"
         self.env = dict(os.environ)
-        self.env.update(ROS_MASTER_URI=self.uri, ROS_IP=host, ROS_HOME=str(self.workdir / "ros_home"),
-                        ROS_LOG_DIR=str(self.workdir / "ros_log"), PYTHONUNBUFFERED="1",
-                        PATH="/usr/bin:/bin:" + os.environ.get("PATH", ""))
+        self.env.update(
+            ROS_MASTER_URI=self.uri,
+            ROS_IP=host,
+            ROS_HOME=str(self.workdir / "ros_home"),
+            ROS_LOG_DIR=str(self.workdir / "ros_log"),
+            PYTHONUNBUFFERED="1",
+            PATH="/usr/bin:/bin:" + os.environ.get("PATH", ""),
+        )
         self.env.pop("ROS_HOSTNAME", None)
         self.procs = []
         self.core = None
@@ -173,8 +182,9 @@ class RosMaster:
 
     def run(self, args, timeout=20, check=True, env=None, input=None):
         """Runs a CLI command to completion against this master; returns its stdout."""
-        res = subprocess.run(args, env={**self.env, **(env or {})}, capture_output=True, text=True,
-                             timeout=timeout, input=input)
+        res = subprocess.run(
+            args, env={**self.env, **(env or {})}, capture_output=True, text=True, timeout=timeout, input=input
+        )
         if check and res.returncode != 0:
             raise AssertionError(f"{args} exited {res.returncode}:\n{res.stdout}\n{res.stderr}")
         return res
@@ -184,8 +194,14 @@ class RosMaster:
 
     def start_xvfb(self):
         """A virtual X server on a free display number; returns (Proc, display name such as ':90')."""
-        number = next((n for n in range(90, 300) if not Path(f"/tmp/.X11-unix/X{n}").exists()
-                       and not Path(f"/tmp/.X{n}-lock").exists()), None)
+        number = next(
+            (
+                n
+                for n in range(90, 300)
+                if not Path(f"/tmp/.X11-unix/X{n}").exists() and not Path(f"/tmp/.X{n}-lock").exists()
+            ),
+            None,
+        )
         if number is None:
             raise RuntimeError("no free X display number")
         xvfb = self.spawn(["Xvfb", f":{number}", "-screen", "0", "1024x768x24", "-nolisten", "tcp"], "xvfb")
@@ -200,6 +216,7 @@ class RosMaster:
 
 class ProcStat:
     """CPU time, resident memory and thread count of one running process, read from /proc."""
+
     CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
     PAGE = os.sysconf("SC_PAGE_SIZE")
 
@@ -267,8 +284,10 @@ def launch_bridge(ros, node_name="rosbridge_websocket", timeout=30.0, **launch_a
     args = {"port": 0, "address": "127.0.0.1", "node_name": node_name, **launch_args}
     if ros.master().hasParam(f"/{node_name}/actual_port"):  # (an earlier bridge's)
         ros.master().deleteParam(f"/{node_name}/actual_port")
-    proc = ros.spawn(["roslaunch", "turtlesim", "rosbridge_websocket.launch",
-                      *(f"{key}:={value}" for key, value in args.items())], node_name)
+    proc = ros.spawn(
+        ["roslaunch", "turtlesim", "rosbridge_websocket.launch", *(f"{key}:={value}" for key, value in args.items())],
+        node_name,
+    )
     return proc, _listening_port(ros, proc, node_name, timeout)
 
 
@@ -294,16 +313,19 @@ def wait_publisher_connected(ros, publisher, topic, subscriber, timeout=20):
     publisher's side (its XML-RPC getBusInfo). rospy delivers nothing published before that, and the subscriber
     counts its connection a moment earlier (the publisher adds it after sending its header)."""
     import xmlrpc.client
+
     uri = ros.master().lookupNode(publisher)
 
     def connected():
         _, _, connections = xmlrpc.client.ServerProxy(uri).getBusInfo("/harness")
         return any(c[1] == subscriber and c[2] == "o" and c[4] == topic for c in connections)
+
     wait_for(connected, timeout, what=f"{subscriber} connected to {publisher}'s {topic}")
 
 
 def node_pid(ros, node_name):
     """The process id of a running ROS node, asked from the node itself (its XML-RPC getPid)."""
     import xmlrpc.client
+
     uri = ros.master().lookupNode(node_name)
     return xmlrpc.client.ServerProxy(uri).getPid("/harness")[2]

@@ -1,6 +1,7 @@
 """Accepting connections without failing in a loop when file descriptors run short: used for the websocket
 clients (server.py) and for the subscribers of the bridge's topics (ros_side/links.py); and the bounds of the
 HTTP server (BoundedHTTPServer: request bodies, connections per address)."""
+
 import errno
 import http
 import resource
@@ -67,8 +68,7 @@ class BoundedHTTPServer(tornado.httpserver.HTTPServer):
     log(kind, text): a refusal, to be logged at most now and then."""
 
     def initialize(self, app, max_body, per_address, log, **options):
-        super().initialize(_BodyBound(app, max_body, log), max_body_size=max_body, body_timeout=BODY_TIMEOUT,
-                           **options)
+        super().initialize(_BodyBound(app, max_body, log), max_body_size=max_body, body_timeout=BODY_TIMEOUT, **options)
         soft_limit = resource.getrlimit(resource.RLIMIT_NOFILE)[0]
         if soft_limit != resource.RLIM_INFINITY:  # (and a quarter of the descriptors at most)
             per_address = min(per_address, max(1, (soft_limit - FDS_KEPT_FREE) // 4))
@@ -81,15 +81,26 @@ class BoundedHTTPServer(tornado.httpserver.HTTPServer):
         streams = [open_stream for open_stream in self._open.get(peer, ()) if not open_stream.closed()]
         self._accepted += 1
         if self._accepted % SWEEP_EVERY == 0:  # (the connections closed since, of every address)
-            self._open = {other: still for other, kept in self._open.items()
-                          if (still := [open_stream for open_stream in kept if not open_stream.closed()])}
+            self._open = {
+                other: still
+                for other, kept in self._open.items()
+                if (still := [open_stream for open_stream in kept if not open_stream.closed()])
+            }
         if len(streams) >= self.per_address:
             self._open[peer] = streams
-            self._log(("connections", peer), f"Refused a connection from {peer}: it has {len(streams)} open "
-                      "already, the most one address may hold (max_connections_per_address)")
+            self._log(
+                ("connections", peer),
+                f"Refused a connection from {peer}: it has {len(streams)} open "
+                "already, the most one address may hold (max_connections_per_address)",
+            )
             if not isinstance(stream, tornado.iostream.SSLIOStream):  # (a TLS answer would need a handshake)
-                stream.write(_answer(503, f"too many connections from {peer} at once (at most {self.per_address}: "
-                                     "max_connections_per_address)"))
+                stream.write(
+                    _answer(
+                        503,
+                        f"too many connections from {peer} at once (at most {self.per_address}: "
+                        "max_connections_per_address)",
+                    )
+                )
             stream.close()
             return
         self._open[peer] = [*streams, stream]
@@ -118,11 +129,17 @@ class _BodyBoundRequest(tornado.httputil.HTTPMessageDelegate):
         if not (length.isdigit() and int(length) > self.bound.max_body):
             return self.delegate.headers_received(start_line, headers)
         peer = self.connection.context.remote_ip
-        self.bound.log(("body", peer), f"Refused a request body of {length} bytes from {peer} for "
-                       f"{start_line.path[:200]}: no endpoint takes more than {self.bound.max_body}")
+        self.bound.log(
+            ("body", peer),
+            f"Refused a request body of {length} bytes from {peer} for "
+            f"{start_line.path[:200]}: no endpoint takes more than {self.bound.max_body}",
+        )
         stream = self.connection.detach()  # (Tornado then reads nothing more of this request)
-        tornado.ioloop.IOLoop.current().add_callback(_refuse, stream, _answer(
-            413, f"request body too large: {length} bytes, at most {self.bound.max_body} are taken"))
+        tornado.ioloop.IOLoop.current().add_callback(
+            _refuse,
+            stream,
+            _answer(413, f"request body too large: {length} bytes, at most {self.bound.max_body} are taken"),
+        )
         return None
 
     def data_received(self, chunk):
@@ -152,5 +169,7 @@ async def _refuse(stream, answer):
 def _answer(status, text):
     """A whole HTTP answer that closes the connection, of plain text."""
     body = (text + "\n").encode()
-    return (f"HTTP/1.1 {status} {http.HTTPStatus(status).phrase}\r\nContent-Type: text/plain; charset=UTF-8\r\n"
-            f"Content-Length: {len(body)}\r\nConnection: close\r\n\r\n").encode() + body
+    return (
+        f"HTTP/1.1 {status} {http.HTTPStatus(status).phrase}\r\nContent-Type: text/plain; charset=UTF-8\r\n"
+        f"Content-Length: {len(body)}\r\nConnection: close\r\n\r\n"
+    ).encode() + body

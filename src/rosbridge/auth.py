@@ -1,4 +1,5 @@
 """rosauth: the MAC check of the `auth` op, and of the HTTP endpoints' query strings (UrlMacs)."""
+
 import hashlib
 import hmac
 import math

@@ -5,6 +5,7 @@ not somewhere in a client's connection.
 
 Everything else the bridge uses of Tornado (RequestHandler.detach, IOStream.read_bytes / write /
 set_close_callback, IOLoop.add_handler, TCPServer) and of rospy is their public API."""
+
 import rospy.core
 import rospy.impl.masterslave
 import rospy.impl.registration
@@ -42,8 +43,11 @@ get_node_uri = rospy.core.get_node_uri  # this node's XML-RPC address, to regist
 def node_protocol_handlers():
     """The list of protocol handlers of this node's XML-RPC handler (rospy.impl.masterslave.ROSHandler), which
     it asks in order; the bridge's links go first."""
-    manager = next(listener for listener in rospy.impl.registration.get_registration_listeners().listeners
-                   if isinstance(listener, rospy.impl.registration.RegManager))
+    manager = next(
+        listener
+        for listener in rospy.impl.registration.get_registration_listeners().listeners
+        if isinstance(listener, rospy.impl.registration.RegManager)
+    )
     return manager.handler.protocol_handlers
 
 

@@ -4,6 +4,7 @@ ways: Backend is what the protocol may ask of the ROS side, Client what the ROS 
 Every method of both runs on the event-loop thread. A Backend method that refuses raises a ClientError whose
 text goes back to the client; any other exception is a bug. Work that can block (the master, making rospy
 objects) is done off the loop: a refusal found out there comes later, through `Client.ros_refused`."""
+
 import abc
 import typing
 
@@ -14,6 +15,7 @@ DRIVE_TYPES = frozenset(("geometry_msgs/Twist", "geometry_msgs/TwistStamped"))  
 class Client(typing.Protocol):
     """What the ROS side may call on a client (protocol.Session), on the loop only: other threads hand their
     results to the loop first (IOLoop.add_callback; ros_side/__init__.py says who does)."""
+
     is_closed: bool  # the client left: nothing more is sent to it
 
     def deliver(self, message) -> None:

@@ -1,6 +1,7 @@
 """The one base class of every refusal that is the client's fault. Its text goes back to the client (a status
 frame, a failed service_response or service call); any other exception is a bug of the bridge: logged with its
 traceback and answered with a generic internal error."""
+
 import logging
 import sys
 import time

@@ -7,6 +7,7 @@ commas, surrounding spaces and quotes are dropped. A YAML list (when the param i
 An empty value ("", "[]", "[ ]", None) means "no filter": everything is allowed. This is what the reference
 does with an empty list, and it is the launch default. To hide everything, give a pattern that matches
 nothing, e.g. "[none]"."""
+
 import fnmatch
 
 
@@ -22,7 +23,7 @@ def parse_globs(text):
             body = body[1:-1]
         items = body.split(",")
     else:
-        raise ValueError(f"glob list must be a string like \"[/a/*, /b]\", got {text!r}")
+        raise ValueError(f'glob list must be a string like "[/a/*, /b]", got {text!r}')
     patterns = [item.strip().strip("'\"").strip() for item in items]
     patterns = [p for p in patterns if p]
     return patterns or None

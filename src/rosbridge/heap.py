@@ -7,6 +7,7 @@ serve the next message. The cost is bounded: at most REUSE_BYTES of freed memory
 and each encoding thread's), and a buffer bigger than that (a 16 MB map, its 40 MB of JSON) still mapped and given
 back at once: with 32 MB, the map's buffers stayed in the heap too, and a map sent again after clouds and maps
 peaked 13 % higher than the first (fragments of the kept memory did not fit it)."""
+
 import ctypes
 
 REUSE_BYTES = 8 << 20  # a camera image, a 300k-point cloud and their JSON; not a map

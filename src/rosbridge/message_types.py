@@ -2,6 +2,7 @@
 
 Only names of the form `package/Name` are looked up, and only through ROS's own message packages, so a
 client can never make the bridge import anything else."""
+
 import functools
 import importlib.util
 import os
@@ -55,7 +56,7 @@ def _is_message_package(package):
 _ros_packages = rospkg.RosPack()
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def message_class(type_name):
     """The genpy message class for `type_name`, e.g. 'geometry_msgs/Twist'."""
     _check_name(type_name, "message")
@@ -70,7 +71,7 @@ def message_class(type_name):
     return cls
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def service_class(type_name):
     """The service class for `type_name` (with _request_class and _response_class), e.g. 'std_srvs/Empty'."""
     _check_name(type_name, "service")

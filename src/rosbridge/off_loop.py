@@ -1,9 +1,10 @@
 """Work off the event loop.
 
 EncodingThread: work too long for the event loop: encoding a big message (a 16 MB map would hold every other
-client and topic meanwhile: `bridge.encoder`), making a camera stream's JPEGs (streams.py), deflating a big
-message for the clients whose link is slow (`bridge.deflater`, transport/connection.py and transport/slow_link.deflated_payload: a
-thread apart, so that a map's encoding never holds a slow client's next frame). One thread per use, jobs in the
+client and topic meanwhile: `bridge.encoder`), making a camera stream's JPEGs (http/streams.py), deflating a big
+message for the clients whose link is slow (`bridge.deflater`, transport/connection.py and
+transport/slow_link.deflated_payload: a thread apart, so that a map's encoding never holds a slow client's next
+frame). One thread per use, jobs in the
 order given; a thread starts with its first job.
 
 Hand-off: run(fn, then) is called on the loop; fn() runs on the thread and must touch nothing but what it was
@@ -18,6 +19,7 @@ OS has run the new thread, which on a busy machine held the loop, and every clie
 thread and never waits; fn runs on a pool thread and hands its own result back. A thread the OS refuses (a
 process at its limit of tasks or memory) is asked for again every START_RETRY_S, the call waiting meanwhile: the
 starter thread goes on, so the calls after it are not lost with it."""
+
 import collections
 import concurrent.futures
 import itertools
@@ -82,7 +84,10 @@ class CallThreads:
                 if attempt == 0:
                     logging.getLogger("rosbridge").warning(
                         "cannot start a %s thread (%s): its call waits, asked again every %s s",
-                        self._name, error, START_RETRY_S)
+                        self._name,
+                        error,
+                        START_RETRY_S,
+                    )
                 time.sleep(START_RETRY_S)
 
     def _work(self):

@@ -7,6 +7,7 @@ attacker's DNS re-points at this machine: the browser then sends the site's requ
   is no browser's, and Tornado takes it as addressed to 127.0.0.1.
 - Origin: browsers send the page's origin with a websocket and a cross-site request, and a robot on a network
   must not be driven by whatever site its user happens to browse. Clients that send no Origin are not browsers."""
+
 import fnmatch
 import functools
 import ipaddress
@@ -47,8 +48,11 @@ def host_allowed(host, patterns, host_patterns):
         return False
     if any(fnmatch.fnmatchcase(text, pattern.lower()) for pattern in host_patterns or () for text in (name, host)):
         return True
-    if any(fnmatch.fnmatchcase(f"{scheme}://{host}", pattern.lower())
-           for pattern in patterns or () for scheme in ("http", "https")):
+    if any(
+        fnmatch.fnmatchcase(f"{scheme}://{host}", pattern.lower())
+        for pattern in patterns or ()
+        for scheme in ("http", "https")
+    ):
         return True
     return is_this_machine(name)
 
@@ -83,8 +87,9 @@ def is_this_machine(host):
         address = ipaddress.ip_address(host)
     except ValueError:
         name = host[:-1] if host.endswith(".") else host
-        return bool(NAME.fullmatch(name)) and (name == "localhost" or name.endswith(".localhost")
-                                               or name in own_names())
+        return bool(NAME.fullmatch(name)) and (
+            name == "localhost" or name.endswith(".localhost") or name in own_names()
+        )
     address = getattr(address, "ipv4_mapped", None) or address  # ::ffff:a.b.c.d from a dual-stack socket
     if address.is_unspecified or address.is_multicast:  # (both bind: "every address", a group)
         return False
@@ -104,8 +109,13 @@ def own_names():
     a Raspberry Pi is reached as raspberrypi.local), its fully qualified name, and ROS_HOSTNAME and ROS_IP."""
     name = socket.gethostname().lower()
     short = name.partition(".")[0]
-    names = {name, short, short + ".local", _fully_qualified(name),
-             *(os.environ.get(variable, "").lower().rstrip(".") for variable in ("ROS_HOSTNAME", "ROS_IP"))}
+    names = {
+        name,
+        short,
+        short + ".local",
+        _fully_qualified(name),
+        *(os.environ.get(variable, "").lower().rstrip(".") for variable in ("ROS_HOSTNAME", "ROS_IP")),
+    }
     names.discard("")
     return names
 

@@ -3,6 +3,7 @@
 
 One IOLoop thread serves every client; rospy's threads and the service-call threads only hand work to it
 (see ros_side/__init__.py)."""
+
 import gc
 import resource
 import time
@@ -18,20 +19,20 @@ import tornado.web
 from rosbridge import protocol
 from rosbridge.accepting import BoundedHTTPServer, accept_connections
 from rosbridge.auth import UrlMacs
-from rosbridge.http.bag_routes import MAX_BODY, bag_routes
-from rosbridge.http.bag_recorder import Recorder
 from rosbridge.borrowed import handle_connection
-from rosbridge.http.cloud_routes import cloud_routes
 from rosbridge.globs import Globs, parse_globs
 from rosbridge.heap import reuse_big_buffers
 from rosbridge.http.access import host_checked
-from rosbridge.off_loop import EncodingThread
+from rosbridge.http.bag_recorder import Recorder
+from rosbridge.http.bag_routes import MAX_BODY, bag_routes
+from rosbridge.http.cloud_routes import cloud_routes
 from rosbridge.http.pages import PageFiles, missing_files
+from rosbridge.http.streams import stream_routes
+from rosbridge.off_loop import EncodingThread
 from rosbridge.ros_side import RosBackend
 from rosbridge.ros_side.recovery import MasterWatch
 from rosbridge.ros_side.rosapi import Rosapi
 from rosbridge.settings import Settings
-from rosbridge.http.streams import stream_routes
 from rosbridge.transport.connection import BridgeSocket, unfinished_bound
 from rosbridge.transport.deadman import DriverLeases
 from rosbridge.transport.write_turns import WriteTurns
@@ -47,7 +48,8 @@ class Bridge:
         self.backend, self.config, self.settings = backend, config, settings
         self.writes = writes  # when the clients' queued frames are written (write_turns.py)
         self.encoder = EncodingThread(tornado.ioloop.IOLoop.current())  # big messages are encoded off the loop
-        # big messages deflated for the clients whose link is slow (transport/connection.py): a thread apart from the encoder's
+        # big messages deflated for the clients whose link is slow (transport/slow_link.py): a thread apart from the
+        # encoder's
         self.deflater = EncodingThread(tornado.ioloop.IOLoop.current(), name="rosbridge-deflate")
         self.allowed_origins = allowed_origins  # None: same host only (and clients that send no Origin)
         self.allowed_hosts = allowed_hosts  # None: this machine's names (and allowed_origins' sites)
@@ -69,19 +71,29 @@ class Bridge:
         """Logs a refusal at most once a minute per kind (and of at most MAX_LOGGED_KINDS kinds)."""
         now = time.monotonic()
         if now - self._logged.get(kind, -every) < every or (
-                kind not in self._logged and len(self._logged) >= MAX_LOGGED_KINDS):
+            kind not in self._logged and len(self._logged) >= MAX_LOGGED_KINDS
+        ):
             return
         self._logged[kind] = now
         rospy.logwarn("%s", text)
 
     def refused_origin(self, origin, peer):
         listed = ", ".join([*(self.allowed_origins or []), origin])
-        why = "it is not in allowed_origins" if self.allowed_origins else (
-            "a page opened from disk in a browser on another machine (or a sandboxed frame)" if origin == "null"
-            else "only pages of this machine may connect by default")
-        self.log_refusal(("origin", origin), f"Refused a websocket from the web page at origin {origin} (browser at "
-                         f"{peer}): {why}. To allow it: roslaunch turtlesim rosbridge_websocket.launch "
-                         f'allowed_origins:="[{listed}]"')
+        why = (
+            "it is not in allowed_origins"
+            if self.allowed_origins
+            else (
+                "a page opened from disk in a browser on another machine (or a sandboxed frame)"
+                if origin == "null"
+                else "only pages of this machine may connect by default"
+            )
+        )
+        self.log_refusal(
+            ("origin", origin),
+            f"Refused a websocket from the web page at origin {origin} (browser at "
+            f"{peer}): {why}. To allow it: roslaunch turtlesim rosbridge_websocket.launch "
+            f'allowed_origins:="[{listed}]"',
+        )
 
 
 def routes(bridge, web_root, recorder=None):
@@ -90,8 +102,12 @@ def routes(bridge, web_root, recorder=None):
     (cloud_routes.py), other paths are files of web_root; a request addressed to a Host not this bridge's is refused
     whatever its path (access.host_checked)."""
     index = Path(web_root) / "index.html" if web_root else None
-    table = [(r"/", BridgeSocket, {"bridge": bridge, "index_page": index if index and index.is_file() else None}),
-             *stream_routes(bridge), *bag_routes(bridge, recorder), *cloud_routes(bridge)]
+    table = [
+        (r"/", BridgeSocket, {"bridge": bridge, "index_page": index if index and index.is_file() else None}),
+        *stream_routes(bridge),
+        *bag_routes(bridge, recorder),
+        *cloud_routes(bridge),
+    ]
     if web_root:
         table.append((r"/(.+)", PageFiles, {"path": str(web_root)}))
     return host_checked(bridge, table)  # every request, by its Host (DNS rebinding)
@@ -112,7 +128,7 @@ def main():
         origins, hosts = parse_globs(current.allowed_origins), parse_globs(current.allowed_hosts)
     except ValueError as error:
         rospy.logfatal("%s", error)
-        raise SystemExit(1)
+        raise SystemExit(1) from None
     raise_fd_limit()
     reuse_big_buffers()
     secret = None
@@ -125,8 +141,13 @@ def main():
     loop = tornado.ioloop.IOLoop.current()
     rosapi = Rosapi(rosgraph.get_master_uri(), rospy.get_name(), globs, rospy.Time.now)
     writes = WriteTurns(loop.add_callback)
-    backend = RosBackend(loop, rosapi=rosapi, unregister_timeout=current.unregister_timeout,
-                         stop_drivers_leaving=current.deadman_timeout > 0, deliveries=writes.delivering)
+    backend = RosBackend(
+        loop,
+        rosapi=rosapi,
+        unregister_timeout=current.unregister_timeout,
+        stop_drivers_leaving=current.deadman_timeout > 0,
+        deliveries=writes.delivering,
+    )
     bridge = Bridge(backend, config, current, writes, allowed_origins=origins, allowed_hosts=hosts)
     backend.set_client_count(0)
     if current.deadman_timeout > 0:
@@ -136,25 +157,47 @@ def main():
     if web_root.lower() == "none":
         web_root = ""
     if web_root and (missing := missing_files(web_root)):
-        rospy.logwarn("The page in %s lacks %s (its vendor/ folder): run bash tools/setup in the turtlesim source "
-                      "folder, which installs them from npm", web_root, ", ".join(missing))
+        rospy.logwarn(
+            "The page in %s lacks %s (its vendor/ folder): run bash tools/setup in the turtlesim source "
+            "folder, which installs them from npm",
+            web_root,
+            ", ".join(missing),
+        )
     recorder = None
     if current.bag_folder:
-        recorder = Recorder(backend, loop, Path(current.bag_folder).expanduser(), current.bag_max_bytes,
-                            current.blackbox_seconds, current.blackbox_max_bytes, topic_globs=globs.topics)
+        recorder = Recorder(
+            backend,
+            loop,
+            Path(current.bag_folder).expanduser(),
+            current.bag_max_bytes,
+            current.blackbox_seconds,
+            current.blackbox_max_bytes,
+            topic_globs=globs.topics,
+        )
     app = tornado.web.Application(routes(bridge, web_root, recorder))
     ssl_options = {"certfile": current.certfile, "keyfile": current.keyfile} if current.ssl else None
     sockets = tornado.netutil.bind_sockets(current.port, current.address or None)
     # a connection that sends no request within IDLE_TIMEOUT is closed: idle sockets must not hold descriptors
-    server = BoundedHTTPServer(app, MAX_BODY, current.max_connections_per_address, bridge.log_refusal,
-                               ssl_options=ssl_options, idle_connection_timeout=IDLE_TIMEOUT)
+    server = BoundedHTTPServer(
+        app,
+        MAX_BODY,
+        current.max_connections_per_address,
+        bridge.log_refusal,
+        ssl_options=ssl_options,
+        idle_connection_timeout=IDLE_TIMEOUT,
+    )
     accept_connections(handle_connection(server), sockets, lambda text: bridge.log_refusal("fds", text), loop)
     port = sockets[0].getsockname()[1]
     rospy.set_param("~actual_port", port)
     MasterWatch(after_recovery=lambda: rospy.set_param("~actual_port", port))
     scheme = "wss" if ssl_options else "ws"
-    rospy.loginfo("Rosbridge WebSocket server started at %s://%s:%d (page: %s)", scheme,
-                  current.address or "0.0.0.0", port, web_root or "off")
+    rospy.loginfo(
+        "Rosbridge WebSocket server started at %s://%s:%d (page: %s)",
+        scheme,
+        current.address or "0.0.0.0",
+        port,
+        web_root or "off",
+    )
 
     # The kernel may deliver SIGINT to one of rospy's threads, which leaves the loop asleep in epoll: wake it
     # twice a second so that Python runs rospy's signal handler, and stop once rospy is shutting down.

@@ -11,6 +11,7 @@ SimpleActionServer); aborted, with the reason in its status text, when theta is 
 node drives the turtle (a cmd_vel that is not ours: the teleop, the page; ROS 2 aborts too), or when no pose came
 for POSE_TIMEOUT s (turtlesim stopped, the turtle killed). One loop at turtlesim's tick decides everything; the
 servers (in polling mode, no execute thread) and the subscribers only leave flags for it."""
+
 import time
 
 import rospy

@@ -1,5 +1,6 @@
 """The demo camera's picture: an overhead view of the turtle world drawn from the turtles' poses (no ROS), so
 that a new user sees the console's camera panel work. Not part of turtlesim's reference interface."""
+
 import math
 
 from PIL import Image, ImageDraw
@@ -19,11 +20,14 @@ def render(poses, size=320):
         at = round(metre * scale)
         draw.line([(at, 0), (at, size)], fill=(88, 104, 255))
         draw.line([(0, size - at), (size, size - at)], fill=(88, 104, 255))
-    for index, (name, (x, y, theta)) in enumerate(sorted(poses.items())):
+    for index, (_name, (x, y, theta)) in enumerate(sorted(poses.items())):
         cx, cy = x * scale, size - y * scale
         r = max(3.0, 0.35 * scale)
         colour = TURTLE_COLOURS[index % len(TURTLE_COLOURS)]
         draw.ellipse([cx - r, cy - r, cx + r, cy + r], fill=colour)
-        draw.line([(cx, cy), (cx + 1.8 * r * math.cos(theta), cy - 1.8 * r * math.sin(theta))], fill=(20, 20, 30),
-                  width=max(1, round(r / 3)))
+        draw.line(
+            [(cx, cy), (cx + 1.8 * r * math.cos(theta), cy - 1.8 * r * math.sin(theta))],
+            fill=(20, 20, 30),
+            width=max(1, round(r / 3)),
+        )
     return image

@@ -1,6 +1,7 @@
 """The demo camera node (`rosrun turtlesim turtle_camera`): watches every /<turtle>/pose and publishes an overhead
 picture of the world at 10 Hz as sensor_msgs/Image (rgb8, ~image_raw) and as JPEG sensor_msgs/CompressedImage
 (~image_raw/compressed): a camera to try the console's camera panel with, on a machine without one."""
+
 import io
 
 import rospy
@@ -21,8 +22,14 @@ def main():
     while not rospy.is_shutdown():
         picture = render(dict(poses))
         stamp = rospy.Time.now()
-        message = Image(height=picture.height, width=picture.width, encoding="rgb8", is_bigendian=0,
-                        step=3 * picture.width, data=picture.tobytes())
+        message = Image(
+            height=picture.height,
+            width=picture.width,
+            encoding="rgb8",
+            is_bigendian=0,
+            step=3 * picture.width,
+            data=picture.tobytes(),
+        )
         message.header.stamp, message.header.frame_id = stamp, "turtle_camera"
         raw.publish(message)
         jpeg = io.BytesIO()

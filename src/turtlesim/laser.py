@@ -1,6 +1,7 @@
 """A simulated planar laser for the demo (pure: no ROS): the distances from one turtle to the walls of the
 world and to the other turtles (discs of TURTLE_RADIUS), one per ray, counter-clockwise from `angle_min`
 relative to the turtle's heading, as sensor_msgs/LaserScan orders them."""
+
 import math
 
 from turtlesim.sim import HEIGHT, WIDTH
@@ -69,6 +70,6 @@ def _to_disc(x, y, dx, dy, cx, cy):
     ox, oy = cx - x, cy - y
     along = ox * dx + oy * dy
     off2 = ox * ox + oy * oy - along * along
-    if along <= 0 or off2 > TURTLE_RADIUS ** 2 or ox * ox + oy * oy <= TURTLE_RADIUS ** 2:
+    if along <= 0 or off2 > TURTLE_RADIUS**2 or ox * ox + oy * oy <= TURTLE_RADIUS**2:
         return math.inf
-    return along - math.sqrt(TURTLE_RADIUS ** 2 - off2)
+    return along - math.sqrt(TURTLE_RADIUS**2 - off2)

@@ -13,6 +13,7 @@ at run time instead would need those same templates, a writable place and the ge
 convention, for nothing gained.
 The Server reads the private parameters at start (`_rays:=90` works), clamps every value to its range and keeps the
 parameters in step; the callback also refuses what the clamp lets through (NaN, a fraction for `rays`)."""
+
 import math
 import random
 import threading
@@ -41,8 +42,13 @@ class Laser:
         """dynamic_reconfigure's callback (on its service thread): the configuration it answers is what we run."""
         settings, refused = usable_settings({name: config[name] for name in SETTINGS}, self.settings)
         for name in refused:
-            rospy.logwarn("%s must be a finite %s, not %r: it stays %s", name, type(settings[name]).__name__,
-                          config[name], settings[name])
+            rospy.logwarn(
+                "%s must be a finite %s, not %r: it stays %s",
+                name,
+                type(settings[name]).__name__,
+                config[name],
+                settings[name],
+            )
         config.update(settings)
         self.settings = settings
         self.reconfigured.set()
@@ -67,9 +73,15 @@ class Laser:
                 self.publishers[name] = rospy.Publisher(f"/{name}/scan", LaserScan, queue_size=1)
             others = [(x, y) for other, (x, y, _) in current.items() if other != name]
             ranges = add_noise(scan(pose, others, rays, range_max), settings["noise"], range_max, self.gauss)
-            message = LaserScan(angle_min=-math.pi, angle_max=math.pi - 2 * math.pi / rays,
-                                angle_increment=2 * math.pi / rays, scan_time=1.0 / settings["rate"],
-                                range_min=RANGE_MIN, range_max=range_max, ranges=ranges)
+            message = LaserScan(
+                angle_min=-math.pi,
+                angle_max=math.pi - 2 * math.pi / rays,
+                angle_increment=2 * math.pi / rays,
+                scan_time=1.0 / settings["rate"],
+                range_min=RANGE_MIN,
+                range_max=range_max,
+                ranges=ranges,
+            )
             message.header.stamp, message.header.frame_id = now, name + "/laser"
             self.publishers[name].publish(message)
         for name in set(self.publishers) - set(current):  # a killed turtle

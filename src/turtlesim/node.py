@@ -7,6 +7,7 @@ main thread runs the window (or just waits when there is no display). Every acce
 `self.lock`. ROS registration (advertising, subscribing, registering services) happens outside that lock
 so that it never delays a tick. The publishing thread and the service threads that spawn and kill turtles
 share the turtles' interfaces (TurtleInterfaces): a killed turtle's is withdrawn between two publishes."""
+
 import collections
 import math
 import os
@@ -22,10 +23,19 @@ from std_srvs.srv import Empty, EmptyResponse
 
 from turtlesim import view
 from turtlesim.msg import Color, Pose
-from turtlesim.sim import DEFAULT_BACKGROUND, DT, World, TurtlesimError
-from turtlesim.srv import (Kill, KillResponse, SetPen, SetPenResponse, Spawn, SpawnResponse,
-                           TeleportAbsolute, TeleportAbsoluteResponse, TeleportRelative,
-                           TeleportRelativeResponse)
+from turtlesim.sim import DEFAULT_BACKGROUND, DT, TurtlesimError, World
+from turtlesim.srv import (
+    Kill,
+    KillResponse,
+    SetPen,
+    SetPenResponse,
+    Spawn,
+    SpawnResponse,
+    TeleportAbsolute,
+    TeleportAbsoluteResponse,
+    TeleportRelative,
+    TeleportRelativeResponse,
+)
 
 BACKGROUND_PARAMS = ("~background_r", "~background_g", "~background_b")
 SNAPSHOT_ENV = "TURTLESIM_SNAPSHOT"
@@ -40,12 +50,14 @@ def log(level, text):
 
 def serve(response_class, action):
     """A rospy service handler that runs action(request) and maps TurtlesimError to a failed call."""
+
     def handle(request):
         try:
             result = action(request)
         except TurtlesimError as error:
             raise rospy.ServiceException(str(error)) from None
         return response_class() if result is None else result
+
     return handle
 
 
@@ -55,17 +67,29 @@ class TurtleInterface:
     def __init__(self, node, name):
         self.pose = rospy.Publisher(f"{name}/pose", Pose, queue_size=1)
         self.color = rospy.Publisher(f"{name}/color_sensor", Color, queue_size=1)
-        self.cmd_vel = rospy.Subscriber(f"{name}/cmd_vel", Twist, node.on_cmd_vel, callback_args=name,
-                                        queue_size=1)
+        self.cmd_vel = rospy.Subscriber(f"{name}/cmd_vel", Twist, node.on_cmd_vel, callback_args=name, queue_size=1)
         self.services = [
-            rospy.Service(f"{name}/set_pen", SetPen, serve(SetPenResponse, lambda r: node.locked(
-                node.world.set_pen, name, r.r, r.g, r.b, r.width, r.off))),
-            rospy.Service(f"{name}/teleport_absolute", TeleportAbsolute, serve(
-                TeleportAbsoluteResponse, lambda r: node.locked(
-                    node.world.teleport_absolute, name, r.x, r.y, r.theta))),
-            rospy.Service(f"{name}/teleport_relative", TeleportRelative, serve(
-                TeleportRelativeResponse, lambda r: node.locked(
-                    node.world.teleport_relative, name, r.linear, r.angular))),
+            rospy.Service(
+                f"{name}/set_pen",
+                SetPen,
+                serve(SetPenResponse, lambda r: node.locked(node.world.set_pen, name, r.r, r.g, r.b, r.width, r.off)),
+            ),
+            rospy.Service(
+                f"{name}/teleport_absolute",
+                TeleportAbsolute,
+                serve(
+                    TeleportAbsoluteResponse,
+                    lambda r: node.locked(node.world.teleport_absolute, name, r.x, r.y, r.theta),
+                ),
+            ),
+            rospy.Service(
+                f"{name}/teleport_relative",
+                TeleportRelative,
+                serve(
+                    TeleportRelativeResponse,
+                    lambda r: node.locked(node.world.teleport_relative, name, r.linear, r.angular),
+                ),
+            ),
         ]
 
     def publish(self, reading):
@@ -168,16 +192,16 @@ class TurtlesimNode:
         self._interfaces.sync(set(self.locked(self.world.names)))
 
     def _background(self):
-        return tuple(self._color_param(param, default)
-                     for param, default in zip(BACKGROUND_PARAMS, DEFAULT_BACKGROUND))
+        return tuple(self._color_param(param, default) for param, default in zip(BACKGROUND_PARAMS, DEFAULT_BACKGROUND))
 
     @staticmethod
     def _color_param(param, default):
         value = rospy.get_param(param, default)
         if isinstance(value, int) and not isinstance(value, bool) and 0 <= value <= 255:
             return value
-        rospy.logwarn("Parameter %s must be an integer from 0 to 255, not %r: using %d",
-                      rospy.resolve_name(param), value, default)
+        rospy.logwarn(
+            "Parameter %s must be an integer from 0 to 255, not %r: using %d", rospy.resolve_name(param), value, default
+        )
         return default
 
     # ---- the simulation loop -------------------------------------------------------------------------

@@ -1,5 +1,6 @@
 """The turtles' poses for the demo nodes (camera, TF, laser): finds every /<name>/pose topic of type
 turtlesim/Pose, now and every few seconds (turtles are spawned and killed), and keeps each turtle's latest pose."""
+
 import rospy
 
 from turtlesim.msg import Pose
@@ -22,7 +23,8 @@ class PoseWatch:
             parts = topic.split("/")
             if len(parts) == 3 and parts[2] == "pose":
                 self._subscribers[topic] = rospy.Subscriber(
-                    topic, Pose, self._received, callback_args=parts[1], queue_size=1)
+                    topic, Pose, self._received, callback_args=parts[1], queue_size=1
+                )
         for topic in set(self._subscribers) - published:  # a killed turtle: forget it
             self._subscribers.pop(topic).unregister()
             self.poses.pop(topic.split("/")[1], None)

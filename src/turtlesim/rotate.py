@@ -2,6 +2,7 @@
 does, for the demo's turtle_actions. ROS 2 turns at 1 rad/s and stops within 0.02 rad of the goal; from a node
 beside turtlesim (a pose in, a cmd_vel out, a tick or two late) that speed would overshoot, so the last third of a
 radian slows down in proportion to the angle left, which also lets it stop nearer (0.01 rad)."""
+
 import math
 
 MAX_SPEED = 1.0  # rad/s, as ROS 2's turtle turns

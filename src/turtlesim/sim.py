@@ -5,6 +5,7 @@ qy = H - y), pixels = metres * METER. The node calls `tick(now)` every 16 ms and
 service handlers call the other methods. Log lines go to the `log(level, text)` callback given to World,
 with level "info", "warn" or "error"; failed requests raise TurtlesimError (after logging, if the reference
 logs them)."""
+
 import math
 import struct
 from collections import namedtuple
@@ -107,17 +108,21 @@ class World:
     def teleport_absolute(self, name, x, y, theta):
         """Queued for the next tick. x is not clamped there, world y only to <= HEIGHT (as the reference)."""
         _require_finite(x=x, y=y, theta=theta)
+
         def jump(turtle):
             turtle.x, turtle.qy, turtle.orient = x, max(0.0, HEIGHT - y), theta
+
         self._turtle(name).teleports.append(jump)
 
     def teleport_relative(self, name, linear, angular):
         """Queued for the next tick: turn by angular, then move linear along the new heading."""
         _require_finite(linear=linear, angular=angular)
+
         def jump(turtle):
             turtle.orient += angular
             turtle.x += math.cos(turtle.orient) * linear
             turtle.qy -= math.sin(turtle.orient) * linear
+
         self._turtle(name).teleports.append(jump)
 
     def clear(self, background):
@@ -204,8 +209,15 @@ class World:
         half = width / 2
         ex, ey = ux * half, uy * half  # along the segment
         nx, ny = -ey, ex  # across it
-        self._fill_convex([(ax - ex + nx, ay - ey + ny), (bx + ex + nx, by + ey + ny),
-                           (bx + ex - nx, by + ey - ny), (ax - ex - nx, ay - ey - ny)], color)
+        self._fill_convex(
+            [
+                (ax - ex + nx, ay - ey + ny),
+                (bx + ex + nx, by + ey + ny),
+                (bx + ex - nx, by + ey - ny),
+                (ax - ex - nx, ay - ey - ny),
+            ],
+            color,
+        )
 
     def _thin_line(self, a, b, color):
         """A one-pixel line as Qt 5's raster engine draws it with an aliased, square-capped pen of width <= 1
@@ -247,8 +259,11 @@ class World:
         edges = list(zip(corners, corners[1:] + corners[:1]))
         for row in range(first_row, last_row + 1):
             yc = row + 0.5
-            crossings = [x0 + (yc - y0) * (x1 - x0) / (y1 - y0)
-                         for (x0, y0), (x1, y1) in edges if (y0 <= yc < y1) or (y1 <= yc < y0)]
+            crossings = [
+                x0 + (yc - y0) * (x1 - x0) / (y1 - y0)
+                for (x0, y0), (x1, y1) in edges
+                if (y0 <= yc < y1) or (y1 <= yc < y0)
+            ]
             if len(crossings) < 2:
                 continue
             first_col = max(0, math.ceil(min(crossings) - 0.5))
@@ -294,5 +309,6 @@ def _require_finite(**values):
     """Infinity or NaN would poison the pose for good; the reference has no answer for them either."""
     bad = [name for name, value in values.items() if not math.isfinite(value)]
     if bad:
-        raise TurtlesimError(f"{', '.join(bad)} must be a finite number, not "
-                             f"{', '.join(str(values[name]) for name in bad)}")
+        raise TurtlesimError(
+            f"{', '.join(bad)} must be a finite number, not {', '.join(str(values[name]) for name in bad)}"
+        )

@@ -1,6 +1,7 @@
 """turtle_teleop_key: drives turtle1 with the arrow keys (spec/turtlesim.md section 5).
 
 `decode` is the whole key map; `main` is the terminal and ROS shell around it."""
+
 import os
 import sys
 import termios
@@ -9,11 +10,10 @@ QUIT = "quit"
 # An arrow key arrives as ESC [ A (or ESC O A): ESC and [ / O are ignored and the final letter moves,
 # so plain capital A-D act like the arrows too. Values: (linear, angular) before scaling.
 MOVES = {ord("A"): (1, 0), ord("B"): (-1, 0), ord("C"): (0, -1), ord("D"): (0, 1)}
-BANNER = ("Reading from keyboard\n"
-          "---------------------------\n"
-          "Use arrow keys to move the turtle. 'q' to quit.")
-NOT_A_TERMINAL = ("turtle_teleop_key: standard input is not a terminal; "
-                  "run it in a terminal to drive the turtle with the arrow keys")
+BANNER = "Reading from keyboard\n---------------------------\nUse arrow keys to move the turtle. 'q' to quit."
+NOT_A_TERMINAL = (
+    "turtle_teleop_key: standard input is not a terminal; run it in a terminal to drive the turtle with the arrow keys"
+)
 
 
 def decode(byte):

@@ -1,6 +1,7 @@
 """The demo TF node (`rosrun turtlesim turtle_tf`): a transform world -> <turtle> on /tf for every pose a turtle
 publishes, and on /tf_static (latched) where the demo camera and each turtle's laser sit: something for the
 console's TF viewer to show with turtlesim alone. turtlesim_node itself stays exactly the reference's."""
+
 import math
 
 import rospy
@@ -29,8 +30,9 @@ def main():
     rospy.init_node("turtle_tf")
     dynamic = rospy.Publisher("/tf", TFMessage, queue_size=100)
     static = rospy.Publisher("/tf_static", TFMessage, queue_size=1, latch=True)
-    static_frames = {"turtle_camera": transform(WORLD, "turtle_camera", WIDTH / 2, HEIGHT / 2, CAMERA_HEIGHT,
-                                                roll=math.pi)}
+    static_frames = {
+        "turtle_camera": transform(WORLD, "turtle_camera", WIDTH / 2, HEIGHT / 2, CAMERA_HEIGHT, roll=math.pi)
+    }
 
     def on_pose(name, pose):
         dynamic.publish(TFMessage([transform(WORLD, name, pose.x, pose.y, 0.0, yaw=pose.theta)]))

@@ -1,6 +1,7 @@
 """What the window shows: the trail image with a turtle drawn on top per turtle (`compose`, plain PIL), and
 the Tk window that displays it (`open_window`). The turtle drawings are never part of the trail image, so
 they never reach the colour sensor."""
+
 import functools
 import math
 import os
@@ -15,8 +16,10 @@ REFRESH_MS = 30  # how often the window looks for a changed picture (about 33 Hz
 
 
 def _ellipse(cx, cy, rx, ry, points=20):
-    return [(cx + rx * math.cos(2 * math.pi * i / points), cy + ry * math.sin(2 * math.pi * i / points))
-            for i in range(points)]
+    return [
+        (cx + rx * math.cos(2 * math.pi * i / points), cy + ry * math.sin(2 * math.pi * i / points))
+        for i in range(points)
+    ]
 
 
 # The turtle, seen from above and heading along +u, as (fill, outline, polygon in pixels; v to its left).
@@ -45,8 +48,11 @@ def turtle_sprite(degrees):
     draw = ImageDraw.Draw(sprite)
     cos, sin = math.cos(math.radians(degrees)), math.sin(math.radians(degrees))
     for fill, outline, shape in TURTLE_SHAPES:  # (the picture's y axis points down)
-        draw.polygon([(SPRITE_HALF + u * cos - v * sin, SPRITE_HALF - u * sin - v * cos) for u, v in shape],
-                     fill=fill, outline=outline)
+        draw.polygon(
+            [(SPRITE_HALF + u * cos - v * sin, SPRITE_HALF - u * sin - v * cos) for u, v in shape],
+            fill=fill,
+            outline=outline,
+        )
     return sprite
 
 
@@ -77,6 +83,7 @@ class Window:
     def run(self, snapshot, stopped, on_close):
         """Shows snapshot() = (version, trail, turtles) or None when unchanged, until `stopped` is set or
         the window is closed (which calls on_close)."""
+
         def refresh():
             if stopped.is_set():
                 self.root.destroy()

@@ -1,5 +1,6 @@
 """Headless Chromium from Debian, driven by Selenium with Debian's chromedriver (Selenium must never
 download a browser or a driver). Each browser gets a fresh profile that is removed afterwards."""
+
 import json
 import shutil
 import tempfile
@@ -14,11 +15,21 @@ from selenium.webdriver.common.by import By
 from harness import start_bridge, wait_for
 from sensor_messages import CAMERA
 
-SCREENS = {"desktop": {"width": 1280, "height": 800, "pixelRatio": 1},
-           "phone": {"width": 390, "height": 844, "pixelRatio": 3}}
-CHROMIUM_FLAGS = ["--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage", "--disable-quic",
-                  "--no-first-run", "--disable-background-networking", "--disable-component-update",
-                  "--disable-sync"]
+SCREENS = {
+    "desktop": {"width": 1280, "height": 800, "pixelRatio": 1},
+    "phone": {"width": 390, "height": 844, "pixelRatio": 3},
+}
+CHROMIUM_FLAGS = [
+    "--headless=new",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-dev-shm-usage",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
 
 
 class Browser:
@@ -38,9 +49,15 @@ class Browser:
             options.add_experimental_option("mobileEmulation", {"deviceMetrics": {**screen, "touch": True}})
         self.driver = webdriver.Chrome(service=Service(executable_path="/usr/bin/chromedriver"), options=options)
         if not mobile:  # the exact viewport, whatever the window decorations
-            self.driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride", {
-                "width": screen["width"], "height": screen["height"],
-                "deviceScaleFactor": screen["pixelRatio"], "mobile": False})
+            self.driver.execute_cdp_cmd(
+                "Emulation.setDeviceMetricsOverride",
+                {
+                    "width": screen["width"],
+                    "height": screen["height"],
+                    "deviceScaleFactor": screen["pixelRatio"],
+                    "mobile": False,
+                },
+            )
         self.driver.set_script_timeout(20)
 
     def network_urls(self):
@@ -53,8 +70,7 @@ class Browser:
                 urls.add(message["params"]["request"]["url"])
             elif message["method"] == "Network.webSocketCreated":
                 urls.add(message["params"]["url"])
-        urls.update(self.driver.execute_script(
-            "return performance.getEntriesByType('resource').map(e => e.name)"))
+        urls.update(self.driver.execute_script("return performance.getEntriesByType('resource').map(e => e.name)"))
         return urls
 
     def console_errors(self):
@@ -87,15 +103,19 @@ class Page(Browser):
     def click(self, selector, timeout=20):
         """Clicks the first element matching selector, found and clicked in one step: a list redrawn between a
         look-up and a click leaves no stale element, and a sticky header over the element does not take it."""
-        wait_for(lambda: self.js("const e = document.querySelector(arguments[0]); if (e) e.click(); return !!e;",
-                                 selector), timeout, what=f"{selector} to click")
+        wait_for(
+            lambda: self.js("const e = document.querySelector(arguments[0]); if (e) e.click(); return !!e;", selector),
+            timeout,
+            what=f"{selector} to click",
+        )
 
     def tab(self, name):
         """Clicks a console tab's button as a person does, and waits for its panel (a click the layout moved away
         from, with no error from the driver, fails here by name); returns the panel."""
         self.el(f"tab-button-{name}").click()
-        wait_for(lambda: self.el(f"tab-{name}").is_displayed(), 5,
-                 what=f"the {name} tab shown after its button's click")
+        wait_for(
+            lambda: self.el(f"tab-{name}").is_displayed(), 5, what=f"the {name} tab shown after its button's click"
+        )
         return self.el(f"tab-{name}")
 
     def state(self):
@@ -119,8 +139,9 @@ class Page(Browser):
     def foreign_urls(self):
         """URLs the page requested that are not its own origin (http or ws to the same host:port)."""
         own = urlsplit(self.url).netloc
-        return sorted(u for u in self.network_urls()
-                      if not (urlsplit(u).scheme in ("http", "ws") and urlsplit(u).netloc == own))
+        return sorted(
+            u for u in self.network_urls() if not (urlsplit(u).scheme in ("http", "ws") and urlsplit(u).netloc == own)
+        )
 
 
 class Recorder:
@@ -168,7 +189,6 @@ def sim(ros):
         yield proc
     finally:  # (the next module's turtle1 must be its own)
         proc.stop()
-
 
 
 @pytest.fixture(scope="module")

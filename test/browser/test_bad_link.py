@@ -1,6 +1,7 @@
 """The console on a bad link, as a driver sees it: the camera (by the bridge's JPEG stream when it serves one, else
 the websocket), the age of what is shown, the link's health in the header, and the camera, the pose and the
 joystick on one screen, a phone's too. Headless Chromium against a real bridge, turtlesim and its demo camera."""
+
 import threading
 import time
 
@@ -16,7 +17,6 @@ from sensor_messages import CAMERA, Publishing
 pytestmark = pytest.mark.alone  # (they time what a driver sees: tools/test runs them with nothing beside them)
 
 
-
 def text_of(page, selector):
     found = page.driver.find_elements(By.CSS_SELECTOR, selector)
     return found[0].text if found else ""
@@ -26,21 +26,24 @@ def options(page, select_id):
     return page.js(f"return [...document.getElementById('{select_id}').options].map(o => o.value)")
 
 
-
 def show_camera(page, topic=CAMERA):
     wait_for(lambda: topic in options(page, "camera-topic"), 20, what=f"{topic} listed")
     Select(page.el("camera-topic")).select_by_value(topic)
     stats = ".camera-panel .camera-stats"
-    wait_for(lambda: "fps" in text_of(page, stats) and not text_of(page, stats).startswith("0"), 15,
-             what="frames arriving")
+    wait_for(
+        lambda: "fps" in text_of(page, stats) and not text_of(page, stats).startswith("0"), 15, what="frames arriving"
+    )
 
 
 def in_view(page, selector):
     """Whether the element is wholly inside the window, as the page is scrolled now."""
-    return page.js("""const r = document.querySelector(arguments[0]).getBoundingClientRect();
+    return page.js(
+        """const r = document.querySelector(arguments[0]).getBoundingClientRect();
         const view = document.documentElement;
         return r.width > 0 && r.height > 0 && r.top >= 0 && r.left >= 0 && r.bottom <= view.clientHeight
-          && r.right <= view.clientWidth;""", selector)
+          && r.right <= view.clientWidth;""",
+        selector,
+    )
 
 
 @pytest.mark.parametrize("screen", ["desktop", "phone"])
@@ -50,8 +53,15 @@ def test_the_camera_pose_and_joystick_are_on_one_screen(open_page, camera, scree
     wait_for(lambda: "m/s" in text_of(page, ".readout"), 10, what="the pose and speed readout")
     assert page.js("return scrollY") == 0
     assert page.js("return document.documentElement.scrollWidth <= document.documentElement.clientWidth")
-    for part in (".camera-panel canvas.camera", ".camera-panel .camera-stats", ".readout", "#joystick", "#stop",
-                 "#world", ".link-health"):
+    for part in (
+        ".camera-panel canvas.camera",
+        ".camera-panel .camera-stats",
+        ".readout",
+        "#joystick",
+        "#stop",
+        "#world",
+        ".link-health",
+    ):
         assert in_view(page, part), f"{part} is not on screen"
     ARTIFACTS.mkdir(parents=True, exist_ok=True)
     time.sleep(1.5)  # (a second of link health)
@@ -70,19 +80,26 @@ def open_topic(page, topic):
 
 def test_the_skipped_counter_counts_what_the_bridge_skipped_for_a_page_that_fell_behind(open_page, node):
     from std_msgs.msg import String
+
     big = "x" * 400_000
     flood = Publishing(node, "/bad_link/flood", String, lambda n: String(f"{n} {big}"), 50)  # 20 MB/s
     try:
         page = open_page()
         open_topic(page, "/bad_link/flood")
-        wait_for(lambda: "Hz" in text_of(page, '.open-topic[data-topic="/bad_link/flood"] .stats'), 15,
-                 what="the flood arriving")
+        wait_for(
+            lambda: "Hz" in text_of(page, '.open-topic[data-topic="/bad_link/flood"] .stats'),
+            15,
+            what="the flood arriving",
+        )
         assert page.js("return document.querySelector('.link-health .skipped b').textContent") == "0"
         # The page stops reading for 3 s (its main thread busy), as a slow link would: the bridge keeps only the
         # newest message of the topic meanwhile, and says how many it skipped.
         page.js("const end = Date.now() + 3000; while (Date.now() < end) {}")
-        wait_for(lambda: int(page.js("return document.querySelector('.link-health .skipped b').textContent")) > 0,
-                 15, what="the skipped messages counted")
+        wait_for(
+            lambda: int(page.js("return document.querySelector('.link-health .skipped b').textContent")) > 0,
+            15,
+            what="the skipped messages counted",
+        )
     finally:
         flood.stop()
     assert "skipped" not in page.feedback()  # (counted in the strip, not written in the feedback list)
@@ -93,6 +110,7 @@ class Twists:
 
     def __init__(self, node, topic):
         from geometry_msgs.msg import Twist
+
         self.received = []
         self.lock = threading.Lock()
         self.sub = node.Subscriber(topic, Twist, self._receive)
@@ -113,6 +131,7 @@ def twists(node):
     def listen(topic="/turtle1/cmd_vel"):
         recorders.append(Twists(node, topic))
         return recorders[-1]
+
     yield listen
     for recorder in recorders:
         recorder.sub.unregister()
@@ -120,11 +139,14 @@ def twists(node):
 
 def canvas_digest(page, selector=".camera-panel canvas.camera"):
     """A digest of the pixels the canvas shows, and its size."""
-    return page.js("""const c = document.querySelector(arguments[0]);
+    return page.js(
+        """const c = document.querySelector(arguments[0]);
         const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
         let h = 0;
         for (let i = 0; i < d.length; i += 4) h = (h * 31 + d[i] + 7 * d[i + 1] + 13 * d[i + 2]) | 0;
-        return [c.width, c.height, h];""", selector)
+        return [c.width, c.height, h];""",
+        selector,
+    )
 
 
 def assert_driven_while_held(received, start, end):
@@ -144,8 +166,9 @@ def test_the_camera_comes_by_the_bridges_jpeg_stream_and_driving_stays_responsiv
     show_camera(page)
     stats = text_of(page, ".camera-panel .camera-stats")
     assert "JPEG stream" in stats and " old" in stats, stats
-    assert any("/stream?topic=%2Fturtle_camera%2Fimage_raw" in url and "adaptive=1" in url
-               for url in page.network_urls())
+    assert any(
+        "/stream?topic=%2Fturtle_camera%2Fimage_raw" in url and "adaptive=1" in url for url in page.network_urls()
+    )
     width, height, before = canvas_digest(page)
     assert width > 0 and height > 0
     page.js("""window.framesDrawn = 0;
@@ -197,6 +220,7 @@ def test_without_picture_streams_the_camera_comes_over_the_websocket(open_page, 
 
 def test_the_age_of_an_open_topics_newest_message_is_shown_live(open_page, node, camera):
     from geometry_msgs.msg import PointStamped
+
     once = node.Publisher("/bad_link/point", PointStamped, queue_size=1, latch=True)
     try:
         point = PointStamped()
@@ -208,18 +232,29 @@ def test_the_age_of_an_open_topics_newest_message_is_shown_live(open_page, node,
         open_topic(page, CAMERA)  # (an Image's tree does not follow it: its pictures are drawn by its viewer)
         page.click(f'.open-topic[data-topic="{CAMERA}"] button.view[data-viewer="image"]')
         age = '.open-topic[data-topic="{}"] .age'.format
-        wait_for(lambda: "since it arrived (it has no header.stamp)" in text_of(page, age("/turtle1/pose")), 15,
-                 what="the pose's age, since it arrived")
-        wait_for(lambda: "newest picture drawn: " in text_of(page, age(CAMERA))
-                 and "old (by its stamp)" in text_of(page, age(CAMERA)), 15, what="the camera's age")
-        wait_for(lambda: "old (by its header.stamp)" in text_of(page, age("/bad_link/point")), 15,
-                 what="the point's age")
+        wait_for(
+            lambda: "since it arrived (it has no header.stamp)" in text_of(page, age("/turtle1/pose")),
+            15,
+            what="the pose's age, since it arrived",
+        )
+        wait_for(
+            lambda: (
+                "newest picture drawn: " in text_of(page, age(CAMERA))
+                and "old (by its stamp)" in text_of(page, age(CAMERA))
+            ),
+            15,
+            what="the camera's age",
+        )
+        wait_for(
+            lambda: "old (by its header.stamp)" in text_of(page, age("/bad_link/point")), 15, what="the point's age"
+        )
         # (its one message is shown as come: the stats said "waiting for a message" for up to a second more)
         assert "waiting" not in text_of(page, '.open-topic[data-topic="/bad_link/point"] .stats')
 
         def seconds(selector):
             value, unit = text_of(page, selector).split(": ")[1].split(" ")[:2]
             return float(value) / (1000 if unit == "ms" else 1)
+
         assert seconds(age("/turtle1/pose")) < 0.5 and seconds(age(CAMERA)) < 1.0
         first = seconds(age("/bad_link/point"))
         time.sleep(1.5)
@@ -233,13 +268,15 @@ def test_a_value_is_shown_at_the_next_animation_frame_after_it_arrives(open_page
     """Each value of a 10 Hz topic is on screen within a few animation frames of its publication (the tree was
     redrawn 150 ms after a message came, showing half of them, each late)."""
     from std_msgs.msg import String
+
     clock = Publishing(node, "/bad_link/clock", String, lambda n: String(f"{time.time():.3f}"), 10)
     try:
         page = open_page()
         open_topic(page, "/bad_link/clock")
         leaf = '.open-topic[data-topic="/bad_link/clock"] .message'
         wait_for(lambda: "data" in text_of(page, leaf), 15, what="the first value")
-        page.js(r"""window.shown = [];
+        page.js(
+            r"""window.shown = [];
             const area = document.querySelector(arguments[0]);
             let last = '';
             const look = () => {
@@ -250,7 +287,9 @@ def test_a_value_is_shown_at_the_next_animation_frame_after_it_arrives(open_page
               }
               requestAnimationFrame(look);
             };
-            requestAnimationFrame(look);""", leaf)
+            requestAnimationFrame(look);""",
+            leaf,
+        )
         time.sleep(4)
         shown = sorted(page.js("return window.shown"))
     finally:
@@ -273,7 +312,8 @@ def test_the_pages_parsers_read_streams_and_the_bridges_reports(open_page):
     """The multipart reader cut anywhere (every split of a stream), and the status messages that count."""
     page = open_page()
     result = page.driver.execute_async_script(r"""const done = arguments[arguments.length - 1];
-        Promise.all([import('/multipart.js'), import('/panels/link.js')]).then(([{ MultipartReader }, { linkReport }]) => {
+        Promise.all([import('/multipart.js'), import('/panels/link.js')])
+        .then(([{ MultipartReader }, { linkReport }]) => {
           const text = '--b\r\nContent-Type: image/jpeg\r\nContent-Length: 5\r\nX-Timestamp: 12.500000\r\n\r\n' +
             'ab\r\n-\r\n--b\r\nContent-Type: image/jpeg\r\nContent-Length: 0\r\n\r\n\r\n--b\r\n' +
             'Content-Type: text/plain\r\n\r\nno length\r\n--b--\r\n';
@@ -297,5 +337,10 @@ def test_the_pages_parsers_read_streams_and_the_bridges_reports(open_page):
           done({ reads: [...new Set(reads)], reports });
         }, error => done(String(error)));""")
     assert result["reads"] == ['[[["ab\\r\\n-","12.500000"],["",null],["no length",null]],true]']
-    assert result["reports"] == [{"skipped": 3, "lost": 0}, {"skipped": 0, "lost": 2}, {"skipped": 0, "lost": 1},
-                                 None, None]
+    assert result["reports"] == [
+        {"skipped": 3, "lost": 0},
+        {"skipped": 0, "lost": 2},
+        {"skipped": 0, "lost": 1},
+        None,
+        None,
+    ]

@@ -1,5 +1,6 @@
 """The console: the tutorial's terminal windows in the page (rostopic, rosmsg, rosservice, rosparam, rosnode,
 rqt_console), driven in headless Chromium against a real bridge, turtlesim and the stock CLI tools."""
+
 import threading
 import time
 
@@ -9,7 +10,6 @@ from selenium.webdriver.support.ui import Select
 
 from harness import ARTIFACTS, wait_for
 from sensor_messages import CAMERA, Publishing
-
 
 
 def open_topic(page, topic):
@@ -28,8 +28,10 @@ def options(page, select_id):
 
 def press(page, selector):
     """A pointer press on the first element matching selector (looked up at that moment)."""
-    page.js("arguments[0].dispatchEvent(new PointerEvent('pointerdown', {bubbles: true}))",
-            page.driver.find_element(By.CSS_SELECTOR, selector))
+    page.js(
+        "arguments[0].dispatchEvent(new PointerEvent('pointerdown', {bubbles: true}))",
+        page.driver.find_element(By.CSS_SELECTOR, selector),
+    )
 
 
 def text_of(page, selector):
@@ -40,6 +42,7 @@ def text_of(page, selector):
 def talker(node, topic, hz):
     """Publishes "hello <n>" on topic at hz from a thread (stop() ends it)."""
     from std_msgs.msg import String
+
     return Publishing(node, topic, String, lambda n: String(f"hello {n}"), hz)
 
 
@@ -99,7 +102,8 @@ def test_turtle_pose_rate_is_turtlesims(open_page):
     rate = float(text_of(page, stats).split("average rate: ")[1].split(" Hz")[0])  # not a floor: not throttled
     assert 50 < rate < 72  # 62.5 Hz, as `rostopic hz /turtle1/pose` says
     assert "float32 x" in page.js(
-        "return document.querySelector('.open-topic[data-topic=\"/turtle1/pose\"] .definition pre').textContent")
+        "return document.querySelector('.open-topic[data-topic=\"/turtle1/pose\"] .definition pre').textContent"
+    )
 
 
 def test_a_service_called_from_its_generated_form(open_page, ros):
@@ -153,8 +157,11 @@ def test_parameters_are_listed_edited_with_their_type_and_deleted(open_page, ros
     page.driver.find_element(By.CSS_SELECTOR, f"{row} button[type=submit]").click()
     wait_for(lambda: ros.run(["rosparam", "get", "/console_gain"]).stdout.strip() == "42", 10, what="42 set")
     page.click(f"{row} .delete")  # (the list is redrawn once the value is set)
-    wait_for(lambda: ros.run(["rosparam", "get", "/console_gain"], check=False).returncode != 0, 10,
-             what="the parameter deleted")
+    wait_for(
+        lambda: ros.run(["rosparam", "get", "/console_gain"], check=False).returncode != 0,
+        10,
+        what="the parameter deleted",
+    )
 
 
 def test_a_nodes_publications_subscriptions_and_services(open_page):
@@ -171,8 +178,12 @@ def test_a_nodes_publications_subscriptions_and_services(open_page):
 def test_log_lines_arrive_and_filter(open_page, node):
     page = open_page()
     page.tab("logs")
-    wait_for(lambda: (node.loginfo("console says hello"), "console says hello" in text_of(page, ".log-lines"))[1],
-             20, interval=0.5, what="the log line")
+    wait_for(
+        lambda: (node.loginfo("console says hello"), "console says hello" in text_of(page, ".log-lines"))[1],
+        20,
+        interval=0.5,
+        what="the log line",
+    )
     Select(page.driver.find_element(By.CSS_SELECTOR, "select.log-level")).select_by_value("4")
     wait_for(lambda: "console says hello" not in text_of(page, ".log-lines"), 15, what="info lines hidden")
     Select(page.driver.find_element(By.CSS_SELECTOR, "select.log-level")).select_by_value("2")
@@ -185,7 +196,7 @@ def test_log_lines_arrive_and_filter(open_page, node):
 def test_console_screenshots(open_page, screen):
     page = open_page(screen)
     open_topic(page, "/turtle1/pose")
-    wait_for(lambda: "Hz" in text_of(page, '.open-topic .stats'), 15)
+    wait_for(lambda: "Hz" in text_of(page, ".open-topic .stats"), 15)
     page.js("document.querySelector('.console').scrollIntoView()")
     ARTIFACTS.mkdir(parents=True, exist_ok=True)
     page.driver.save_screenshot(str(ARTIFACTS / f"console-{screen}.png"))
@@ -194,6 +205,7 @@ def test_console_screenshots(open_page, screen):
 
 def test_publish_any_type_from_its_generated_form(open_page, listen):
     from std_msgs.msg import Float64
+
     received = listen("/console/level", Float64)
     page = open_page()
     publish_form(page, "/console/level", "std_msgs/Float64", {"data": "2.5"})
@@ -206,7 +218,6 @@ def test_publish_any_type_from_its_generated_form(open_page, listen):
     assert received.count() <= count + 1
 
 
-
 @pytest.mark.alone  # (its frame rate: 3 fps of 10 once, with two other workers and a benchmark beside it)
 @pytest.mark.parametrize("topic", [CAMERA, f"{CAMERA}/compressed"])
 def test_the_camera_panel_shows_the_demo_camera_live(open_page, camera, topic):
@@ -215,8 +226,9 @@ def test_the_camera_panel_shows_the_demo_camera_live(open_page, camera, topic):
     wait_for(lambda: topic in options(page, "camera-topic"), 20, what=f"{topic} listed")
     select.select_by_value(topic)
     stats = ".camera-panel .camera-stats"
-    wait_for(lambda: "fps" in text_of(page, stats) and not text_of(page, stats).startswith("0"),
-             15, what="frames arriving")
+    wait_for(
+        lambda: "fps" in text_of(page, stats) and not text_of(page, stats).startswith("0"), 15, what="frames arriving"
+    )
     fps = int(text_of(page, stats).split(" fps")[0])
     assert 4 <= fps <= 12  # the demo camera publishes at 10 Hz
     # the picture: turtlesim's blue with turtle1 (green) in the middle
@@ -309,8 +321,11 @@ def test_publishing_what_the_bridge_refuses_shows_its_error_not_success(open_pag
     status = "#tab-publish .publish-status"
     for button in (".publish-once", ".publish-repeat"):
         page.driver.find_element(By.CSS_SELECTOR, f"#tab-publish {button}").click()
-        wait_for(lambda: "already publishes it as geometry_msgs/Twist" in text_of(page, status), 10,
-                 what="the bridge's error")
+        wait_for(
+            lambda: "already publishes it as geometry_msgs/Twist" in text_of(page, status),
+            10,
+            what="the bridge's error",
+        )
         assert "error" in page.driver.find_element(By.CSS_SELECTOR, status).get_attribute("class")
         time.sleep(1.0)  # success is not claimed afterwards either
         assert "Published" not in text_of(page, status) and "already publishes" in text_of(page, status)
@@ -335,14 +350,23 @@ def test_a_deleted_parameter_comes_back_with_undo_and_a_refused_value_is_reporte
     wait_for(lambda: "cannot hold" in text_of(page, f"{row} .err"), 10, what="the bridge's error under the field")
 
     page.driver.find_element(By.CSS_SELECTOR, f"{row} .delete").click()
-    wait_for(lambda: ros.run(["rosparam", "get", "/console_undo"], check=False).returncode != 0, 10,
-             what="the parameter deleted")
+    wait_for(
+        lambda: ros.run(["rosparam", "get", "/console_undo"], check=False).returncode != 0,
+        10,
+        what="the parameter deleted",
+    )
     wait_for(lambda: not page.driver.find_elements(By.CSS_SELECTOR, row), 10, what="its row gone")
     status = "#tab-params .param-status"
     assert "Deleted /console_undo" in text_of(page, status)
     page.click(f"{status} button.undo")
-    wait_for(lambda: ros.run(["rosparam", "get", "/console_undo"], check=False).stdout.split() ==
-             ["-", "1", "-", "2.5", "-", "x"], 10, what="the old value set back")
+    wait_for(
+        lambda: (
+            ros.run(["rosparam", "get", "/console_undo"], check=False).stdout.split()
+            == ["-", "1", "-", "2.5", "-", "x"]
+        ),
+        10,
+        what="the old value set back",
+    )
     param_row(page, "/console_undo")
     assert "Restored /console_undo" in text_of(page, status)
 
@@ -354,7 +378,8 @@ def viewers_offered(page, topic):
 
 def pixels_like(page, canvas_selector, colour, tolerance=60):
     """How many pixels of the canvas are close to colour (0 when there is no such canvas)."""
-    return page.js("""const [selector, colour, tol] = arguments;
+    return page.js(
+        """const [selector, colour, tol] = arguments;
         const c = document.querySelector(selector);
         if (!c || !c.width) return 0;
         const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
@@ -362,7 +387,11 @@ def pixels_like(page, canvas_selector, colour, tolerance=60):
         for (let i = 0; i < d.length; i += 4) {
           if (Math.abs(d[i] - colour[0]) + Math.abs(d[i + 1] - colour[1]) + Math.abs(d[i + 2] - colour[2]) < tol) n++;
         }
-        return n;""", canvas_selector, list(colour), tolerance)
+        return n;""",
+        canvas_selector,
+        list(colour),
+        tolerance,
+    )
 
 
 def test_an_opened_topic_offers_the_viewers_of_its_type_and_the_address_keeps_the_one_shown(open_page, camera):
@@ -377,22 +406,31 @@ def test_an_opened_topic_offers_the_viewers_of_its_type_and_the_address_keeps_th
 
     pose = '.open-topic[data-topic="/turtle1/pose"]'
     page.driver.find_element(By.CSS_SELECTOR, f'{pose} button.view[data-viewer="turtle"]').click()
-    wait_for(lambda: pixels_like(page, f"{pose} .viewer canvas", (46, 204, 113)) > 20, 10,
-             what="turtle1 drawn in its topic's world view")
+    wait_for(
+        lambda: pixels_like(page, f"{pose} .viewer canvas", (46, 204, 113)) > 20,
+        10,
+        what="turtle1 drawn in its topic's world view",
+    )
 
     image = '.open-topic[data-topic="/turtle_camera/image_raw"]'
     page.driver.find_element(By.CSS_SELECTOR, f'{image} button.view[data-viewer="image"]').click()
-    wait_for(lambda: pixels_like(page, f"{image} .viewer canvas", (69, 86, 255)) > 50_000, 15,
-             what="the camera's picture (turtlesim's blue) in its topic")
+    wait_for(
+        lambda: pixels_like(page, f"{image} .viewer canvas", (69, 86, 255)) > 50_000,
+        15,
+        what="the camera's picture (turtlesim's blue) in its topic",
+    )
     wait_for(lambda: "fps" in text_of(page, f"{image} .camera-stats"), 5, what="its frame rate")
     assert "bytes" in text_of(page, f"{image} .message")  # the tree shows the binary data's size, not the data
 
     page.driver.refresh()
     page.wait_state("connected")
     wait_for(lambda: len(open_topics(page)) == 3, 20, what="the topics open again")
-    wait_for(lambda: pixels_like(page, f"{image} .viewer canvas", (69, 86, 255)) > 50_000, 15,
-             what="the picture shown again after a reload")
-    assert page.driver.find_element(By.CSS_SELECTOR, f'{pose} button.view').get_attribute("aria-pressed") == "true"
-    page.driver.find_element(By.CSS_SELECTOR, f'{image} button.view').click()  # hidden again, and so kept
+    wait_for(
+        lambda: pixels_like(page, f"{image} .viewer canvas", (69, 86, 255)) > 50_000,
+        15,
+        what="the picture shown again after a reload",
+    )
+    assert page.driver.find_element(By.CSS_SELECTOR, f"{pose} button.view").get_attribute("aria-pressed") == "true"
+    page.driver.find_element(By.CSS_SELECTOR, f"{image} button.view").click()  # hidden again, and so kept
     assert page.driver.find_element(By.CSS_SELECTOR, f"{image} .viewer").get_attribute("hidden") is not None
     assert "image_raw%3Aimage" not in page.driver.current_url and "pose%3Aturtle" in page.driver.current_url

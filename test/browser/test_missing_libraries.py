@@ -1,5 +1,6 @@
 """A page served without its libraries (web/vendor/ missing: a clone where tools/setup was not run) says what
 is missing and how to get it, instead of "Connecting…" forever; the bridge says so in its log when it starts."""
+
 import shutil
 
 from harness import REPO, start_bridge, wait_for

@@ -1,5 +1,6 @@
 """The control page in headless Chromium, against the real stack: turtlesim_node and the bridge on a
 private roscore. The page is loaded from the bridge, as a user would."""
+
 import math
 import time
 
@@ -10,6 +11,7 @@ from selenium.webdriver.common.by import By
 from selenium.webdriver.common.keys import Keys
 from selenium.webdriver.support.ui import Select
 from std_srvs.srv import Empty
+
 from turtlesim.msg import Pose
 from turtlesim.srv import Spawn, TeleportAbsolute
 
@@ -26,8 +28,11 @@ def world(node, sim, listen):
     node.wait_for_service("/reset", 30)
     node.ServiceProxy("/reset", Empty)()
     poses = listen("/turtle1/pose", Pose)
-    wait_for(lambda: poses.last and poses.last.linear_velocity == 0 and abs(poses.last.x - CENTRE) < 1e-4,
-             15, what="turtle1 at rest in the centre")
+    wait_for(
+        lambda: poses.last and poses.last.linear_velocity == 0 and abs(poses.last.x - CENTRE) < 1e-4,
+        15,
+        what="turtle1 at rest in the centre",
+    )
     return poses
 
 
@@ -36,8 +41,9 @@ def ros_call(node, name, srv_class, *args):
     return node.ServiceProxy(name, srv_class)(*args)
 
 
-def wait_turtlesim_listens_to_bridge(ros, bridge="rosbridge_websocket", topic="/turtle1/cmd_vel",
-                                     subscriber="/turtlesim"):
+def wait_turtlesim_listens_to_bridge(
+    ros, bridge="rosbridge_websocket", topic="/turtle1/cmd_vel", subscriber="/turtlesim"
+):
     """Waits until turtlesim (or another subscriber node) is connected to the bridge's publisher of
     `topic` (the page advertises cmd_vel when it connects), as it is by the time a person clicks Publish."""
     wait_publisher_connected(ros, f"/{bridge}", topic, subscriber)
@@ -52,7 +58,8 @@ def settled(poses):
 
 def canvas_pixels(page, x, y, radius_m, colour, tolerance=40):
     """How many canvas pixels within radius_m of world point (x, y) are close to colour."""
-    return page.js("""
+    return page.js(
+        """
         const [x, y, radiusM, colour, tol] = arguments;
         const canvas = document.getElementById('world');
         const [cx, cy] = window.turtleView.toCanvas(x, y);
@@ -63,7 +70,13 @@ def canvas_pixels(page, x, y, radius_m, colour, tolerance=40):
           if (Math.abs(data[i] - colour[0]) + Math.abs(data[i + 1] - colour[1])
               + Math.abs(data[i + 2] - colour[2]) <= tol) n++;
         }
-        return n;""", x, y, radius_m, list(colour), tolerance)
+        return n;""",
+        x,
+        y,
+        radius_m,
+        list(colour),
+        tolerance,
+    )
 
 
 def topic_rows(page):
@@ -223,8 +236,10 @@ def test_touch_joystick_on_a_phone(open_page, world, listen):
     commands = listen("/turtle1/cmd_vel", Twist)
     page = open_page("phone")
     page.js("document.getElementById('joystick').scrollIntoView({block: 'center'})")
-    box = page.js("const b = document.getElementById('joystick').getBoundingClientRect();"
-                  "return [b.left + b.width / 2, b.top + b.height / 2, b.width]")
+    box = page.js(
+        "const b = document.getElementById('joystick').getBoundingClientRect();"
+        "return [b.left + b.width / 2, b.top + b.height / 2, b.width]"
+    )
     cx, cy, size = box
 
     def touch(kind, points):
@@ -253,8 +268,11 @@ def test_the_canvas_shows_each_turtle_where_ros_says_it_is(open_page, world, nod
     page = open_page_seeing_turtle1(open_page)
     ros_call(node, "/turtle1/teleport_absolute", TeleportAbsolute, 3.0, 8.0, 0.5)
     wait_for(lambda: abs(world.last.x - 3.0) < 1e-3, 10, what="the teleport")
-    wait_for(lambda: (p := page.pose()) and abs(p["x"] - 3.0) < 1e-3 and abs(p["y"] - 8.0) < 1e-3, 10,
-             what="the page to see the teleport")
+    wait_for(
+        lambda: (p := page.pose()) and abs(p["x"] - 3.0) < 1e-3 and abs(p["y"] - 8.0) < 1e-3,
+        10,
+        what="the page to see the teleport",
+    )
     assert page.pose()["theta"] == pytest.approx(0.5, abs=1e-6)
     assert page.js("return window.turtleView.colourOf('turtle1')") == list(TURTLE1_SHELL)
     wait_for(lambda: canvas_pixels(page, 3.0, 8.0, 0.5, TURTLE1_SHELL) > 50, 5, what="turtle1 drawn at (3, 8)")
@@ -354,9 +372,11 @@ def test_screenshots_desktop_and_phone(open_page, world, node, ros):
             settled(world)
         wait_for(lambda: len(topic_rows(page)) > 5, 15, what="the topic list")
         page.driver.save_screenshot(str(ARTIFACTS / f"page-{screen}.png"))
-        size = page.js("const c = document.getElementById('world');"
-                       "return [c.width, c.getBoundingClientRect().width, devicePixelRatio,"
-                       " document.documentElement.scrollWidth, innerWidth]")
+        size = page.js(
+            "const c = document.getElementById('world');"
+            "return [c.width, c.getBoundingClientRect().width, devicePixelRatio,"
+            " document.documentElement.scrollWidth, innerWidth]"
+        )
         canvas_px, css_px, dpr, scroll_width, inner_width = size
         assert abs(canvas_px - css_px * dpr) <= 1  # one canvas pixel per device pixel: crisp
         assert scroll_width <= inner_width  # nothing sticks out sideways
@@ -370,6 +390,7 @@ def test_screenshots_desktop_and_phone(open_page, world, node, ros):
 
 def test_driving_a_topic_the_bridge_refuses_shows_its_error_not_success(open_page, bridge_url, node):
     from std_msgs.msg import String
+
     other = node.Publisher("/drive_test/cmd_vel", String, queue_size=1)  # not a Twist topic
     try:
         page = open_page(url=bridge_url + "?drive=/drive_test/cmd_vel")

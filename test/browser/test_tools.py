@@ -1,6 +1,7 @@
 """The console's tools (issue 23): the bag recorder, dynamic_reconfigure and actions, each driven in headless
 Chromium as a person uses it, against a real bridge (with its bag recorder on), turtlesim and the test nodes of
 test/nodes/; and the view kept in the address across a reload and a copied link."""
+
 import urllib.request
 from pathlib import Path
 
@@ -25,7 +26,6 @@ def bridge_url(ros, sim, bag_folder):
     proc.stop()
 
 
-
 def text_of(page, selector):
     found = page.driver.find_elements(By.CSS_SELECTOR, selector)
     return found[0].text if found else ""
@@ -41,10 +41,14 @@ def shot(page, name, scroll=".console"):
 def small_controls(page, panel):
     """The shown controls of a tab (links included) smaller than a finger (44 px), unless a label of that size holds
     them."""
-    return page.js("""return [...document.querySelectorAll(`#tab-${arguments[0]} :is(button, input, select, a[href])`)]
+    return page.js(
+        """return [...document.querySelectorAll(`#tab-${arguments[0]} :is(button, input, select, a[href])`)]
         .filter(e => e.getClientRects().length)
-        .filter(e => e.getBoundingClientRect().height < 44 && !(e.closest('label')?.getBoundingClientRect().height >= 44))
-        .map(e => e.outerHTML.slice(0, 80))""", panel)
+        .filter(e => e.getBoundingClientRect().height < 44
+                     && !(e.closest('label')?.getBoundingClientRect().height >= 44))
+        .map(e => e.outerHTML.slice(0, 80))""",
+        panel,
+    )
 
 
 def bag_rows(page):
@@ -53,6 +57,7 @@ def bag_rows(page):
 
 
 # ---- bags ------------------------------------------------------------------------------------------------------
+
 
 def test_record_two_seconds_of_the_pose_and_download_the_bag(open_page):
     page = open_page()
@@ -70,8 +75,11 @@ def test_record_two_seconds_of_the_pose_and_download_the_bag(open_page):
     messages = int(last.split(", ")[1].split(" messages")[0])
     assert 80 < messages < 400  # 62.5 Hz for about 2 s (and the time to click)
     assert "0 dropped" in last
-    rows = wait_for(lambda: [r for r in bag_rows(page) if "recording" not in r["size"] and r["size"] != "0 B"] or None,
-                    10, what="the bag listed with its size")
+    rows = wait_for(
+        lambda: [r for r in bag_rows(page) if "recording" not in r["size"] and r["size"] != "0 B"] or None,
+        10,
+        what="the bag listed with its size",
+    )
     bag = rows[0]
     assert bag["name"].endswith(".bag") and ("kB" in bag["size"] or "MB" in bag["size"])
     assert bag["href"].endswith(f"/bags/{bag['name']}")
@@ -85,14 +93,22 @@ def test_black_box_save_and_delete_with_confirm(open_page, bag_folder):
     page.tab("bags")
     page.click('#tab-bags input[type=checkbox][value="/turtle1/pose"]')
     page.click("#tab-bags .blackbox-keep")
-    wait_for(lambda: "messages" in text_of(page, "#tab-bags .blackbox-state")
-             and not text_of(page, "#tab-bags .blackbox-state").split(": ")[-1].startswith("0 "), 10,
-             what="the black box filling")
+    wait_for(
+        lambda: (
+            "messages" in text_of(page, "#tab-bags .blackbox-state")
+            and not text_of(page, "#tab-bags .blackbox-state").split(": ")[-1].startswith("0 ")
+        ),
+        10,
+        what="the black box filling",
+    )
     before = {r["name"] for r in bag_rows(page)}
     page.click("#tab-bags .blackbox-save")
     wait_for(lambda: "saved" in text_of(page, "#tab-bags .bag-result"), 10, what="saved")
-    saved = wait_for(lambda: [r for r in bag_rows(page) if r["name"] not in before and r["name"].startswith("blackbox")]
-                     or None, 10, what="the black box's bag listed")[0]
+    saved = wait_for(
+        lambda: [r for r in bag_rows(page) if r["name"] not in before and r["name"].startswith("blackbox")] or None,
+        10,
+        what="the black box's bag listed",
+    )[0]
     assert (bag_folder / saved["name"]).read_bytes().startswith(b"#ROSBAG V2.0")
     shot(page, "tools-bags-blackbox-desktop", "#tab-bags")
     page.click("#tab-bags .blackbox-off")
@@ -146,12 +162,20 @@ def test_bags_screenshots(open_page, bag_folder, screen):
     if screen == "phone":
         shot(page, "tools-bags-list-phone", "#tab-bags .bag-list")
         assert small_controls(page, "bags") == []
-        assert min(page.js("return [...document.querySelectorAll('#tab-bags a.bag-download')]"
-                           ".map(a => a.getBoundingClientRect().height)")) >= 44
+        assert (
+            min(
+                page.js(
+                    "return [...document.querySelectorAll('#tab-bags a.bag-download')]"
+                    ".map(a => a.getBoundingClientRect().height)"
+                )
+            )
+            >= 44
+        )
     assert page.console_errors() == []
 
 
 # ---- dynamic_reconfigure ---------------------------------------------------------------------------------------
+
 
 @pytest.fixture(scope="module")
 def reconfigurable(ros):
@@ -169,6 +193,7 @@ def field(page, name):
 def type_into(page, selector, text):
     """Types text into an input as a person does, then leaves it (its change event)."""
     from selenium.webdriver.common.keys import Keys
+
     element = page.driver.find_element(By.CSS_SELECTOR, selector)
     element.clear()
     element.send_keys(text, Keys.TAB)
@@ -177,12 +202,22 @@ def type_into(page, selector, text):
 def open_reconfigure(page, node, param="int_"):
     """Chooses node in the Reconfigure tab and waits for its form, with param's value shown."""
     from selenium.webdriver.support.ui import Select
+
     page.tab("reconfigure")
-    wait_for(lambda: node in page.js("return [...document.querySelectorAll('#reconfigure-node option')]"
-                                     ".map(o => o.value)"), 20, what=f"{node} listed")
+    wait_for(
+        lambda: node in page.js("return [...document.querySelectorAll('#reconfigure-node option')].map(o => o.value)"),
+        20,
+        what=f"{node} listed",
+    )
     Select(page.el("reconfigure-node")).select_by_value(node)
-    wait_for(lambda: page.js(f"return document.querySelector('{field(page, param)} input.reconfigure-number')?.value")
-             not in (None, ""), 20, what="the form with the node's values")
+    wait_for(
+        lambda: (
+            page.js(f"return document.querySelector('{field(page, param)} input.reconfigure-number')?.value")
+            not in (None, "")
+        ),
+        20,
+        what="the form with the node's values",
+    )
 
 
 def test_reconfigure_an_int_and_an_enum_and_see_the_nodes_answer(open_page, node, reconfigurable):
@@ -190,7 +225,9 @@ def test_reconfigure_an_int_and_an_enum_and_see_the_nodes_answer(open_page, node
     open_reconfigure(page, reconfigurable)
     assert "reconfigure=%2Ftools_reconfigure" in page.driver.current_url
     # the description's groups and ranges
-    groups = page.js("return [...document.querySelectorAll('#tab-reconfigure .reconfigure-group')].map(g => g.dataset.group)")
+    groups = page.js(
+        "return [...document.querySelectorAll('#tab-reconfigure .reconfigure-group')].map(g => g.dataset.group)"
+    )
     assert {"Default", "Group_One", "GROUP2", "Group3", "Upper_Group_2"} <= set(groups)
     assert "int -10 … 10" in text_of(page, f"{field(page, 'int_')} label")
     assert "double 0 … ∞" in text_of(page, f"{field(page, 'double_no_max')} label")
@@ -201,6 +238,7 @@ def test_reconfigure_an_int_and_an_enum_and_see_the_nodes_answer(open_page, node
     options = page.js(f"return [...document.querySelectorAll('{field(page, 'int_enum_')} option')].map(o => o.text)")
     assert options == ["Small (0)", "Medium (1)", "Large (2)", "ExtraLarge (3)"]
     from selenium.webdriver.support.ui import Select
+
     Select(page.driver.find_element(By.CSS_SELECTOR, f"{field(page, 'int_enum_')} select")).select_by_value("2")
     wait_for(lambda: node.get_param(f"{reconfigurable}/int_enum_") == 2, 10, what="the enum set to Large")
     page.driver.find_element(By.CSS_SELECTOR, f"{field(page, 'bool_')} input[type=checkbox]").click()
@@ -209,9 +247,16 @@ def test_reconfigure_an_int_and_an_enum_and_see_the_nodes_answer(open_page, node
     wait_for(lambda: node.get_param(f"{reconfigurable}/str_") == "from the page", 10, what="str_ set")
     # a change made elsewhere (rqt, dynparam) reaches the form by parameter_updates
     from dynamic_reconfigure.client import Client
+
     Client(reconfigurable, timeout=10).update_configuration({"double_": 4.5})
-    wait_for(lambda: page.js(f"return document.querySelector('{field(page, 'double_')} input.reconfigure-number').value")
-             == "4.5", 10, what="the update shown")
+    wait_for(
+        lambda: (
+            page.js(f"return document.querySelector('{field(page, 'double_')} input.reconfigure-number').value")
+            == "4.5"
+        ),
+        10,
+        what="the update shown",
+    )
     shot(page, "tools-reconfigure-desktop")
     assert page.console_errors() == []
 
@@ -233,9 +278,16 @@ def test_an_out_of_range_value_is_clamped_by_the_node_and_said_inline(open_page,
     text.clear()
     text.send_keys("half typed")
     from dynamic_reconfigure.client import Client
+
     Client(reconfigurable, timeout=10).update_configuration({"mstr_": "from elsewhere", "double_": 1.25})
-    wait_for(lambda: page.js(f"return document.querySelector('{field(page, 'double_')} input.reconfigure-number').value")
-             == "1.25", 10, what="the update shown")
+    wait_for(
+        lambda: (
+            page.js(f"return document.querySelector('{field(page, 'double_')} input.reconfigure-number').value")
+            == "1.25"
+        ),
+        10,
+        what="the update shown",
+    )
     assert text.get_attribute("value") == "half typed"
 
 
@@ -249,6 +301,7 @@ def test_reconfigure_on_a_phone(open_page, reconfigurable):
 
 # ---- actions ---------------------------------------------------------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def fibonacci(ros):
     """test/nodes/fibonacci_server.py: the action server /tools_fibonacci (actionlib/TestAction), 0.1 s a step."""
@@ -260,12 +313,19 @@ def fibonacci(ros):
 
 def open_action(page, server):
     from selenium.webdriver.support.ui import Select
+
     page.tab("actions")
-    wait_for(lambda: server in page.js("return [...document.querySelectorAll('#action-server option')]"
-                                       ".map(o => o.value)"), 20, what=f"{server} listed")
+    wait_for(
+        lambda: server in page.js("return [...document.querySelectorAll('#action-server option')].map(o => o.value)"),
+        20,
+        what=f"{server} listed",
+    )
     Select(page.el("action-server")).select_by_value(server)
-    wait_for(lambda: page.js("return document.querySelector('#tab-actions .action-info').dataset.alive"), 20,
-             what="the server's status")
+    wait_for(
+        lambda: page.js("return document.querySelector('#tab-actions .action-info').dataset.alive"),
+        20,
+        what="the server's status",
+    )
 
 
 def goal_items(page):
@@ -298,14 +358,18 @@ def feedback_until_result(page):
         item = goal_items(page)[0]
         seen.append(item["feedback"])
         return item["result"]
+
     wait_for(fed, 15, what="the result")
     return seen
 
 
 def cancel_the_newest_of_two_goals(page):
     """Once the newest of two goals shows feedback, clicks its Cancel; waits until it is preempted."""
-    wait_for(lambda: len(goal_items(page)) == 2 and "Feedback (" in goal_items(page)[0]["feedback"], 10,
-             what="the second goal's feedback")
+    wait_for(
+        lambda: len(goal_items(page)) == 2 and "Feedback (" in goal_items(page)[0]["feedback"],
+        10,
+        what="the second goal's feedback",
+    )
     cancel = page.driver.find_element(By.CSS_SELECTOR, "#tab-actions .action-goal .goal-cancel")
     page.js("arguments[0].scrollIntoView({block: 'center'})", cancel)  # (not under the sticky world card)
     cancel.click()
@@ -314,6 +378,7 @@ def cancel_the_newest_of_two_goals(page):
 
 def test_send_a_goal_see_feedback_and_result_and_cancel_another(open_page, fibonacci, listen):
     from actionlib_msgs.msg import GoalID
+
     cancels = listen(f"{fibonacci}/cancel", GoalID)
     page = open_page()
     open_action(page, fibonacci)
@@ -330,7 +395,9 @@ def test_send_a_goal_see_feedback_and_result_and_cancel_another(open_page, fibon
     # another, cancelled while it runs
     send_goal(page, "goal", "40")
     cancel_the_newest_of_two_goals(page)
-    assert [m.id for m in cancels.messages] == [page.js("return document.querySelector('#tab-actions .action-goal').dataset.goal")]
+    assert [m.id for m in cancels.messages] == [
+        page.js("return document.querySelector('#tab-actions .action-goal').dataset.goal")
+    ]
     assert "cancelled at" in goal_items(page)[0]["text"]
     assert goal_items(page)[1]["state"] == "succeeded"
     shot(page, "tools-actions-desktop", "#tab-actions")
@@ -357,6 +424,7 @@ def test_a_goals_end_shown_is_not_undone_by_a_status_from_before_it(open_page, r
     the goal ended may arrive after its result (the rotate test once read "active" beside the result, on Debian
     13). The end shown stays; here the late one is published on purpose, with a text to tell it by."""
     from actionlib_msgs.msg import GoalStatus, GoalStatusArray
+
     page = open_page()
     open_action(page, fibonacci)
     send_goal(page, "goal", "3")
@@ -375,20 +443,25 @@ def test_a_goals_end_shown_is_not_undone_by_a_status_from_before_it(open_page, r
         page.js("return new Promise(r => setTimeout(r, 1500))")  # (the server's own, at 5 Hz, come meanwhile)
     finally:
         late.unregister()
-    assert [shown for shown in page.js("return window.goalShown") if shown[0] != "succeeded" or "before" in shown[1]] \
-        == []
+    assert [
+        shown for shown in page.js("return window.goalShown") if shown[0] != "succeeded" or "before" in shown[1]
+    ] == []
     assert goal_items(page)[0]["state"] == "succeeded"
 
 
 # ---- the demo's own nodes (tools/demo): the laser's settings and the turtle's rotate action -------------------
+
 
 @pytest.fixture(scope="module")
 def demo_nodes(ros, sim):
     """The demo's turtle_laser (its settings served by dynamic_reconfigure) and turtle_actions (each turtle's
     rotate_absolute), as tools/demo starts them."""
     procs = [ros.spawn(["rosrun", "turtlesim", name], name) for name in ("turtle_laser", "turtle_actions")]
-    wait_for(lambda: {"/turtle1/scan", "/turtle1/rotate_absolute/status"} <= set(dict(ros.master().getTopicTypes())),
-             30, what="the demo's laser and action server")
+    wait_for(
+        lambda: {"/turtle1/scan", "/turtle1/rotate_absolute/status"} <= set(dict(ros.master().getTopicTypes())),
+        30,
+        what="the demo's laser and action server",
+    )
     yield
     for proc in procs:
         proc.stop()
@@ -400,19 +473,22 @@ RAYS_SHOWN = '.open-topic[data-topic="/turtle1/scan"] .viewer .viewer-stats'
 
 def laser_viewer_state(page):
     """What the page has of the laser viewer, for a failure's message (text_of reads only what is displayed)."""
-    return page.js("""const stats = document.querySelector(arguments[0]);
+    return page.js(
+        """const stats = document.querySelector(arguments[0]);
         const canvas = stats?.closest('.viewer')?.querySelector('canvas');
         return {tab: [...document.querySelectorAll('[role="tabpanel"]')].filter(t => !t.hidden).map(t => t.id),
                 stats: stats?.textContent, displayed: stats ? stats.getClientRects().length : null,
                 viewerHidden: stats?.closest('.viewer')?.hidden, canvas: canvas && {...canvas.dataset,
                   width: canvas.width}, visibility: document.visibilityState, connection:
-                  document.getElementById('conn-text')?.textContent};""", RAYS_SHOWN)
+                  document.getElementById('conn-text')?.textContent};""",
+        RAYS_SHOWN,
+    )
 
 
 @pytest.mark.parametrize("screen", ["desktop", "phone"])
-def test_the_demo_lasers_rays_changed_in_the_reconfigure_tab_show_in_the_laser_viewer(open_page, bridge_url, node,
-                                                                                       demo_nodes, laser_settings,
-                                                                                       screen):
+def test_the_demo_lasers_rays_changed_in_the_reconfigure_tab_show_in_the_laser_viewer(
+    open_page, bridge_url, node, demo_nodes, laser_settings, screen
+):
     page = open_page(screen, url=f"{bridge_url}?{LASER_VIEW}")
     wait_for(lambda: "360 rays" in text_of(page, RAYS_SHOWN), 20, what="the laser drawn with its 360 rays")
     open_reconfigure(page, "/turtle_laser", "rays")
@@ -423,9 +499,13 @@ def test_the_demo_lasers_rays_changed_in_the_reconfigure_tab_show_in_the_laser_v
 
     def set_rays():  # and wait for the page's answer, as a person does (it may move the layout: see below)
         type_into(page, rays, asked)
-        wait_for(lambda: f"answered: rays = {asked}" in text_of(page, "#tab-reconfigure .reconfigure-status"), 10,
-                 what=f"the node's answer: {asked} rays")
+        wait_for(
+            lambda: f"answered: rays = {asked}" in text_of(page, "#tab-reconfigure .reconfigure-status"),
+            10,
+            what=f"the node's answer: {asked} rays",
+        )
         assert node.get_param("/turtle_laser/rays") == int(asked)
+
     set_rays()
     type_into(page, rays, "5000")  # beyond the range: the node runs its maximum, and the form says so
     wait_for(lambda: "set 1440" in text_of(page, f"{field(page, 'rays')} .err"), 10, what="the clamp said")
@@ -435,9 +515,14 @@ def test_the_demo_lasers_rays_changed_in_the_reconfigure_tab_show_in_the_laser_v
         assert small_controls(page, "reconfigure") == []
     set_rays()  # (the answer takes the clamp's message away: the phone's layout moves under the tab buttons)
     page.tab("topics")
-    wait_for(lambda: f"{asked} rays" in text_of(page, RAYS_SHOWN), 20,
-             what=lambda: f"the laser drawn with {asked} rays (it shows: {text_of(page, RAYS_SHOWN)!r}; the node "
-                          f"runs {node.get_param('/turtle_laser/rays')}; the page: {laser_viewer_state(page)})")
+    wait_for(
+        lambda: f"{asked} rays" in text_of(page, RAYS_SHOWN),
+        20,
+        what=lambda: (
+            f"the laser drawn with {asked} rays (it shows: {text_of(page, RAYS_SHOWN)!r}; the node "
+            f"runs {node.get_param('/turtle_laser/rays')}; the page: {laser_viewer_state(page)})"
+        ),
+    )
     page.js("document.querySelector(arguments[0]).closest('.open-topic').scrollIntoView()", RAYS_SHOWN)
     ARTIFACTS.mkdir(parents=True, exist_ok=True)
     page.driver.save_screenshot(str(ARTIFACTS / f"tools-demo-laser-viewer-{screen}.png"))
@@ -446,12 +531,14 @@ def test_the_demo_lasers_rays_changed_in_the_reconfigure_tab_show_in_the_laser_v
 
 def turtle_heading(node):
     from turtlesim.msg import Pose
+
     return node.wait_for_message("/turtle1/pose", Pose, timeout=10).theta
 
 
 @pytest.mark.parametrize("screen", ["desktop", "phone"])
 def test_rotate_the_turtle_from_the_actions_tab_with_live_feedback(open_page, node, demo_nodes, screen):
     from turtlesim.rotate import TOLERANCE, normalized
+
     page = open_page(screen)
     open_action(page, "/turtle1/rotate_absolute")
     assert "turtlesim/RotateAbsoluteGoal" in text_of(page, "#tab-actions .action-form")
@@ -478,13 +565,15 @@ def test_rotate_the_turtle_from_the_actions_tab_with_live_feedback(open_page, no
 
 # ---- the view in the address -----------------------------------------------------------------------------------
 
+
 def shown_tools(page):
     """What the tools show: the tab, the bag topics ticked, the node and action server chosen and their forms."""
     return page.js("""return {
         tab: document.querySelector('.console [role=tab][aria-selected=true]').id,
         bags: [...document.querySelectorAll('#tab-bags .bag-topic input:checked')].map(b => b.value),
         node: document.getElementById('reconfigure-node').value,
-        form: Boolean(document.querySelector('#tab-reconfigure .reconfigure-field[data-param=int_] input.reconfigure-number')?.value),
+        form: Boolean(document.querySelector(
+          '#tab-reconfigure .reconfigure-field[data-param=int_] input.reconfigure-number')?.value),
         server: document.getElementById('action-server').value,
         goal: Boolean(document.querySelector('#tab-actions .action-form input[data-path=goal]')),
     }""")
@@ -497,12 +586,23 @@ def test_a_reload_and_a_copied_link_keep_the_open_tools(open_page, reconfigurabl
     page.click('#tab-bags input[type=checkbox][value="/rosout"]')
     open_action(page, fibonacci)
     open_reconfigure(page, reconfigurable)
-    expected = {"tab": "tab-button-reconfigure", "bags": ["/rosout", "/turtle1/pose"], "node": reconfigurable,
-                "form": True, "server": fibonacci, "goal": True}
+    expected = {
+        "tab": "tab-button-reconfigure",
+        "bags": ["/rosout", "/turtle1/pose"],
+        "node": reconfigurable,
+        "form": True,
+        "server": fibonacci,
+        "goal": True,
+    }
     wait_for(lambda: shown_tools(page) == expected, 10, what="the view made")
     link = page.driver.current_url
-    for key in ("tab=reconfigure", "bag=%2Frosout", "bag=%2Fturtle1%2Fpose", "reconfigure=%2Ftools_reconfigure",
-                "action=%2Ftools_fibonacci"):
+    for key in (
+        "tab=reconfigure",
+        "bag=%2Frosout",
+        "bag=%2Fturtle1%2Fpose",
+        "reconfigure=%2Ftools_reconfigure",
+        "action=%2Ftools_fibonacci",
+    ):
         assert key in link
     page.driver.refresh()
     page.wait_state("connected")
@@ -522,7 +622,8 @@ def test_enum_edit_methods_are_read_as_python_literals_never_run(open_page):
         import('/panels/reconfigure.js').then(({ enumOf, pythonLiteral }) => done({
           ints: enumOf("{'enum': [{'name': 'Small', 'type': 'int', 'value': 0, 'description': 'A small constant'}, " +
                        "{'name': 'Big', 'type': 'int', 'value': -3, 'srcline': 45}], 'enum_description': 'size'}"),
-          strs: enumOf("{'enum': [{'name': 'Quote', 'type': 'str', 'value': \\"it's\\", 'description': 'a \\\\'b\\\\''}]}"),
+          strs: enumOf("{'enum': [{'name': 'Quote', 'type': 'str', 'value': \\"it's\\", " +
+                       "'description': 'a \\\\'b\\\\''}]}"),
           literal: pythonLiteral("(True, False, None, 1.5e3, -2, 'x', [], {}, inf)"),
           none: [enumOf(''), enumOf("{'enum': []}"), enumOf('__import__("os")'), enumOf("{'a': 1")],
         }), error => done(String(error)));""")

@@ -1,6 +1,7 @@
 """The ROS tutorial's own control page, written by its user and opened in a browser on the bridge's machine:
 from disk (file://, the browser sends Origin "null") and from another port of this machine. With the bridge's
 default origin policy both must drive the turtle."""
+
 import functools
 import http.server
 import math
@@ -85,11 +86,15 @@ def static_server(tutorial_dir):
 
 def drive_with_the_page(open_browser, node, url):
     from turtlesim.msg import Pose
+
     start = node.wait_for_message("/turtle1/pose", Pose, timeout=20)
     driver = open_browser().driver
     driver.get(url)
-    wait_for(lambda: driver.find_element("id", "status").text == "Connected", 20,
-             what=f"the tutorial page at {url} to connect")
+    wait_for(
+        lambda: driver.find_element("id", "status").text == "Connected",
+        20,
+        what=f"the tutorial page at {url} to connect",
+    )
     driver.find_element("id", "move").click()
 
     def moved():

@@ -2,6 +2,7 @@
 Chromium against real publishers: the demo's laser and TF nodes, and rospy publishers in this process for the rest,
 odd messages included (NaN and infinite ranges, empty arrays, a 4000x4000 map, 50 TF frames at 100 Hz, a 300k-point
 cloud). What a person sees is asserted: pixels of the canvas, rows of a table, numbers."""
+
 import math
 import time
 import urllib.request
@@ -44,7 +45,8 @@ def open_viewer(page, topic, viewer):
 
 def pixels(page, canvas_selector, colour=None, tolerance=60):
     """How many pixels of the canvas are close to colour, or (colour None) differ from the background."""
-    return page.js("""const [selector, colour, background, tol] = arguments;
+    return page.js(
+        """const [selector, colour, background, tol] = arguments;
         const c = document.querySelector(selector);
         if (!c || !c.width) return 0;
         const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
@@ -53,7 +55,12 @@ def pixels(page, canvas_selector, colour=None, tolerance=60):
         for (let i = 0; i < d.length; i += 4) {
           if (colour ? near(i, colour) : !near(i, background)) n++;
         }
-        return n;""", canvas_selector, list(colour) if colour else None, list(BACKGROUND), tolerance)
+        return n;""",
+        canvas_selector,
+        list(colour) if colour else None,
+        list(BACKGROUND),
+        tolerance,
+    )
 
 
 def received(page):
@@ -92,6 +99,7 @@ def publishers():
 
     def publish(*args, **kwargs):
         publishing.append(Publishing(*args, **kwargs))
+
     yield publish
     for each in publishing:
         each.stop()
@@ -100,8 +108,12 @@ def publishers():
 def q_multiply(a, b):
     ax, ay, az, aw = a
     bx, by, bz, bw = b
-    return (aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz)
+    return (
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+        aw * bw - ax * bx - ay * by - az * bz,
+    )
 
 
 def q_rotate(q, v):
@@ -116,7 +128,8 @@ def test_the_transform_math_composes_and_inverts_as_tf_does(open_page):
     page = open_page()
     a = ((1.0, 2.0, 0.5), quaternion(0.3, -0.2, 1.1))
     b = ((-0.5, 0.25, 2.0), quaternion(-1.0, 0.4, 2.5))
-    got = page.driver.execute_async_script("""const done = arguments[arguments.length - 1];
+    got = page.driver.execute_async_script(
+        """const done = arguments[arguments.length - 1];
         const [a, b] = [arguments[0], arguments[1]].map(([t, q]) => ({ translation: { x: t[0], y: t[1], z: t[2] },
           rotation: { x: q[0], y: q[1], z: q[2], w: q[3] } }));
         import('/tf-math.js').then(m => {
@@ -125,7 +138,10 @@ def test_the_transform_math_composes_and_inverts_as_tf_does(open_page):
           const rpy = m.rpyOf(a.rotation);
           done({ ab: flat(m.compose(a, b)), inverse: flat(m.invert(a)), back: flat(m.compose(m.invert(a), a)),
             rpy: [rpy.roll, rpy.pitch, rpy.yaw] });
-        }, e => done(String(e)));""", a, b)
+        }, e => done(String(e)));""",
+        a,
+        b,
+    )
     moved = q_rotate(a[1], b[0])
     expected_t = [a[0][i] + moved[i] for i in range(3)]
     expected_q = q_multiply(a[1], b[1])
@@ -143,12 +159,16 @@ def frame_rows(page, area):
 
 @pytest.mark.alone  # (it reads rates: a fast frame's showed over 130 Hz once beside two workers, its 100 Hz
 # publisher catching up after a stall)
-def test_the_tf_tree_lists_frames_with_parent_rate_age_and_the_transform_between_two(open_page, node, demo_sensors,
-                                                                                     publishers):
+def test_the_tf_tree_lists_frames_with_parent_rate_age_and_the_transform_between_two(
+    open_page, node, demo_sensors, publishers
+):
     from tf2_msgs.msg import TFMessage
+
     # a static chain of our own, and 50 moving frames at 100 Hz
-    static = [("world", "test_a", (1.0, 2.0, 0.0), quaternion(yaw=math.pi / 2)),
-              ("test_a", "test_b", (0.5, 0.0, 0.2), quaternion(roll=math.pi / 6))]
+    static = [
+        ("world", "test_a", (1.0, 2.0, 0.0), quaternion(yaw=math.pi / 2)),
+        ("test_a", "test_b", (0.5, 0.0, 0.2), quaternion(roll=math.pi / 6)),
+    ]
     publishers(node, "/tf_static", TFMessage, lambda n: tf_message(static, node.Time.now()), 1, latch=True)
     publishers(node, "/tf", TFMessage, lambda n: moving_frames(n, node.Time.now(), "world", "fast_"), 100)
     page = open_page()
@@ -156,8 +176,12 @@ def test_the_tf_tree_lists_frames_with_parent_rate_age_and_the_transform_between
 
     def frame(name):
         return next((row for row in frame_rows(page, area) if row[0] == name), None)
-    wait_for(lambda: frame("turtle1") and frame("turtle1")[2].endswith("Hz") and frame("fast_49")
-             and frame("test_b"), 20, what="world -> turtle1, the fast frames and ours listed")
+
+    wait_for(
+        lambda: frame("turtle1") and frame("turtle1")[2].endswith("Hz") and frame("fast_49") and frame("test_b"),
+        20,
+        what="world -> turtle1, the fast frames and ours listed",
+    )
     wait_for(lambda: float(frame("turtle1")[2].split()[0]) > 30, 10, what="turtle1's rate (it follows the pose)")
     turtle1 = frame("turtle1")
     assert turtle1[1] == "world" and ("ms" in turtle1[3] or " s" in turtle1[3])
@@ -173,21 +197,27 @@ def test_the_tf_tree_lists_frames_with_parent_rate_age_and_the_transform_between
     qa, qb = static[0][3], static[1][3]
     moved = q_rotate(qa, static[1][2])
     expected = [static[0][2][i] + moved[i] for i in range(3)] + list(q_multiply(qa, qb))
-    shown = '.tf-transform'
+    shown = ".tf-transform"
 
     def transform():
         import json
+
         data = page.js(f"return document.querySelector('{area} {shown}').dataset.transform || null")
         if not data:
             return None
         t = json.loads(data)
         return [t["translation"][k] for k in "xyz"] + [t["rotation"][k] for k in "xyzw"]
-    wait_for(lambda: transform() and transform()[:3] == pytest.approx(expected[:3], abs=1e-6), 5,
-             what="the transform world <- test_b")
+
+    wait_for(
+        lambda: transform() and transform()[:3] == pytest.approx(expected[:3], abs=1e-6),
+        5,
+        what="the transform world <- test_b",
+    )
     assert transform() == pytest.approx(expected, abs=1e-6)
     text = text_of(page, f"{area} {shown}")
-    assert "world ← test_b: translation (1.000, 2.500, 0.200)" in text and "roll 30.000°" in text \
-        and "yaw 90.000°" in text
+    assert (
+        "world ← test_b: translation (1.000, 2.500, 0.200)" in text and "roll 30.000°" in text and "yaw 90.000°" in text
+    )
     shot(page, area, "tf-56-frames")
     assert page.console_errors() == []
 
@@ -199,6 +229,7 @@ def test_a_fast_laser_and_fifty_tf_frames_at_100_hz_keep_the_page_smooth(open_pa
     second, and how many scans the laser viewer drew (at most one per animation frame: all 40 a second)."""
     from sensor_msgs.msg import LaserScan
     from tf2_msgs.msg import TFMessage
+
     publishers(node, "/fast/scan", LaserScan, lambda n: wide_scan(n, node.Time.now()), 40)
     publishers(node, "/tf", TFMessage, lambda n: moving_frames(n, node.Time.now()), 100)
     page = open_page()
@@ -206,7 +237,8 @@ def test_a_fast_laser_and_fifty_tf_frames_at_100_hz_keep_the_page_smooth(open_pa
     tf = open_viewer(page, "/tf", "tf")
     wait_for(lambda: "1081 rays" in text_of(page, f"{laser} .viewer-stats"), 15, what="scans drawn")
     wait_for(lambda: "moving_49" in text_of(page, f"{tf} .tf-frames"), 15, what="the 50 frames listed")
-    measured = page.driver.execute_async_script("""const [done, canvas] = [arguments[1], document.querySelector(arguments[0])];
+    measured = page.driver.execute_async_script(
+        """const [done, canvas] = [arguments[1], document.querySelector(arguments[0])];
         const [paints, received] = [Number(canvas.dataset.paints), Number(canvas.dataset.received)];
         let frames = 0;
         const started = performance.now();
@@ -216,7 +248,9 @@ def test_a_fast_laser_and_fifty_tf_frames_at_100_hz_keep_the_page_smooth(open_pa
           else done({ fps: frames / 3, scans: (Number(canvas.dataset.paints) - paints) / 3,
                       arrived: (Number(canvas.dataset.received) - received) / 3 });
         };
-        requestAnimationFrame(count);""", f"{laser} canvas")
+        requestAnimationFrame(count);""",
+        f"{laser} canvas",
+    )
     print("page frames/s and scans drawn/s:", measured, text_of(page, '.open-topic[data-topic="/fast/scan"] .stats'))
     # Alone on this 2-core machine: 57-60 frames/s, 34-38 scans/s drawn of 40 published; with other test suites
     # running on it, 47 frames/s and 25 of 29 scans drawn. The bounds leave room for a busy machine: the scans
@@ -239,8 +273,11 @@ def test_the_demo_laser_drawn_around_the_sensor_coloured_by_range(open_page, dem
     assert int(page.js(f"return document.querySelector('{canvas}').dataset.points")) == in_range
     assert pixels(page, canvas) > 2000  # points, rings, the key, the scale
     # the subscription: binary CBOR at most ~30 a second (the demo sends 10)
-    wait_for(lambda: "for the laser view" in text_of(page, '.open-topic[data-topic="/turtle1/scan"] .stats'), 5,
-             what="the throttled subscription's note")
+    wait_for(
+        lambda: "for the laser view" in text_of(page, '.open-topic[data-topic="/turtle1/scan"] .stats'),
+        5,
+        what="the throttled subscription's note",
+    )
 
 
 def test_odd_scans_nan_infinite_and_empty_ranges(open_page, node, publishers):
@@ -249,10 +286,12 @@ def test_odd_scans_nan_infinite_and_empty_ranges(open_page, node, publishers):
     def scan(n):
         rays = 0 if n % 2 else 1081  # an empty scan every other message
         ranges = [math.nan if i % 3 == 0 else math.inf if i % 3 == 1 else 2.0 + (i % 50) / 10 for i in range(rays)]
-        message = LaserScan(angle_min=-2.35, angle_max=2.35, angle_increment=4.7 / 1081, range_min=0.1,
-                            range_max=30.0, ranges=ranges)
+        message = LaserScan(
+            angle_min=-2.35, angle_max=2.35, angle_increment=4.7 / 1081, range_min=0.1, range_max=30.0, ranges=ranges
+        )
         message.header.frame_id = "odd_laser"
         return message
+
     publishers(node, "/odd/scan", LaserScan, scan, 40)
     page = open_page()
     area = open_viewer(page, "/odd/scan", "laser")
@@ -261,9 +300,13 @@ def test_odd_scans_nan_infinite_and_empty_ranges(open_page, node, publishers):
     def both():
         seen.add(text_of(page, f"{area} .viewer-stats").split(" · ")[0])
         return {"1081 rays", "0 rays"} <= seen
+
     wait_for(both, 15, what="full and empty scans drawn")
-    wait_for(lambda: text_of(page, f"{area} .viewer-stats").startswith("1081 rays · 360 in range"), 10,
-             what="only the finite third in range")
+    wait_for(
+        lambda: text_of(page, f"{area} .viewer-stats").startswith("1081 rays · 360 in range"),
+        10,
+        what="only the finite third in range",
+    )
     shot(page, area, "laser-odd")
     assert page.console_errors() == []
 
@@ -282,6 +325,7 @@ def test_odometry_trail_with_heading_and_speed(open_page, node, publishers):
         o.x, o.y, o.z, o.w = q
         message.twist.twist.linear.x, message.twist.twist.angular.z = 1.0, 0.5
         return message
+
     publishers(node, "/test/odom", Odometry, odometry, 30)
     page = open_page()
     area = open_viewer(page, "/test/odom", "trail")
@@ -303,6 +347,7 @@ def test_pose_stamped_speed_from_its_poses_and_a_path_drawn_whole(open_page, nod
         message.pose.position.x = 0.5 * n / 20  # 0.5 m/s
         message.pose.orientation.w = 1.0
         return message
+
     publishers(node, "/test/pose", PoseStamped, pose, 20)
 
     def path(n):
@@ -314,6 +359,7 @@ def test_pose_stamped_speed_from_its_poses_and_a_path_drawn_whole(open_page, nod
             p.pose.orientation.w = 1.0
             message.poses.append(p)
         return message
+
     publishers(node, "/test/path", Path, path, 2)
     empty = Path()
     publishers(node, "/test/empty_path", Path, lambda n: empty, 2)
@@ -333,6 +379,7 @@ def test_pose_stamped_speed_from_its_poses_and_a_path_drawn_whole(open_page, nod
 def grid(width, height, resolution, origin=(0.0, 0.0), frame="world"):
     """An OccupancyGrid: a border of walls (100), unknown (-1) in its top-right quarter, free (0) elsewhere."""
     from nav_msgs.msg import OccupancyGrid
+
     message = OccupancyGrid()
     message.header.frame_id = frame
     message.info.width, message.info.height, message.info.resolution = width, height, resolution
@@ -343,18 +390,22 @@ def grid(width, height, resolution, origin=(0.0, 0.0), frame="world"):
     for row in range(height):
         cells[row * width] = cells[row * width + width - 1] = 100
         if row >= height // 2:
-            cells[row * width + width // 2:row * width + width - 1] = b"\xff" * (width - 1 - width // 2)
+            cells[row * width + width // 2 : row * width + width - 1] = b"\xff" * (width - 1 - width // 2)
     message.data = array("b", bytes(cells))
     return message
 
 
 def test_the_map_with_the_turtle_placed_by_tf(open_page, node, demo_sensors, publishers):
     from nav_msgs.msg import OccupancyGrid
+
     publishers(node, "/test/map", OccupancyGrid, lambda n: grid(222, 222, 0.05), 0.5, latch=True)
     page = open_page()
     area = open_viewer(page, "/test/map", "map")
-    wait_for(lambda: "robot turtle1 at (5.54, 5.54) m" in text_of(page, f"{area} .viewer-stats"), 20,
-             what="turtle1 placed by TF (world -> turtle1)")
+    wait_for(
+        lambda: "robot turtle1 at (5.54, 5.54) m" in text_of(page, f"{area} .viewer-stats"),
+        20,
+        what="turtle1 placed by TF (world -> turtle1)",
+    )
     stats = text_of(page, f"{area} .viewer-stats")
     assert "222×222 cells of 5 cm" in stats
     canvas = f"{area} canvas"
@@ -379,6 +430,7 @@ def test_a_4000x4000_map(open_page, node, publishers):
     """Its topic opened, the 16 MB map is not fetched until the Map viewer is chosen: the tree shows the type's
     definition instead (the tree's subscription took it whole, as JSON text, before); the viewer then draws it."""
     from nav_msgs.msg import OccupancyGrid
+
     big = grid(4000, 4000, 0.01, origin=(-20.0, -20.0), frame="big_map")
     publishers(node, "/test/big_map", OccupancyGrid, lambda n: big, 0.2, latch=True)
     page = open_page()
@@ -386,11 +438,16 @@ def test_a_4000x4000_map(open_page, node, publishers):
     before = received(page)
     open_topic(page, "/test/big_map")
     opened = '.open-topic[data-topic="/test/big_map"]'
-    wait_for(lambda: "int8[] data" in page.js(f"return document.querySelector('{opened} .definition pre').textContent"),
-             15, what="the map's definition read")
+    wait_for(
+        lambda: "int8[] data" in page.js(f"return document.querySelector('{opened} .definition pre').textContent"),
+        15,
+        what="the map's definition read",
+    )
     time.sleep(8)  # (the latched map would have come whole by now)
     assert received(page) - before < 1_000_000
-    assert "Not followed: a nav_msgs/OccupancyGrid may be megabytes (data: int8[])" in text_of(page, f"{opened} .summary")
+    assert "Not followed: a nav_msgs/OccupancyGrid may be megabytes (data: int8[])" in text_of(
+        page, f"{opened} .summary"
+    )
     assert "Choose a viewer (Map)" in text_of(page, f"{opened} .summary")
     shot(page, f"{opened} .summary", "map-4000-not-followed")
     chosen = received(page)
@@ -415,25 +472,46 @@ def test_the_fields_that_may_make_a_message_megabytes(open_page):
     """web/panels/messages.js's bulkArrays: variable-length arrays of bytes, nested ones too; not fixed-length ones
     (a uuid's 16 bytes), nor arrays of numbers or strings (a scan's ranges, a joint state)."""
     page = open_page()
+
     def typedef(name, fields):
-        return {"type": name, "fieldnames": [f[0] for f in fields], "fieldtypes": [f[1] for f in fields],
-                "fieldarraylen": [f[2] for f in fields], "constnames": [], "constvalues": []}
-    typedefs = [typedef("test/Pair", [("header", "std_msgs/Header", -1), ("id", "uint8", 16),
-                                      ("images", "sensor_msgs/Image", 0), ("ranges", "float32", 0),
-                                      ("names", "string", 0), ("raw", "char", 0)]),
-                typedef("std_msgs/Header", [("seq", "uint32", -1), ("frame_id", "string", -1)]),
-                typedef("sensor_msgs/Image", [("encoding", "string", -1), ("data", "uint8", 0)])]
-    found = page.driver.execute_async_script("""const done = arguments[arguments.length - 1];
-        import('/panels/messages.js').then(m => done(m.bulkArrays(arguments[0])), e => done(String(e)));""", typedefs)
+        return {
+            "type": name,
+            "fieldnames": [f[0] for f in fields],
+            "fieldtypes": [f[1] for f in fields],
+            "fieldarraylen": [f[2] for f in fields],
+            "constnames": [],
+            "constvalues": [],
+        }
+
+    typedefs = [
+        typedef(
+            "test/Pair",
+            [
+                ("header", "std_msgs/Header", -1),
+                ("id", "uint8", 16),
+                ("images", "sensor_msgs/Image", 0),
+                ("ranges", "float32", 0),
+                ("names", "string", 0),
+                ("raw", "char", 0),
+            ],
+        ),
+        typedef("std_msgs/Header", [("seq", "uint32", -1), ("frame_id", "string", -1)]),
+        typedef("sensor_msgs/Image", [("encoding", "string", -1), ("data", "uint8", 0)]),
+    ]
+    found = page.driver.execute_async_script(
+        """const done = arguments[arguments.length - 1];
+        import('/panels/messages.js').then(m => done(m.bulkArrays(arguments[0])), e => done(String(e)));""",
+        typedefs,
+    )
     assert found == ["images[].data: uint8[]", "raw: char[]"]
 
 
-def test_a_topic_whose_messages_turn_out_big_is_not_followed_but_one_is_fetched_on_request(open_page, node,
-                                                                                            publishers):
+def test_a_topic_whose_messages_turn_out_big_is_not_followed_but_one_is_fetched_on_request(open_page, node, publishers):
     """A type without arrays of bytes, whose messages are big all the same (about 2 MB of JSON text, twice a second):
     the tree's subscription stops at the first message above 1 MB (before, it took them all, 4 MB/s), and Fetch one
     message fetches one, binary."""
     from std_msgs.msg import Float32MultiArray
+
     values = [float(i) for i in range(300_000)]
     publishers(node, "/test/big_array", Float32MultiArray, lambda n: Float32MultiArray(data=values), 2)
     page = open_page()
@@ -446,8 +524,11 @@ def test_a_topic_whose_messages_turn_out_big_is_not_followed_but_one_is_fetched_
     assert received(page) - before < 500_000
     assert "Not followed: its messages are " in text_of(page, f"{opened} .summary")
     page.click(f"{opened} .summary button.fetch")
-    wait_for(lambda: "one message fetched on request: 1.20 MB" in text_of(page, f"{opened} .stats"), 15,
-             what="one message fetched")
+    wait_for(
+        lambda: "one message fetched on request: 1.20 MB" in text_of(page, f"{opened} .stats"),
+        15,
+        what="one message fetched",
+    )
     assert "data: (1200000 bytes)" in text_of(page, f"{opened} .message")  # (its float32[] as bytes: CBOR)
     time.sleep(1.5)
     before = received(page)
@@ -462,18 +543,22 @@ def test_an_open_viewer_takes_the_room_of_the_screen(open_page, node, publishers
     takes the console's width, its canvas as large as the window leaves room for and the topic's text beside it.
     On a phone it is as wide as the screen allows, nothing wider. Screenshots: viewer-room-<screen>.png."""
     from nav_msgs.msg import OccupancyGrid
+
     publishers(node, "/test/room_map", OccupancyGrid, lambda n: grid(400, 400, 0.05), 0.5, latch=True)
     page = open_page(screen)
     area = open_viewer(page, "/test/room_map", "map")
     wait_for(lambda: "400×400 cells of 5 cm" in text_of(page, f"{area} .viewer-stats"), 20, what="the map drawn")
-    box = page.js("""const area = document.querySelector(arguments[0]);
+    box = page.js(
+        """const area = document.querySelector(arguments[0]);
         const rect = e => { const r = e.getBoundingClientRect();
           return { left: r.left, right: r.right, top: r.top, width: r.width, height: r.height }; };
         const canvas = area.querySelector('canvas');
         return { canvas: rect(canvas), pixels: [canvas.width, canvas.height], area: rect(area),
           topic: rect(area.closest('.open-topic')), topics: rect(area.closest('.open-topics')),
           tree: rect(area.closest('.open-topic').querySelector('.message')), ratio: devicePixelRatio,
-          window: [innerWidth, innerHeight], page: document.documentElement.scrollWidth };""", area)
+          window: [innerWidth, innerHeight], page: document.documentElement.scrollWidth };""",
+        area,
+    )
     canvas = box["canvas"]
     # drawn at the size shown, at the screen's pixels
     assert box["pixels"] == [round(canvas["width"] * box["ratio"]), round(canvas["height"] * box["ratio"])]
@@ -502,17 +587,22 @@ def test_navsat_fix_status_and_track_in_metres(open_page, node, publishers):
         if n % 10 == 9:
             message.status.status, message.latitude = NavSatStatus.STATUS_NO_FIX, math.nan
         return message
+
     publishers(node, "/test/fix", NavSatFix, fix, 10)
     page = open_page()
     area = open_viewer(page, "/test/fix", "navsat")
+
     def track():  # (fixes, east m, north m, a fix lost) from "12 fixes · now 3.4 m E, 5 m N of the first · ..."
         stats = text_of(page, f"{area} .viewer-stats")
         if " fixes · now " not in stats:
             return None
         metres = {"km": 1000, "m": 1, "cm": 0.01, "mm": 0.001}
-        east, north = (float(part.split()[0]) * metres[part.split()[1]]
-                       for part in stats.split("now ")[1].split(" of the first")[0].split(", "))
+        east, north = (
+            float(part.split()[0]) * metres[part.split()[1]]
+            for part in stats.split("now ")[1].split(" of the first")[0].split(", ")
+        )
         return int(stats.split()[0]), east, north, "without a fix" in stats
+
     wait_for(lambda: track() and track()[0] >= 5 and track()[3], 15, what="a track and a lost fix")
     wait_for(lambda: text_of(page, f"{area} .navsat-status").startswith("fix (GPS)"), 5, what="a fix")
     assert "±2 m" in text_of(page, f"{area} .navsat-status")
@@ -530,11 +620,18 @@ def test_diagnostics_table_worst_first(open_page, node, publishers):
         message.header.stamp = node.Time.now()
         message.status = [
             DiagnosticStatus(level=DiagnosticStatus.OK, name="motors: left", message="ok", hardware_id="m1"),
-            DiagnosticStatus(level=DiagnosticStatus.ERROR, name="battery", message="voltage low", hardware_id="b1",
-                             values=[KeyValue("voltage", "10.1")]),
+            DiagnosticStatus(
+                level=DiagnosticStatus.ERROR,
+                name="battery",
+                message="voltage low",
+                hardware_id="b1",
+                values=[KeyValue("voltage", "10.1")],
+            ),
             DiagnosticStatus(level=DiagnosticStatus.WARN, name="lidar", message="hot", hardware_id="l1"),
-            DiagnosticStatus(level=DiagnosticStatus.OK, name="camera", message="ok")]
+            DiagnosticStatus(level=DiagnosticStatus.OK, name="camera", message="ok"),
+        ]
         return message
+
     publishers(node, "/diagnostics", DiagnosticArray, array_, 2)
     page = open_page()
     area = open_viewer(page, "/diagnostics", "diagnostics")
@@ -542,8 +639,12 @@ def test_diagnostics_table_worst_first(open_page, node, publishers):
     wait_for(lambda: len(page.driver.find_elements(By.CSS_SELECTOR, rows)) == 4, 15, what="four statuses")
     table = page.js(f"""return [...document.querySelectorAll('{rows}')].map(r =>
         [...r.cells].map(c => c.textContent))""")
-    assert table == [["ERROR", "battery", "voltage low", "b1"], ["WARN", "lidar", "hot", "l1"],
-                     ["OK", "camera", "ok", ""], ["OK", "motors: left", "ok", "m1"]]
+    assert table == [
+        ["ERROR", "battery", "voltage low", "b1"],
+        ["WARN", "lidar", "hot", "l1"],
+        ["OK", "camera", "ok", ""],
+        ["OK", "motors: left", "ok", "m1"],
+    ]
     assert text_of(page, f"{area} .diag-summary") == "4 statuses: 1 ERROR · 1 WARN · 2 OK"
     page.click(rows)  # (found and clicked in one step: the table is redrawn as statuses come)
     wait_for(lambda: "voltage" in text_of(page, f"{area} .diag-values"), 5, what="the error's values")
@@ -557,9 +658,18 @@ def gauge_texts(page, area):
 
 def test_gauges_for_joints_imu_battery_and_range(open_page, node, publishers):
     from sensor_msgs.msg import BatteryState, Imu, JointState, Range
-    publishers(node, "/test/joints", JointState, lambda n: JointState(
-        name=["shoulder", "elbow"], position=[0.5, -1.0], velocity=[0.1, 0.0], effort=[]) if n % 2 == 0
-        else JointState(name=["shoulder", "elbow"], position=[0.5, -1.0], velocity=[0.1, 0.0], effort=[]), 20)
+
+    publishers(
+        node,
+        "/test/joints",
+        JointState,
+        lambda n: (
+            JointState(name=["shoulder", "elbow"], position=[0.5, -1.0], velocity=[0.1, 0.0], effort=[])
+            if n % 2 == 0
+            else JointState(name=["shoulder", "elbow"], position=[0.5, -1.0], velocity=[0.1, 0.0], effort=[])
+        ),
+        20,
+    )
     publishers(node, "/test/empty_joints", JointState, lambda n: JointState(), 5)
 
     def imu(n):
@@ -569,26 +679,49 @@ def test_gauges_for_joints_imu_battery_and_range(open_page, node, publishers):
         message.angular_velocity.z = 0.5
         message.linear_acceleration.z = 9.81
         return message
+
     publishers(node, "/test/imu", Imu, imu, 100)
-    publishers(node, "/test/battery", BatteryState, lambda n: BatteryState(
-        voltage=12.3, current=-1.5, percentage=0.25, power_supply_status=2, power_supply_health=1, present=True), 1)
-    publishers(node, "/test/range", Range, lambda n: Range(radiation_type=0, field_of_view=0.5, min_range=0.02,
-                                                           max_range=4.0, range=1.0), 10)
+    publishers(
+        node,
+        "/test/battery",
+        BatteryState,
+        lambda n: BatteryState(
+            voltage=12.3, current=-1.5, percentage=0.25, power_supply_status=2, power_supply_health=1, present=True
+        ),
+        1,
+    )
+    publishers(
+        node,
+        "/test/range",
+        Range,
+        lambda n: Range(radiation_type=0, field_of_view=0.5, min_range=0.02, max_range=4.0, range=1.0),
+        10,
+    )
     page = open_page()
     expected = {
         "/test/joints": {"joint:shoulder": "0.500 (28.6°) · v 0.10", "joint:elbow": "-1.000 (-57.3°) · v 0.00"},
         "/test/empty_joints": {"none": "none in the message"},
         "/test/imu": {"roll": "5.7°", "pitch": "-11.5°", "yaw": "57.3°", "wz": "0.50 rad/s", "az": "9.81 m/s²"},
-        "/test/battery": {"charge": "25 %", "voltage": "12.30 V", "current": "-1.50 A",
-                          "status": "discharging · health good"},
+        "/test/battery": {
+            "charge": "25 %",
+            "voltage": "12.30 V",
+            "current": "-1.50 A",
+            "status": "discharging · health good",
+        },
         "/test/range": {"range": "1.000 m (0.02–4.00 m)", "kind": "field of view 29°"},
     }
     for topic, wanted in expected.items():
         area = open_viewer(page, topic, "gauges")
-        wait_for(lambda: all(gauge_texts(page, area).get(k) == v for k, v in wanted.items()), 15,
-                 what=f"the gauges of {topic}: {gauge_texts(page, area)}")
-    assert page.js("""return document.querySelector('.open-topic[data-topic="/test/battery"] .gauge-bar')
-        .style.width""") == "25%"
+        wait_for(
+            lambda: all(gauge_texts(page, area).get(k) == v for k, v in wanted.items()),
+            15,
+            what=f"the gauges of {topic}: {gauge_texts(page, area)}",
+        )
+    assert (
+        page.js("""return document.querySelector('.open-topic[data-topic="/test/battery"] .gauge-bar')
+        .style.width""")
+        == "25%"
+    )
     for topic in expected:
         shot(page, f'.open-topic[data-topic="{topic}"] .viewer', "gauges-" + topic.split("/")[-1])
     assert page.console_errors() == []
@@ -598,6 +731,7 @@ def test_gauges_for_joints_imu_battery_and_range(open_page, node, publishers):
 @pytest.fixture(scope="module")
 def cloud_topic(node):
     from sensor_msgs.msg import PointCloud2
+
     cloud = big_cloud()
     publishing = Publishing(node, "/test/cloud", PointCloud2, lambda n: cloud, 2)
     yield "/test/cloud"
@@ -631,6 +765,7 @@ def test_the_cloud_endpoint_decimates_on_the_bridge_to_a_bounded_size(bridge_url
 
 def test_the_cloud_endpoint_keeps_the_websockets_rules(ros, sim):
     from harness import start_bridge
+
     proc, port = start_bridge(ros, node_name="cloud_rules_bridge", topics_glob="[/allowed/*]")
     try:
         url = f"http://127.0.0.1:{port}/cloud?topic="
@@ -654,8 +789,10 @@ def test_the_cloud_viewer_draws_the_decimated_cloud_from_above(open_page, cloud_
     assert int(page.js(f"return document.querySelector('{area} canvas').dataset.points")) > 15000
     # what the page receives: 240 kB per cloud drawn (2 a second here), not the 4.8 MB clouds
     paints = int(page.js(f"return document.querySelector('{area} canvas').dataset.paints"))
-    received = page.js("return window.performance.getEntriesByType('resource').filter(e => e.name.includes('/cloud?'))"
-                       ".reduce((sum, e) => sum + e.encodedBodySize, 0)")
+    received = page.js(
+        "return window.performance.getEntriesByType('resource').filter(e => e.name.includes('/cloud?'))"
+        ".reduce((sum, e) => sum + e.encodedBodySize, 0)"
+    )
     assert 12 * 20000 <= received <= 12 * 20000 * (paints + 2)
     assert pixels(page, f"{area} canvas") > 5000
     shot(page, area, "cloud")
@@ -697,20 +834,40 @@ def test_the_map_cloud_diagnostics_and_gauges_on_a_phone(open_page, node, demo_s
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
     from nav_msgs.msg import OccupancyGrid
     from sensor_msgs.msg import Imu
+
     publishers(node, "/test/map", OccupancyGrid, lambda n: grid(222, 222, 0.05), 0.5, latch=True)
-    publishers(node, "/diagnostics", DiagnosticArray, lambda n: DiagnosticArray(status=[
-        DiagnosticStatus(level=1, name="a rather long status name: wheel odometry", message="slipping on gravel",
-                         hardware_id="base"), DiagnosticStatus(level=0, name="imu", message="ok")]), 2)
+    publishers(
+        node,
+        "/diagnostics",
+        DiagnosticArray,
+        lambda n: DiagnosticArray(
+            status=[
+                DiagnosticStatus(
+                    level=1,
+                    name="a rather long status name: wheel odometry",
+                    message="slipping on gravel",
+                    hardware_id="base",
+                ),
+                DiagnosticStatus(level=0, name="imu", message="ok"),
+            ]
+        ),
+        2,
+    )
 
     def imu(n):
         message = Imu()
         message.orientation.w = 1.0
         message.linear_acceleration.z = 9.81
         return message
+
     publishers(node, "/test/imu", Imu, imu, 50)
     page = open_page("phone")
-    checks = {"/test/map": ("map", "robot turtle1"), "/test/cloud": ("cloud", "of 300000 points"),
-              "/diagnostics": ("diagnostics", "2 statuses"), "/test/imu": ("gauges", "9.81")}
+    checks = {
+        "/test/map": ("map", "robot turtle1"),
+        "/test/cloud": ("cloud", "of 300000 points"),
+        "/diagnostics": ("diagnostics", "2 statuses"),
+        "/test/imu": ("gauges", "9.81"),
+    }
     for topic, (viewer, seen) in checks.items():
         area = open_viewer(page, topic, viewer)
         wait_for(lambda: seen in text_of(page, area), 20, what=f"the {viewer} viewer of {topic} on a phone")

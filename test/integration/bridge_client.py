@@ -1,5 +1,6 @@
 """A plain websocket client for the bridge tests (Tornado's client on a private asyncio loop), so a test can
 send any frame, including broken ones, and read exactly what the server answers."""
+
 import asyncio
 import base64
 import json
@@ -17,16 +18,23 @@ from tornado.websocket import websocket_connect
 class WsClient:
     def __init__(self, url, headers=None, timeout=10.0, compression_options=None, **request_kwargs):
         self.loop = asyncio.new_event_loop()
-        request = HTTPRequest(url, headers=headers or {}, connect_timeout=timeout, request_timeout=timeout,
-                              **request_kwargs)
+        request = HTTPRequest(
+            url, headers=headers or {}, connect_timeout=timeout, request_timeout=timeout, **request_kwargs
+        )
         self.ended = False  # the end of the connection was read
-        self.conn = self._run(lambda: websocket_connect(request, max_message_size=256 * 1024 * 1024,
-                                                        compression_options=compression_options), timeout)
+        self.conn = self._run(
+            lambda: websocket_connect(
+                request, max_message_size=256 * 1024 * 1024, compression_options=compression_options
+            ),
+            timeout,
+        )
 
     def _run(self, start, timeout):
         """Runs start() (which returns an awaitable) inside this client's loop, up to timeout seconds."""
+
         async def run():
             return await asyncio.wait_for(start(), timeout)
+
         return self.loop.run_until_complete(run())
 
     def send(self, frame):
@@ -60,21 +68,21 @@ class WsClient:
         raise AssertionError(f"no matching frame within {limit} frames")
 
     def recv_op(self, op, timeout=10.0, **fields):
-        return self.recv_until(lambda f: f.get("op") == op and all(f.get(k) == v for k, v in fields.items()),
-                               timeout)
+        return self.recv_until(lambda f: f.get("op") == op and all(f.get(k) == v for k, v in fields.items()), timeout)
 
     def request(self, frame, timeout=10.0):
         """Sends a frame and returns the first status or service_response that answers its id."""
         self.send(frame)
-        return self.recv_until(lambda f: f.get("op") in ("status", "service_response")
-                               and f.get("id") == frame.get("id"), timeout)
+        return self.recv_until(
+            lambda f: f.get("op") in ("status", "service_response") and f.get("id") == frame.get("id"), timeout
+        )
 
     def is_closed(self, timeout=10.0):
         try:
             while True:
                 if self.recv_raw(timeout) is None:
                     return True
-        except asyncio.TimeoutError:
+        except TimeoutError:
             return False
 
     @property
@@ -115,17 +123,25 @@ class RawWebSocket:
             self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, recv_buffer)
         key = base64.b64encode(os.urandom(16)).decode()
         offer = f"Sec-WebSocket-Extensions: {extensions}\r\n" if extensions else ""
-        self.sock.sendall((f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n"
-                           f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n"
-                           f"{offer}\r\n").encode() + early)
+        self.sock.sendall(
+            (
+                f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n"
+                f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n"
+                f"{offer}\r\n"
+            ).encode()
+            + early
+        )
         reply = b""
         while b"\r\n\r\n" not in reply:
             chunk = self.sock.recv(1)  # byte by byte: nothing after the handshake is consumed
             assert chunk, "server closed during the handshake"
             reply += chunk
         assert reply.startswith(b"HTTP/1.1 101"), reply
-        answered = [line.split(b":", 1)[1].strip().decode() for line in reply.split(b"\r\n")
-                    if line.lower().startswith(b"sec-websocket-extensions:")]
+        answered = [
+            line.split(b":", 1)[1].strip().decode()
+            for line in reply.split(b"\r\n")
+            if line.lower().startswith(b"sec-websocket-extensions:")
+        ]
         self.extensions = answered[0] if answered else None
 
     @staticmethod
@@ -150,9 +166,9 @@ class RawWebSocket:
         first, second = self._recv_exactly(2)
         length = second & 0x7F
         if length == 126:
-            length, = struct.unpack("!H", self._recv_exactly(2))
+            (length,) = struct.unpack("!H", self._recv_exactly(2))
         elif length == 127:
-            length, = struct.unpack("!Q", self._recv_exactly(8))
+            (length,) = struct.unpack("!Q", self._recv_exactly(8))
         return first & 0x0F, self._recv_exactly(length)
 
     def _recv_exactly(self, size):
@@ -181,7 +197,7 @@ class RawWebSocket:
             compressor = zlib.compressobj(6, zlib.DEFLATED, -15)
             data = (compressor.compress(data) + compressor.flush(zlib.Z_SYNC_FLUSH))[:-4]
         frame = self.header(len(data), rsv1=deflated) + b"\0\0\0\0" + data
-        self.sock.sendall(frame if cut_after is None else frame[:len(frame) - len(data) + cut_after])
+        self.sock.sendall(frame if cut_after is None else frame[: len(frame) - len(data) + cut_after])
 
     def close(self, reset=False):
         if reset:  # RST instead of FIN, as when the client machine drops off

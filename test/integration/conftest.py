@@ -1,5 +1,6 @@
 """Fixtures for the integration tests: a fresh `rosrun turtlesim turtlesim_node` per test; a websocket client
 per test (ws) of the module's `bridge` (made by fixtures.bridge_fixture, or the module's own)."""
+
 import pytest
 
 from bridge_client import WsClient
@@ -39,6 +40,7 @@ def start_turtlesim(ros, node):
         started.append(proc)
         proc.wait_output("Spawning turtle [turtle1]", timeout=30)
         from turtlesim.msg import Pose
+
         node.wait_for_message("/turtle1/pose", Pose, timeout=30)
         return proc
 

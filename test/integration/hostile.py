@@ -5,6 +5,7 @@ bridge, not with the measuring client, for the CPU and the GIL):
 
 Each abuse runs for at most SECONDS (or until done) and the process exits; it prints one line of what it did.
 `measure` runs one beside a well-behaved Victim (used by test_isolation.py and bench/suite.py)."""
+
 import asyncio
 import itertools
 import json
@@ -58,8 +59,9 @@ async def huge_throttle(ws, seconds):
 
 async def silent_service(ws, seconds):
     """Provides a service, calls it many times and never answers."""
-    await ws.write_message(json.dumps({"op": "advertise_service", "service": "/hostile/silent",
-                                       "type": "std_srvs/Empty"}))
+    await ws.write_message(
+        json.dumps({"op": "advertise_service", "service": "/hostile/silent", "type": "std_srvs/Empty"})
+    )
     await asyncio.sleep(1)
     for i in range(100):
         await ws.write_message(json.dumps({"op": "call_service", "service": "/hostile/silent", "id": f"c{i}"}))
@@ -70,8 +72,20 @@ async def silent_service(ws, seconds):
 async def auth_flood(ws, seconds):
     sent, end = 0, time.monotonic() + seconds
     while time.monotonic() < end:
-        await ws.write_message(json.dumps({"op": "auth", "mac": "x", "client": "c", "dest": "d", "rand": "r",
-                                           "t": int("9" * 400), "level": "admin", "end": 0}))
+        await ws.write_message(
+            json.dumps(
+                {
+                    "op": "auth",
+                    "mac": "x",
+                    "client": "c",
+                    "dest": "d",
+                    "rand": "r",
+                    "t": int("9" * 400),
+                    "level": "admin",
+                    "end": 0,
+                }
+            )
+        )
         sent += 1
     return f"{sent} auth frames"
 
@@ -85,9 +99,11 @@ def raw_connect(url, extensions="", recv_buffer=None):
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, recv_buffer)
     sock.connect((parts.hostname, parts.port))
     offer = f"Sec-WebSocket-Extensions: {extensions}\r\n" if extensions else ""
-    sock.sendall(f"GET / HTTP/1.1\r\nHost: {parts.hostname}:{parts.port}\r\nUpgrade: websocket\r\n"
-                 "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
-                 f"Sec-WebSocket-Version: 13\r\n{offer}\r\n".encode())
+    sock.sendall(
+        f"GET / HTTP/1.1\r\nHost: {parts.hostname}:{parts.port}\r\nUpgrade: websocket\r\n"
+        "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+        f"Sec-WebSocket-Version: 13\r\n{offer}\r\n".encode()
+    )
     return sock
 
 
@@ -137,6 +153,7 @@ def on_connections(count, url, seconds, extensions, abuse, recv_buffer=None):
             finally:
                 sock.close()
         totals.append((connections, done))
+
     threads = [threading.Thread(target=run) for _ in range(count)]
     for thread in threads:
         thread.start()
@@ -162,6 +179,7 @@ def inflate_bombs(url, seconds):
         except OSError:  # the bridge closed it
             pass
         return sent
+
     connections, sent = on_connections(4, url, seconds, "permessage-deflate", send)
     return f"{sent} bombs of {len(bomb)} bytes (31 MB unpacked) on {connections} connections"
 
@@ -178,9 +196,10 @@ def unfinished_messages(url, seconds):
         try:
             while sock.recv(65536):  # (until the bridge closes it)
                 pass
-        except socket.timeout:
+        except TimeoutError:
             pass
         return 1
+
     connections, _ = on_connections(5, url, seconds, "", hold)
     return f"{connections} unfinished messages of 30 MB"
 
@@ -194,9 +213,18 @@ def never_reads(url, seconds):
         for _ in range(10):
             socks.append(raw_connect(url, recv_buffer=4096))
             for call in range(12):
-                socks[-1].sendall(raw_frame(json.dumps({"op": "call_service", "service": "/rosapi/get_param",
-                                                        "id": call, "args": {"name": "/hostile/unset",
-                                                                             "default": default}}).encode()))
+                socks[-1].sendall(
+                    raw_frame(
+                        json.dumps(
+                            {
+                                "op": "call_service",
+                                "service": "/rosapi/get_param",
+                                "id": call,
+                                "args": {"name": "/hostile/unset", "default": default},
+                            }
+                        ).encode()
+                    )
+                )
                 asked += 1
         time.sleep(max(0.0, end - time.monotonic()))
     except OSError as error:  # the bridge closed one
@@ -209,17 +237,24 @@ def never_reads(url, seconds):
 
 def parked_fragments(url, seconds):
     """Forty connections, each sending the first of two `fragment` ops of 8 MB, never the second, then waiting."""
+
     def park(sock, end):
-        sock.sendall(raw_frame(json.dumps({"op": "fragment", "id": "parked", "num": 0, "total": 2,
-                                           "data": "F" * 7_990_000}).encode()))
+        sock.sendall(
+            raw_frame(
+                json.dumps({"op": "fragment", "id": "parked", "num": 0, "total": 2, "data": "F" * 7_990_000}).encode()
+            )
+        )
         time.sleep(max(0.0, end - time.monotonic()))
         return 1
+
     _, parked = on_connections(40, url, seconds, "", park)
     return f"{parked} fragments of 8 MB parked"
 
 
-ABUSES_IN_PROCESS = {f.__name__: f for f in (flood, subscribe_many, advertise_many, publish_unknown, huge_throttle,
-                                  silent_service, auth_flood)}
+ABUSES_IN_PROCESS = {
+    f.__name__: f
+    for f in (flood, subscribe_many, advertise_many, publish_unknown, huge_throttle, silent_service, auth_flood)
+}
 
 
 def unawaited_writes_quiet(loop, context):
@@ -267,6 +302,7 @@ class Victim:
         def pong(data):
             if data in pings:
                 self.ping_times.append(time.monotonic() - pings.pop(data))
+
         ws.on_pong = pong
 
         async def reader():
@@ -280,16 +316,19 @@ class Victim:
                     self.ready.set()
                 elif message.get("op") == "service_response" and message.get("id") in calls:
                     self.call_times.append(now - calls.pop(message["id"]))
+
         async def ticker():  # how late this thread's own loop ran: a gap it causes is not the bridge's
             while True:
                 before = time.monotonic()
                 await asyncio.sleep(0.01)
                 self.own_stalls.append((before, time.monotonic() - before - 0.01))
+
         async def pinger():  # a websocket ping every 50 ms: answered by the bridge as soon as it reads it
             for k in itertools.count():
                 pings[b"%d" % k] = time.monotonic()
                 ws.ping(b"%d" % k)
                 await asyncio.sleep(0.05)
+
         tasks = [asyncio.ensure_future(task()) for task in (reader, ticker, pinger)]
         n = 0
         while not self._stop.is_set():
@@ -316,8 +355,9 @@ class Victim:
         self._thread.join(10)
 
 
-RAW_ABUSES = {f.__name__: f for f in (pings_never_read, inflate_bombs, unfinished_messages, never_reads,
-                                      parked_fragments)}
+RAW_ABUSES = {
+    f.__name__: f for f in (pings_never_read, inflate_bombs, unfinished_messages, never_reads, parked_fragments)
+}
 ABUSES = [*ABUSES_IN_PROCESS, *RAW_ABUSES]
 
 
@@ -338,11 +378,20 @@ def measure(ros, url, server, abuse, seconds, auth=None):
     victim.stop()
     gap, gap_at, own_stall = victim.largest_gap(started)
     pings = sorted(victim.ping_times) or [float("inf")]
-    return {"attacker": attacker.output().strip(), "attacker_exit": code, "attacked": attacked,
-            "gap": gap, "gap_at": gap_at, "victims_own_stall": own_stall,
-            "slowest_call": max(victim.call_times + victim.unanswered, default=float("inf")),
-            "ping_p50": pings[len(pings) // 2], "ping_p95": pings[len(pings) * 95 // 100], "slowest_ping": pings[-1],
-            "rss_growth": server.rss_mb() - rss_before, "peak_rss_growth": server.peak_rss_mb() - rss_before}
+    return {
+        "attacker": attacker.output().strip(),
+        "attacker_exit": code,
+        "attacked": attacked,
+        "gap": gap,
+        "gap_at": gap_at,
+        "victims_own_stall": own_stall,
+        "slowest_call": max(victim.call_times + victim.unanswered, default=float("inf")),
+        "ping_p50": pings[len(pings) // 2],
+        "ping_p95": pings[len(pings) * 95 // 100],
+        "slowest_ping": pings[-1],
+        "rss_growth": server.rss_mb() - rss_before,
+        "peak_rss_growth": server.peak_rss_mb() - rss_before,
+    }
 
 
 if __name__ == "__main__":

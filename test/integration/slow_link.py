@@ -1,7 +1,7 @@
 """What the freshness and deflate tests share: a rover publishing a small topic and a camera from the test
 process, and a reader behind a slow link."""
+
 import os
-import socket
 import struct
 import threading
 import time
@@ -18,6 +18,7 @@ class Rover:
     def __init__(self, node, prefix, small_hz=50, camera_hz=15):
         from sensor_msgs.msg import Image
         from std_msgs.msg import Float64
+
         self.small = node.Publisher(prefix + "/small", Float64, queue_size=2000)
         self.camera = node.Publisher(prefix + "/camera", Image, queue_size=100)
         self.small_hz, self.camera_hz = small_hz, camera_hz
@@ -27,13 +28,17 @@ class Rover:
         self.sent = {"small": 0, "camera": 0}
 
     def wait_connected(self):
-        wait_for(lambda: self.small.get_num_connections() and self.camera.get_num_connections(), 20,
-                 what="the bridge to subscribe")
+        wait_for(
+            lambda: self.small.get_num_connections() and self.camera.get_num_connections(),
+            20,
+            what="the bridge to subscribe",
+        )
 
     def run(self, seconds=None, small_count=None, camera_count=None):
+        import rospy
         from sensor_msgs.msg import Image
         from std_msgs.msg import Float64
-        import rospy
+
         start = time.monotonic()
         next_small = next_camera = start
         while not self._stop.is_set():
@@ -47,8 +52,13 @@ class Rover:
                 self.sent["small"] += 1
                 next_small += 1 / self.small_hz
             if now >= next_camera and (camera_count is None or self.sent["camera"] < camera_count):
-                picture = Image(height=HEIGHT, width=WIDTH, encoding="rgb8", step=WIDTH * 3,
-                                data=self.pictures[self.sent["camera"] % 4])
+                picture = Image(
+                    height=HEIGHT,
+                    width=WIDTH,
+                    encoding="rgb8",
+                    step=WIDTH * 3,
+                    data=self.pictures[self.sent["camera"] % 4],
+                )
                 picture.header.stamp = rospy.Time.from_sec(time.time())
                 self.camera.publish(picture)
                 self.sent["camera"] += 1
@@ -81,7 +91,7 @@ def paced_frames(sock, rate, seconds):
             continue
         try:
             chunk = sock.recv(min(int(allowed), 65536))
-        except socket.timeout:
+        except TimeoutError:
             continue
         assert chunk, "the bridge closed the connection"
         got += len(chunk)
@@ -106,4 +116,4 @@ def _parse(buffer):
         length, used = struct.unpack_from("!Q", buffer, 2)[0], 10
     if len(buffer) < used + length:
         return None
-    return buffer[0], bytes(buffer[used:used + length]), used + length
+    return buffer[0], bytes(buffer[used : used + length]), used + length

@@ -1,5 +1,6 @@
 """The bag recorder through a real bridge, as the console uses it over HTTP: record topics, stop, list,
 download a bag that `rosbag info` reads, keep a black box and save it, delete; and what it refuses."""
+
 import json
 import threading
 import time
@@ -15,8 +16,14 @@ from harness import start_bridge, wait_for
 @pytest.fixture(scope="module")
 def bridge(ros, tmp_path_factory):
     folder = tmp_path_factory.mktemp("bags")
-    proc, port = start_bridge(ros, node_name="bags_bridge", bag_folder=str(folder), bag_max_bytes=3_000_000,
-                              blackbox_seconds=2, topics_glob="[/bags_test/*]")
+    proc, port = start_bridge(
+        ros,
+        node_name="bags_bridge",
+        bag_folder=str(folder),
+        bag_max_bytes=3_000_000,
+        blackbox_seconds=2,
+        topics_glob="[/bags_test/*]",
+    )
     yield port, folder
     proc.stop()
 
@@ -24,8 +31,12 @@ def bridge(ros, tmp_path_factory):
 def call(port, method, path, body=None, headers=None, content_type="application/json"):
     """(status, JSON answer or raw bytes) of an HTTP request to the bridge."""
     data = None if body is None else json.dumps(body).encode()
-    request = urllib.request.Request(f"http://127.0.0.1:{port}{path}", data=data, method=method,
-                                     headers={**({"Content-Type": content_type} if data else {}), **(headers or {})})
+    request = urllib.request.Request(
+        f"http://127.0.0.1:{port}{path}",
+        data=data,
+        method=method,
+        headers={**({"Content-Type": content_type} if data else {}), **(headers or {})},
+    )
     try:
         with urllib.request.urlopen(request, timeout=20) as answer:
             status, payload, kind = answer.status, answer.read(), answer.headers.get("Content-Type", "")
@@ -39,6 +50,7 @@ class Talker:
 
     def __init__(self, node):
         from std_msgs.msg import Int32
+
         self.pub = node.Publisher("/bags_test/count", Int32, queue_size=10)
         self.sent, self._stop = 0, threading.Event()
         self.thread = threading.Thread(target=self._run, args=(Int32,), daemon=True)
@@ -69,8 +81,9 @@ def test_record_stop_download_and_rosbag_reads_it(bridge, talker, ros, tmp_path)
     wait_for(lambda: call(port, "GET", "/bags")[1]["recording"]["messages"] >= 50, 20, what="50 messages recorded")
     status, state = call(port, "POST", "/bags/stop", {})
     assert status == 200 and state["recording"] is None and state["last"]["error"] is None
-    wait_for(lambda: any(b["name"] == "run1.bag" for b in call(port, "GET", "/bags")[1]["bags"]), 10,
-             what="the bag listed")
+    wait_for(
+        lambda: any(b["name"] == "run1.bag" for b in call(port, "GET", "/bags")[1]["bags"]), 10, what="the bag listed"
+    )
     time.sleep(0.5)  # (closed by the writer thread)
     status, data = call(port, "GET", "/bags/run1.bag")
     assert status == 200 and data[:13] == b"#ROSBAG V2.0\n"
@@ -93,23 +106,28 @@ def test_the_black_box_keeps_the_last_seconds_and_saves_them(bridge, talker, ros
     assert status == 200 and any(b["name"] == "box.bag" for b in state["bags"])
     (tmp_path / "box.bag").write_bytes(call(port, "GET", "/bags/box.bag")[1])
     info = ros.run(["rosbag", "info", "--yaml", str(tmp_path / "box.bag")]).stdout
-    assert "duration:" in info and float(next(line.split()[-1] for line in info.splitlines()
-                                                if line.startswith("duration:"))) <= 2.1
+    assert (
+        "duration:" in info
+        and float(next(line.split()[-1] for line in info.splitlines() if line.startswith("duration:"))) <= 2.1
+    )
     assert call(port, "POST", "/bags/blackbox", {"topics": []})[1]["blackbox"] is None
     call(port, "DELETE", "/bags/box.bag")
 
 
-@pytest.mark.parametrize("request_, status, text", [
-    (("POST", "/bags/record", {"topics": ["/secret"]}), 400, "topics_glob"),
-    (("POST", "/bags/record", {"topics": "nope"}), 400, "list of topic names"),
-    (("POST", "/bags/record", {"topics": ["/bags_test/count"], "name": "../escape.bag"}), 400, "not a bag name"),
-    (("POST", "/bags/record", {"topics": ["/bags_test/count"], "name": 5}), 400, "name: not a bag name"),
-    (("POST", "/bags/blackbox/save", {"name": ["box.bag"]}), 400, "name: not a bag name"),
-    (("POST", "/bags/stop", {}), 400, "not recording"),
-    (("POST", "/bags/blackbox/save", {}), 400, "black box is off"),
-    (("GET", "/bags/nothing.bag", None), 404, "no bag"),
-    (("DELETE", "/bags/..%2Fbags_bridge.bag", None), 400, "not a bag name"),
-])
+@pytest.mark.parametrize(
+    "request_, status, text",
+    [
+        (("POST", "/bags/record", {"topics": ["/secret"]}), 400, "topics_glob"),
+        (("POST", "/bags/record", {"topics": "nope"}), 400, "list of topic names"),
+        (("POST", "/bags/record", {"topics": ["/bags_test/count"], "name": "../escape.bag"}), 400, "not a bag name"),
+        (("POST", "/bags/record", {"topics": ["/bags_test/count"], "name": 5}), 400, "name: not a bag name"),
+        (("POST", "/bags/blackbox/save", {"name": ["box.bag"]}), 400, "name: not a bag name"),
+        (("POST", "/bags/stop", {}), 400, "not recording"),
+        (("POST", "/bags/blackbox/save", {}), 400, "black box is off"),
+        (("GET", "/bags/nothing.bag", None), 404, "no bag"),
+        (("DELETE", "/bags/..%2Fbags_bridge.bag", None), 400, "not a bag name"),
+    ],
+)
 def test_bad_requests_get_a_clear_error(bridge, request_, status, text):
     port, _ = bridge
     got, answer = call(bridge[0], *request_)
@@ -119,17 +137,20 @@ def test_bad_requests_get_a_clear_error(bridge, request_, status, text):
 
 def test_a_page_of_another_site_and_a_form_post_are_refused(bridge):
     port, _ = bridge
-    status, answer = call(port, "POST", "/bags/record", {"topics": ["/bags_test/count"]},
-                          headers={"Origin": "http://evil.example"})
+    status, answer = call(
+        port, "POST", "/bags/record", {"topics": ["/bags_test/count"]}, headers={"Origin": "http://evil.example"}
+    )
     assert status == 403 and "Cross origin" in answer["error"]
-    status, answer = call(port, "POST", "/bags/record", {"topics": ["/bags_test/count"]},
-                          content_type="application/x-www-form-urlencoded")
+    status, answer = call(
+        port, "POST", "/bags/record", {"topics": ["/bags_test/count"]}, content_type="application/x-www-form-urlencoded"
+    )
     assert status == 400 and "application/json" in answer["error"]
     assert call(port, "GET", "/bags")[1]["recording"] is None
 
 
 def test_a_recording_stops_at_the_folder_bound_and_says_why(bridge, node):
     from std_msgs.msg import String
+
     port, _ = bridge
     pub = node.Publisher("/bags_test/big", String, queue_size=100)
     try:
@@ -171,9 +192,15 @@ EMPTY_RECORD = 58  # an empty message's record and index entry in a bag: its lea
 @pytest.fixture(scope="module")
 def small(ros, tmp_path_factory):
     folder = tmp_path_factory.mktemp("small_bags")
-    proc, port = start_bridge(ros, node_name="small_bags_bridge", bag_folder=str(folder),
-                              bag_max_bytes=SMALL_FOLDER, blackbox_seconds=60, blackbox_max_bytes=SMALL_BOX,
-                              topics_glob="[/bags_test/*]")
+    proc, port = start_bridge(
+        ros,
+        node_name="small_bags_bridge",
+        bag_folder=str(folder),
+        bag_max_bytes=SMALL_FOLDER,
+        blackbox_seconds=60,
+        blackbox_max_bytes=SMALL_BOX,
+        topics_glob="[/bags_test/*]",
+    )
     yield port, folder
     proc.stop()
 
@@ -186,12 +213,14 @@ def empty_publisher(node, topic):
     """A std_msgs/Empty publisher that writes on each publish (queue_size None), made before the bridge subscribes
     (which learns the topic's type from the graph)."""
     from std_msgs.msg import Empty
+
     return node.Publisher(topic, Empty, queue_size=None)
 
 
 def flood(pub, seconds):
     """Publishes Empty as fast as rospy can for `seconds` once the bridge listens; the count sent."""
     from std_msgs.msg import Empty
+
     wait_for(lambda: pub.get_num_connections(), 20, what="the bridge to subscribe")
     message, sent, end = Empty(), 0, time.monotonic() + seconds
     while time.monotonic() < end:
@@ -203,8 +232,13 @@ def flood(pub, seconds):
 def closed_bag_info(ros, path):
     """`rosbag info --yaml` of the bag at path once it is closed (its index written)."""
     infos = []
-    wait_for(lambda: infos.append(ros.run(["rosbag", "info", "--yaml", str(path)], check=False)) or
-             infos[-1].returncode == 0, 30, what=f"{path.name} closed")
+    wait_for(
+        lambda: (
+            infos.append(ros.run(["rosbag", "info", "--yaml", str(path)], check=False)) or infos[-1].returncode == 0
+        ),
+        30,
+        what=f"{path.name} closed",
+    )
     return infos[-1].stdout
 
 
@@ -246,8 +280,14 @@ def test_the_black_box_bound_counts_each_message_not_only_its_bytes(small, node)
 def saves_at_once(port, count, prefix="save"):
     """(status, answer) of `count` black box saves requested at once, each on its own connection."""
     answers = [None] * count
-    threads = [threading.Thread(target=lambda i=i: answers.__setitem__(
-        i, call(port, "POST", "/bags/blackbox/save", {"name": f"{prefix}{i}.bag"}))) for i in range(count)]
+    threads = [
+        threading.Thread(
+            target=lambda i=i: answers.__setitem__(
+                i, call(port, "POST", "/bags/blackbox/save", {"name": f"{prefix}{i}.bag"})
+            )
+        )
+        for i in range(count)
+    ]
     for thread in threads:
         thread.start()
     for thread in threads:
@@ -278,8 +318,13 @@ def test_saves_reserve_their_room_before_they_are_accepted(small, node):
 def big_box(ros, tmp_path_factory):
     """A bridge whose black box keeps 10 minutes, within the default 64 MB (400,000 empty messages)."""
     folder = tmp_path_factory.mktemp("big_box")
-    proc, port = start_bridge(ros, node_name="big_box_bags_bridge", bag_folder=str(folder), blackbox_seconds=600,
-                              topics_glob="[/bags_test/*, /turtle1/*, /rosapi/*]")
+    proc, port = start_bridge(
+        ros,
+        node_name="big_box_bags_bridge",
+        bag_folder=str(folder),
+        blackbox_seconds=600,
+        topics_glob="[/bags_test/*, /turtle1/*, /rosapi/*]",
+    )
     yield port, folder
     proc.stop()
 
@@ -310,8 +355,10 @@ def test_one_save_at_a_time_and_other_clients_hardly_wait_for_it(big_box, node, 
         pub.unregister()
         call(port, "POST", "/bags/blackbox", {"topics": []})
     p95, slowest = during[int(len(during) * 0.95)], during[-1]
-    print(f"{box['messages']} entries; the other client's pings while the saves were written: {len(during)}, "
-          f"p95 {p95 * 1000:.1f} ms, slowest {slowest * 1000:.1f} ms")
+    print(
+        f"{box['messages']} entries; the other client's pings while the saves were written: {len(during)}, "
+        f"p95 {p95 * 1000:.1f} ms, slowest {slowest * 1000:.1f} ms"
+    )
     busy = [answer["error"] for status, answer in answers if status == 409]
     assert sorted(status for status, _ in answers) == [200, 409, 409, 409, 409], answers
     assert all("being saved into" in error for error in busy), busy
@@ -323,6 +370,7 @@ def test_one_save_at_a_time_and_other_clients_hardly_wait_for_it(big_box, node, 
 
 def test_a_running_recording_counts_the_saves_made_after_it_started(small, node, ros):
     from std_msgs.msg import String
+
     port, folder = small
     pub = node.Publisher("/bags_test/text", String, queue_size=100)
     box = empty_publisher(node, "/bags_test/box")

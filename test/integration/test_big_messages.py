@@ -1,5 +1,6 @@
 """Big messages through a real bridge: a 16 MB occupancy grid, fragmented as a client asks, arrives whole at the
 default limits; a small latched topic is not kept behind it; CBOR with fragment_size is one binary frame."""
+
 import io
 import json
 import os
@@ -29,12 +30,14 @@ def grid_class(payload):
             head = io.BytesIO()
             OccupancyGrid.serialize(self, head)  # (its data is empty: the last 4 bytes are its length, 0)
             buff.write(head.getvalue()[:-4] + struct.pack("<I", len(payload)) + payload)
+
     return RawGrid
 
 
 def test_a_fragmented_16_mb_map_arrives_whole_and_a_small_latched_topic_does_not_wait_for_it(bridge, node):
     from geometry_msgs.msg import TransformStamped
     from tf2_msgs.msg import TFMessage
+
     cells = os.urandom(SIDE * SIDE).translate(bytes((0xFF, 0, 100, 0) * 64))  # unknown, free, occupied
     grid = grid_class(cells)()
     grid.info.width = grid.info.height = SIDE
@@ -45,8 +48,9 @@ def test_a_fragmented_16_mb_map_arrives_whole_and_a_small_latched_topic_does_not
     try:
         tf_pub.publish(TFMessage([TransformStamped(child_frame_id="laser")]))
         map_pub.publish(grid)
-        client.send({"op": "subscribe", "topic": "/big/map", "type": "nav_msgs/OccupancyGrid",
-                     "fragment_size": 100_000})
+        client.send(
+            {"op": "subscribe", "topic": "/big/map", "type": "nav_msgs/OccupancyGrid", "fragment_size": 100_000}
+        )
         wait_for(lambda: map_pub.get_num_connections(), 20, what="the bridge to subscribe to the map")
         time.sleep(0.5)  # the map is on its way (read, encoded)
         asked = time.monotonic()
@@ -77,12 +81,20 @@ def test_a_fragmented_16_mb_map_arrives_whole_and_a_small_latched_topic_does_not
 def test_cbor_with_fragment_size_is_one_whole_binary_frame(bridge, node):
     """roslibjs reassembles only text fragments, so a CBOR message goes whole, whatever fragment_size says."""
     from std_msgs.msg import String
+
     pub = node.Publisher("/big/text", String, queue_size=1, latch=True)
     client = WsClient(f"ws://127.0.0.1:{bridge}/")
     try:
         pub.publish(String("x" * 100_000))
-        client.send({"op": "subscribe", "topic": "/big/text", "type": "std_msgs/String", "compression": "cbor",
-                     "fragment_size": 1000})
+        client.send(
+            {
+                "op": "subscribe",
+                "topic": "/big/text",
+                "type": "std_msgs/String",
+                "compression": "cbor",
+                "fragment_size": 1000,
+            }
+        )
         frame = client.recv_raw(timeout=20)
     finally:
         client.close()
@@ -100,13 +112,24 @@ def test_a_client_behind_loses_whole_fragmented_messages_only_and_is_told(small_
     messages of a topic that is behind, or the oldest beyond the client's bound) are whole messages: every
     fragmented message that arrives is complete, and the client is told."""
     from std_msgs.msg import String
+
     from bridge_client import RawWebSocket
+
     pub = node.Publisher("/big/parts", String, queue_size=1000)
     client = RawWebSocket(small_bound_bridge, recv_buffer=4096)
     try:
         client.send_text(json.dumps({"op": "set_level", "level": "warning"}))
-        client.send_text(json.dumps({"op": "subscribe", "topic": "/big/parts", "type": "std_msgs/String",
-                                     "fragment_size": 10_000, "queue_length": 1000}))
+        client.send_text(
+            json.dumps(
+                {
+                    "op": "subscribe",
+                    "topic": "/big/parts",
+                    "type": "std_msgs/String",
+                    "fragment_size": 10_000,
+                    "queue_length": 1000,
+                }
+            )
+        )
         wait_for(lambda: pub.get_num_connections(), 20, what="the bridge to subscribe")
         for n in range(100):  # ~100 kB each, 10 fragments: far more than the client's socket and its 30 frames
             pub.publish(String(f"{n:03d}" + "x" * 95_000))

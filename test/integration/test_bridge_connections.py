@@ -1,5 +1,6 @@
 """Clients coming and going: abrupt disconnects, page reloads, 200 clients at once, a client too slow to read
 (test_freshness.py: what a slow link keeps)."""
+
 import asyncio
 import json
 import time
@@ -15,8 +16,7 @@ UNREGISTER_TIMEOUT = 3.0
 
 @pytest.fixture(scope="module")
 def bridge(ros):
-    proc, port = start_bridge(ros, node_name="clients_bridge", unregister_timeout=UNREGISTER_TIMEOUT,
-                              max_queue=20)
+    proc, port = start_bridge(ros, node_name="clients_bridge", unregister_timeout=UNREGISTER_TIMEOUT, max_queue=20)
     yield port
     proc.stop()
 
@@ -27,6 +27,7 @@ def connect(port):
 
 def client_count(node):
     from std_msgs.msg import Int32
+
     return node.wait_for_message("/client_count", Int32, timeout=20).data
 
 
@@ -57,15 +58,18 @@ def test_abrupt_disconnect_releases_everything(bridge, ros, node):
     ws.abort()
     wait_for(lambda: client_count(node) == before, 20, what="count back")
     wait_for(lambda: not subscribers_of(ros, "/clients_test/abrupt_sub"), 20, what="subscriber released")
-    wait_for(lambda: "/clients_test/abrupt_srv" not in ros.run(["rosservice", "list"]).stdout, 20,
-             what="service released")
+    wait_for(
+        lambda: "/clients_test/abrupt_srv" not in ros.run(["rosservice", "list"]).stdout, 20, what="service released"
+    )
     # the publisher lingers for unregister_timeout, then goes
-    wait_for(lambda: not publishers_of(ros, "/clients_test/abrupt_pub"), UNREGISTER_TIMEOUT + 20,
-             what="publisher released")
+    wait_for(
+        lambda: not publishers_of(ros, "/clients_test/abrupt_pub"), UNREGISTER_TIMEOUT + 20, what="publisher released"
+    )
 
 
 def test_page_reload_keeps_the_topic_working(bridge, ros, node):
     from std_msgs.msg import String
+
     got = []
     sub = node.Subscriber("/clients_test/reload", String, lambda m: got.append(m.data))
 
@@ -73,6 +77,7 @@ def test_page_reload_keeps_the_topic_working(bridge, ros, node):
         def received():
             ws.send({"op": "publish", "topic": "/clients_test/reload", "msg": {"data": text}})
             return text in got
+
         wait_for(received, 20, interval=0.2, what=f"{text!r} in rospy")
 
     first = connect(bridge)
@@ -93,6 +98,7 @@ def test_page_reload_keeps_the_topic_working(bridge, ros, node):
 
 def test_200_clients_all_receive_a_message(bridge, node):
     from std_msgs.msg import String
+
     count, topic = 200, "/clients_test/broadcast"
     pub = node.Publisher(topic, String, queue_size=10, latch=True)
 
@@ -122,6 +128,7 @@ def test_200_clients_all_receive_a_message(bridge, node):
 
 def test_slow_client_skips_to_the_newest_and_is_told(bridge, node):
     from std_msgs.msg import String
+
     topic = "/clients_test/firehose"
     pub = node.Publisher(topic, String, queue_size=1000)
     slow = connect(bridge)
@@ -149,6 +156,7 @@ def test_a_latched_message_lives_with_its_publisher_and_each_publisher_gives_its
     """As ROS does: a later subscriber gets the latched message of every publisher still there (two static TF
     broadcasters each latch their own /tf_static), and none of one that left ("Publishers: None")."""
     from std_msgs.msg import String
+
     topic = "/clients_test/latched_two"
     here = node.Publisher(topic, String, queue_size=1, latch=True)
     here.publish(String("from the test"))
@@ -183,6 +191,7 @@ def test_a_latched_message_lives_with_its_publisher_and_each_publisher_gives_its
 
 def test_a_later_subscriber_gets_the_latched_message(bridge, node):
     from std_msgs.msg import String
+
     pub = node.Publisher("/clients_test/latched", String, queue_size=1, latch=True)
     pub.publish(String("latched once"))
     first, second = connect(bridge), connect(bridge)

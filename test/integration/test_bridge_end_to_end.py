@@ -1,5 +1,6 @@
 """The bridge end to end with a real client library (roslibpy) and real ROS nodes: turtlesim_node, rospy
 publishers/subscribers/services in the test process, and the rosservice CLI."""
+
 import math
 import threading
 
@@ -38,6 +39,7 @@ def call(client, name, args=None, service_type=None):
 
 def test_publish_twist_moves_the_turtle(client, turtlesim, node):
     from turtlesim.msg import Pose
+
     start = node.wait_for_message("/turtle1/pose", Pose, timeout=20)
     cmd = roslibpy.Topic(client, "/turtle1/cmd_vel", "geometry_msgs/Twist")
     twist = roslibpy.Message({"linear": {"x": 2.0, "y": 0.0, "z": 0.0}, "angular": {"x": 0, "y": 0, "z": 0}})
@@ -87,6 +89,7 @@ def test_service_error_text_reaches_the_client(client, turtlesim):
 
 def test_publish_reaches_a_rospy_subscriber(client, node):
     from std_msgs.msg import String
+
     got = []
     sub = node.Subscriber("/bridge_test/chatter", String, lambda m: got.append(m.data))
     topic = roslibpy.Topic(client, "/bridge_test/chatter", "std_msgs/String")
@@ -101,6 +104,7 @@ def test_publish_reaches_a_rospy_subscriber(client, node):
 
 def test_header_stamp_is_filled_when_missing(client, node):
     from geometry_msgs.msg import PointStamped
+
     got = []
     sub = node.Subscriber("/bridge_test/point", PointStamped, got.append)
     topic = roslibpy.Topic(client, "/bridge_test/point", "geometry_msgs/PointStamped")
@@ -118,6 +122,7 @@ def test_header_stamp_is_filled_when_missing(client, node):
 def test_header_seq_counts_as_rospy_publishers_count(client, node):
     """A client's header.seq is replaced by the publisher's count (1, 2, 3, ...), as rospy does for its nodes."""
     from geometry_msgs.msg import PointStamped
+
     got = []
     sub = node.Subscriber("/bridge_test/seq", PointStamped, got.append)
     topic = roslibpy.Topic(client, "/bridge_test/seq", "geometry_msgs/PointStamped")
@@ -126,10 +131,10 @@ def test_header_seq_counts_as_rospy_publishers_count(client, node):
     def received():
         topic.publish(roslibpy.Message({"header": {"seq": 77, "stamp": stamp, "frame_id": "first"}}))
         return got
+
     wait_for(received, 20, interval=0.2, what="the first point")
     for n in range(3):
-        topic.publish(roslibpy.Message({"header": {"seq": 77, "stamp": stamp, "frame_id": f"p{n}"},
-                                        "point": {"x": n}}))
+        topic.publish(roslibpy.Message({"header": {"seq": 77, "stamp": stamp, "frame_id": f"p{n}"}, "point": {"x": n}}))
     wait_for(lambda: got[-1].header.frame_id == "p2", 10, what="three more points")
     sub.unregister()
     seqs = [m.header.seq for m in got]
@@ -179,13 +184,17 @@ def test_rosapi_is_answered_inside_the_bridge(client, turtlesim):
 
 def test_client_count_counts_connections(bridge, client, node):
     from std_msgs.msg import Int32
+
     through_bridge = []
     roslibpy.Topic(client, "/client_count", "std_msgs/Int32").subscribe(lambda m: through_bridge.append(m["data"]))
     wait_for(lambda: through_bridge, 20, what="the latched client count through the bridge")
     # other bridges on this master (other test modules) publish their own counts: keep this bridge's only
     counts = []
-    sub = node.Subscriber("/client_count", Int32, lambda m: m._connection_header["callerid"] == "/rosbridge_websocket"
-                          and counts.append(m.data))
+    sub = node.Subscriber(
+        "/client_count",
+        Int32,
+        lambda m: m._connection_header["callerid"] == "/rosbridge_websocket" and counts.append(m.data),
+    )
     try:
         wait_for(lambda: counts, 20, what="the latched client count")
         before = counts[-1]
@@ -201,6 +210,7 @@ def test_client_count_counts_connections(bridge, client, node):
 
 def test_rospy_service_called_and_bad_args_refused(client, node):
     from std_srvs.srv import SetBool, SetBoolResponse
+
     server = node.Service("/bridge_test/set_bool", SetBool, lambda req: SetBoolResponse(req.data, "ok"))
     try:
         assert call(client, "/bridge_test/set_bool", {"data": True}) == {"success": True, "message": "ok"}
@@ -213,6 +223,7 @@ def test_rospy_service_called_and_bad_args_refused(client, node):
 
 def test_subscribe_receives_from_rospy_publisher(client, node):
     from std_msgs.msg import Int32
+
     pub = node.Publisher("/bridge_test/numbers", Int32, queue_size=10)
     got = []
     roslibpy.Topic(client, "/bridge_test/numbers", "std_msgs/Int32").subscribe(lambda m: got.append(m["data"]))
@@ -240,10 +251,13 @@ def test_first_message_after_advertise_reaches_subscribers(client, node):
     """roslibjs/roslibpy advertise and publish at once, before subscribers have connected to the bridge's new
     publisher: the message must still arrive (a page's first Publish must move the turtle)."""
     from std_msgs.msg import String
+
     received = []
     sub = node.Subscriber("/bridge_test/first_message", String, lambda m: received.append(m.data))
     try:
-        roslibpy.Topic(client, "/bridge_test/first_message", "std_msgs/String").publish(roslibpy.Message({"data": "first"}))
+        roslibpy.Topic(client, "/bridge_test/first_message", "std_msgs/String").publish(
+            roslibpy.Message({"data": "first"})
+        )
         wait_for(lambda: received, 10, what="the first message")
         assert received == ["first"]
     finally:

@@ -3,6 +3,7 @@ packet, frames cut anywhere (in the header, the mask, the payload), a payload la
 fragmented message with a ping between its fragments, frames sent with the handshake. What a client sees:
 every message arrives whole, in order, and the ping is answered with its own payload. And what breaks the
 protocol ends that connection as RFC 6455 says; a client over its frame budget is slowed down, not cut off."""
+
 import json
 import random
 import struct
@@ -41,15 +42,17 @@ def client_bytes():
     big = "".join(random.choice("abcdefghij") for _ in range(BIG))
     split = publish("in fragments")
     parts = [split[:10], split[10:25], split[25:]]
-    stream = b"".join([
-        RawWebSocket.frame(publish("first")),
-        RawWebSocket.frame(publish(big)),
-        RawWebSocket.frame(parts[0], fin=False),
-        RawWebSocket.frame(b"are you there", opcode=0x9),
-        RawWebSocket.frame(parts[1], opcode=0x0, fin=False),
-        RawWebSocket.frame(parts[2], opcode=0x0),
-        RawWebSocket.frame(publish("last")),
-    ])
+    stream = b"".join(
+        [
+            RawWebSocket.frame(publish("first")),
+            RawWebSocket.frame(publish(big)),
+            RawWebSocket.frame(parts[0], fin=False),
+            RawWebSocket.frame(b"are you there", opcode=0x9),
+            RawWebSocket.frame(parts[1], opcode=0x0, fin=False),
+            RawWebSocket.frame(parts[2], opcode=0x0),
+            RawWebSocket.frame(publish("last")),
+        ]
+    )
     return stream, ["first", big, "in fragments", "last"]
 
 
@@ -58,14 +61,18 @@ def pieces(data, sizes):
     at, index = 0, 0
     while at < len(data):
         size = sizes[index % len(sizes)]
-        yield data[at:at + size]
+        yield data[at : at + size]
         at, index = at + size, index + 1
 
 
-@pytest.mark.parametrize("sizes", [None, [1], [3, 7, 1, 2], [5000, 70_000, 13]],
-                         ids=["one-write", "byte-by-byte-start", "tiny-pieces", "odd-pieces"])
+@pytest.mark.parametrize(
+    "sizes",
+    [None, [1], [3, 7, 1, 2], [5000, 70_000, 13]],
+    ids=["one-write", "byte-by-byte-start", "tiny-pieces", "odd-pieces"],
+)
 def test_frames_are_read_whole_whatever_pieces_they_come_in(ros, port, node, sizes):
     from std_msgs.msg import String
+
     got = []
     sub = node.Subscriber(TOPIC, String, lambda m: got.append(m.data))
     client = RawWebSocket(port)
@@ -90,15 +97,18 @@ def test_frames_are_read_whole_whatever_pieces_they_come_in(ros, port, node, siz
 
 def test_frames_sent_with_the_handshake_are_read(port, node):
     from std_msgs.msg import String
+
     got = []
     sub = node.Subscriber(TOPIC, String, lambda m: got.append(m.data))
     client = RawWebSocket(port, early=ADVERTISE + RawWebSocket.frame(b"are you there", opcode=0x9))
     try:
         assert client.recv_frame() == (0xA, b"are you there")
+
         def delivered():  # (again until the link is up: what is published before is not delivered)
             client.sock.sendall(RawWebSocket.frame(publish("after the handshake")))
             time.sleep(0.1)
             return got
+
         wait_for(delivered, 20, what="the message")
         assert set(got) == {"after the handshake"}
     finally:
@@ -116,16 +126,20 @@ def test_a_close_frame_is_answered_with_its_code_and_the_connection_closed(port)
         client.close()
 
 
-@pytest.mark.parametrize("frame", [
-    RawWebSocket.frame(b"\xff\xfe not UTF-8"),
-    bytes([0x80 | 0x40 | 0x1]) + RawWebSocket.frame(b"{}")[1:],  # a reserved bit no extension was agreed for
-    RawWebSocket.frame(b"x" * 200, opcode=0x9),  # a control frame longer than 125 bytes
-    RawWebSocket.frame(b"ping", opcode=0x9, fin=False),  # a fragmented control frame
-    RawWebSocket.frame(b"nothing to continue", opcode=0x0),
-    # after a turn's worth of frames (budget.FRAMES_PER_TURN) the rest is taken a moment later, from a timer
-    b"".join(RawWebSocket.frame(b"%d" % i, opcode=0x9) for i in range(40))
-    + RawWebSocket.frame(struct.pack("!H", 1000) + b"\xff reason", opcode=0x8),
-], ids=["bad-utf8", "reserved-bit", "long-ping", "fragmented-ping", "stray-continuation", "bad-close-after-a-turn"])
+@pytest.mark.parametrize(
+    "frame",
+    [
+        RawWebSocket.frame(b"\xff\xfe not UTF-8"),
+        bytes([0x80 | 0x40 | 0x1]) + RawWebSocket.frame(b"{}")[1:],  # a reserved bit no extension was agreed for
+        RawWebSocket.frame(b"x" * 200, opcode=0x9),  # a control frame longer than 125 bytes
+        RawWebSocket.frame(b"ping", opcode=0x9, fin=False),  # a fragmented control frame
+        RawWebSocket.frame(b"nothing to continue", opcode=0x0),
+        # after a turn's worth of frames (budget.FRAMES_PER_TURN) the rest is taken a moment later, from a timer
+        b"".join(RawWebSocket.frame(b"%d" % i, opcode=0x9) for i in range(40))
+        + RawWebSocket.frame(struct.pack("!H", 1000) + b"\xff reason", opcode=0x8),
+    ],
+    ids=["bad-utf8", "reserved-bit", "long-ping", "fragmented-ping", "stray-continuation", "bad-close-after-a-turn"],
+)
 def test_a_broken_frame_ends_that_connection_only(port, frame):
     other = RawWebSocket(port)
     client = RawWebSocket(port)
@@ -159,6 +173,7 @@ def slow_port(ros):
 
 def test_a_client_over_its_frame_budget_is_slowed_and_loses_nothing(ros, slow_port, node):
     from std_msgs.msg import String
+
     got, topic = [], "/frame_reading/budget"
     sub = node.Subscriber(topic, String, lambda m: got.append(m.data))
     client, other = RawWebSocket(slow_port), RawWebSocket(slow_port)
@@ -173,9 +188,13 @@ def test_a_client_over_its_frame_budget_is_slowed_and_loses_nothing(ros, slow_po
         other.sock.sendall(RawWebSocket.frame(b"meanwhile", opcode=0x9))
         assert other.recv_frame() == (0xA, b"meanwhile")
         answered = time.monotonic() - started
-        wait_for(lambda: len(got) >= len(expected), 20,
-                 what=lambda: f"every message on the topic: {len(got)} came, missing "
-                              f"{sorted(set(expected) - set(got), key=int)[:20]}")
+        wait_for(
+            lambda: len(got) >= len(expected),
+            20,
+            what=lambda: (
+                f"every message on the topic: {len(got)} came, missing {sorted(set(expected) - set(got), key=int)[:20]}"
+            ),
+        )
         took = time.monotonic() - started
         assert got == expected
         assert took > 1.5 and answered < 0.5, (took, answered)  # 100 at once, then 100 a second

@@ -1,4 +1,5 @@
 """Launch options: authentication (rosauth MAC), origin allow-list, address binding, the web page, wss."""
+
 import asyncio
 import hashlib
 import socket
@@ -24,8 +25,14 @@ def mac(client, dest, rand, t, level, end, secret=SECRET):
 
 def auth_frame(**changes):
     now = time.time()
-    fields = {"client": "192.168.1.101", "dest": "192.168.1.111", "rand": "xyzzy", "t": now, "level": "admin",
-              "end": now + 60}
+    fields = {
+        "client": "192.168.1.101",
+        "dest": "192.168.1.111",
+        "rand": "xyzzy",
+        "t": now,
+        "level": "admin",
+        "end": now + 60,
+    }
     fields["mac"] = mac(**fields)
     return {"op": "auth", **fields, **changes}
 
@@ -51,12 +58,16 @@ def test_valid_mac_opens_every_op(auth_bridge):
     ws.close()
 
 
-@pytest.mark.parametrize("frame", [
-    {"op": "subscribe", "topic": "/rosout", "type": "rosgraph_msgs/Log", "id": "x"},
-    'junk{"op": "subscribe", "topic": "/rosout", "type": "rosgraph_msgs/Log", "id": "x"}',
-    {"op": "call_service", "service": "/rosapi/topics", "id": "x"},
-    b'{"op": "subscribe", "topic": "/rosout", "type": "rosgraph_msgs/Log"}',
-], ids=["op", "junk-before-json", "rosapi", "binary"])
+@pytest.mark.parametrize(
+    "frame",
+    [
+        {"op": "subscribe", "topic": "/rosout", "type": "rosgraph_msgs/Log", "id": "x"},
+        'junk{"op": "subscribe", "topic": "/rosout", "type": "rosgraph_msgs/Log", "id": "x"}',
+        {"op": "call_service", "service": "/rosapi/topics", "id": "x"},
+        b'{"op": "subscribe", "topic": "/rosout", "type": "rosgraph_msgs/Log"}',
+    ],
+    ids=["op", "junk-before-json", "rosapi", "binary"],
+)
 def test_nothing_runs_before_auth(auth_bridge, frame):
     ws = WsClient(auth_bridge)
     ws.send(frame)
@@ -68,14 +79,18 @@ def test_nothing_runs_before_auth(auth_bridge, frame):
 
 
 # (made when the test runs: a frame made at collection would be out of auth_time_delta, refused for its time)
-@pytest.mark.parametrize("make_frame", [
-    lambda: auth_frame(mac="0" * 128),
-    lambda: auth_frame(level="superuser"),  # the MAC covers the level
-    lambda: auth_frame(t=time.time() - 3600),  # too old (and the MAC no longer matches)
-    lambda: {k: v for k, v in auth_frame().items() if k != "rand"},
-    lambda: {**auth_frame(), "t": "now"},
-    lambda: {**auth_frame(), "extra": 1},
-], ids=["bad-mac", "changed-level", "old", "missing-field", "wrong-type", "extra-field"])
+@pytest.mark.parametrize(
+    "make_frame",
+    [
+        lambda: auth_frame(mac="0" * 128),
+        lambda: auth_frame(level="superuser"),  # the MAC covers the level
+        lambda: auth_frame(t=time.time() - 3600),  # too old (and the MAC no longer matches)
+        lambda: {k: v for k, v in auth_frame().items() if k != "rand"},
+        lambda: {**auth_frame(), "t": "now"},
+        lambda: {**auth_frame(), "extra": 1},
+    ],
+    ids=["bad-mac", "changed-level", "old", "missing-field", "wrong-type", "extra-field"],
+)
 def test_bad_auth_is_refused_and_closes(auth_bridge, make_frame):
     ws = WsClient(auth_bridge)
     ws.send(make_frame())
@@ -147,6 +162,7 @@ def test_http_get_serves_the_page_and_its_files(plain_bridge):
         page = response.read().decode()
         assert response.headers["Content-Type"].startswith("text/html")
     from harness import REPO
+
     assert page == (REPO / "web" / "index.html").read_text()
     assert urllib.request.urlopen(base + "/index.html", timeout=10).read().decode() == page
     with pytest.raises(urllib.error.HTTPError, match="404"):
@@ -167,8 +183,26 @@ def test_web_root_off(ros):
 
 def test_wss(ros, tmp_path):
     cert, key = tmp_path / "cert.pem", tmp_path / "key.pem"
-    subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "1", "-subj",
-                    "/CN=127.0.0.1", "-keyout", str(key), "-out", str(cert)], check=True, capture_output=True)
+    subprocess.run(
+        [
+            "openssl",
+            "req",
+            "-x509",
+            "-newkey",
+            "rsa:2048",
+            "-nodes",
+            "-days",
+            "1",
+            "-subj",
+            "/CN=127.0.0.1",
+            "-keyout",
+            str(key),
+            "-out",
+            str(cert),
+        ],
+        check=True,
+        capture_output=True,
+    )
     proc, port = launch_bridge(ros, node_name="wss_bridge", ssl="true", certfile=cert, keyfile=key)
     try:
         context = ssl.create_default_context(cafile=str(cert))
@@ -181,8 +215,9 @@ def test_wss(ros, tmp_path):
 def test_deflated_frames_count_against_the_byte_budget_as_what_they_unpack_to(ros):
     # a 100 KB message of one repeated character deflates to a few hundred bytes: counted as sent, 30 of them
     # would pass a 1 MB/s budget at once
-    proc, port = launch_bridge(ros, node_name="deflate_budget_bridge", use_compression="true",
-                              max_bytes_per_second=1_000_000)
+    proc, port = launch_bridge(
+        ros, node_name="deflate_budget_bridge", use_compression="true", max_bytes_per_second=1_000_000
+    )
     try:
         ws = WsClient(f"ws://127.0.0.1:{port}/", compression_options={})
         assert ws.conn.protocol._compressor is not None  # permessage-deflate was negotiated
@@ -198,6 +233,7 @@ def test_deflated_frames_count_against_the_byte_budget_as_what_they_unpack_to(ro
 
 def test_compression_and_delay_between_messages(ros, node):
     from std_msgs.msg import String
+
     proc, port = launch_bridge(ros, node_name="deflate_bridge", use_compression="true", delay_between_messages=0.05)
     pub = node.Publisher("/options_test/deflate", String, queue_size=10, latch=True)
     pub.publish(String("squeeze me " * 100))
@@ -228,8 +264,10 @@ def test_pings_keep_alive_and_drop_a_silent_peer(ros):
         assert ping(answering)  # still served
         answering.close()
         with socket.create_connection(("127.0.0.1", port), timeout=10) as silent:
-            silent.sendall(b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
-                           b"Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n")
+            silent.sendall(
+                b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                b"Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n"
+            )
             received = b""
             started = time.monotonic()
             while chunk := silent.recv(4096):  # until the bridge closes the socket
@@ -243,12 +281,15 @@ def test_pings_keep_alive_and_drop_a_silent_peer(ros):
         proc.stop()
 
 
-@pytest.mark.parametrize("setting, value, must", [
-    ("websocket_ping_timeout", "0", "above 0"),  # (it stopped the bridge with PeriodicCallback's ValueError)
-    ("websocket_ping_timeout", "-1", "above 0"),
-    ("websocket_ping_interval", "-1", "0 or more"),  # (each client's connection failed with that ValueError)
-    ("fragment_timeout", "0", "above 0"),  # (every websocket message not whole in one read would be dropped)
-])
+@pytest.mark.parametrize(
+    "setting, value, must",
+    [
+        ("websocket_ping_timeout", "0", "above 0"),  # (it stopped the bridge with PeriodicCallback's ValueError)
+        ("websocket_ping_timeout", "-1", "above 0"),
+        ("websocket_ping_interval", "-1", "0 or more"),  # (each client's connection failed with that ValueError)
+        ("fragment_timeout", "0", "above 0"),  # (every websocket message not whole in one read would be dropped)
+    ],
+)
 def test_a_setting_out_of_its_range_stops_the_node_at_start_naming_it(ros, setting, value, must):
     node_name = f"bad_{setting}{value}".replace("-", "minus")
     for name, given in {"port": 0, "address": "127.0.0.1", setting: value}.items():

@@ -2,6 +2,7 @@
 clients at once against a real bridge on the private roscore. The bridge must stay up with bounded memory,
 answer every bad frame with one `status` error (carrying the frame's id when it had a usable one), answer
 every service call, and still publish and subscribe afterwards on the fuzzed connection and on a fresh one."""
+
 import asyncio
 import json
 import random
@@ -45,6 +46,7 @@ def generate(rng, client):
         def register(fn):
             makers.append((weight, fn))
             return fn
+
         return register
 
     def junk_text(n):
@@ -56,34 +58,47 @@ def generate(rng, client):
 
     @maker(5)
     def get_time(i):
-        return Plan({"op": "call_service", "service": "/rosapi/get_time", "id": f"{client}:{i}"},
-                    ("response", f"{client}:{i}", True))
+        return Plan(
+            {"op": "call_service", "service": "/rosapi/get_time", "id": f"{client}:{i}"},
+            ("response", f"{client}:{i}", True),
+        )
 
     @maker(3)
     def missing_service(i):
-        return Plan({"op": "call_service", "service": f"/fuzz/none_{i}", "id": f"{client}:{i}"},
-                    ("response", f"{client}:{i}", False))
+        return Plan(
+            {"op": "call_service", "service": f"/fuzz/none_{i}", "id": f"{client}:{i}"},
+            ("response", f"{client}:{i}", False),
+        )
 
     @maker(3)
     def subscribe_unsubscribe(i):
         op = rng.choice(["subscribe", "unsubscribe"])
-        return Plan({"op": op, "topic": "/fuzz/sub", "type": "std_msgs/String"} if op == "subscribe"
-                    else {"op": op, "topic": "/fuzz/sub"}, None)
+        return Plan(
+            {"op": op, "topic": "/fuzz/sub", "type": "std_msgs/String"}
+            if op == "subscribe"
+            else {"op": op, "topic": "/fuzz/sub"},
+            None,
+        )
 
     @maker(2)
     def fragmented_call(i):
         text = json.dumps({"op": "call_service", "service": "/rosapi/get_time", "id": f"{client}:{i}"})
         cut = rng.randint(1, len(text) - 1)
         parts = [text[:cut], text[cut:]]
-        return [Plan({"op": "fragment", "id": f"frag:{client}:{i}", "data": part, "num": n, "total": 2}, None)
-                for n, part in enumerate(parts)][:-1] + [
-            Plan({"op": "fragment", "id": f"frag:{client}:{i}", "data": parts[1], "num": 1, "total": 2},
-                 ("response", f"{client}:{i}", True))]
+        return [
+            Plan({"op": "fragment", "id": f"frag:{client}:{i}", "data": part, "num": n, "total": 2}, None)
+            for n, part in enumerate(parts)
+        ][:-1] + [
+            Plan(
+                {"op": "fragment", "id": f"frag:{client}:{i}", "data": parts[1], "num": 1, "total": 2},
+                ("response", f"{client}:{i}", True),
+            )
+        ]
 
     @maker(6)
     def truncated_json(i):
         text = json.dumps({**valid_publish, "id": f"{client}:{i}"})
-        return Plan(text[:rng.randint(0, len(text) - 1)], ("error", None))
+        return Plan(text[: rng.randint(0, len(text) - 1)], ("error", None))
 
     @maker(4)
     def junk(i):
@@ -91,32 +106,54 @@ def generate(rng, client):
 
     @maker(3)
     def not_an_object(i):
-        return Plan(rng.choice(["42", '"op"', "[1,2]", "null", "true", "-1e999", '[{"op":"publish"}]']),
-                    ("error", None))
+        return Plan(
+            rng.choice(["42", '"op"', "[1,2]", "null", "true", "-1e999", '[{"op":"publish"}]']), ("error", None)
+        )
 
     @maker(6)
     def unknown_op(i):
-        return Plan({"op": rng.choice(["", "PUBLISH", "pub", "status", "\u00fcber", "x" * 500]),
-                     "id": f"{client}:{i}"}, ("error", f"{client}:{i}"))
+        return Plan(
+            {"op": rng.choice(["", "PUBLISH", "pub", "status", "\u00fcber", "x" * 500]), "id": f"{client}:{i}"},
+            ("error", f"{client}:{i}"),
+        )
 
     @maker(10)
     def wrong_field(i):
-        op, field, value = rng.choice([
-            ("publish", "topic", 5), ("publish", "msg", "text"), ("publish", "msg", [1]),
-            ("subscribe", "topic", None), ("subscribe", "throttle_rate", "fast"),
-            ("subscribe", "queue_length", 1.5), ("subscribe", "compression", "zip"),
-            ("call_service", "args", "x"), ("call_service", "service", {"a": 1}),
-            ("advertise", "type", ["std_msgs/String"]), ("set_level", "level", "loud"),
-            ("fragment", "num", -1), ("png", "data", "not base64!"), ("advertise", "latch", "yes"),
-            ("unsubscribe", "bogus_field", 1), ("subscribe", "type", "no_such_pkg/Nothing"),
-            ("publish", "msg", {"data": 5}), ("publish", "msg", {"nope": "x"}),
-            ("advertise", "type", "geometry_msgs/Twist"),  # the bridge already publishes TOPIC as a String
-            ("call_service", "timeout", -1), ("subscribe", "fragment_size", 0)])
-        base = {"publish": {**valid_publish}, "subscribe": {"topic": "/fuzz/sub", "type": "std_msgs/String"},
-                "call_service": {"service": "/rosapi/get_time"}, "advertise": {"topic": TOPIC,
-                                                                               "type": "std_msgs/String"},
-                "set_level": {"level": "error"}, "fragment": {"data": "{}", "num": 0, "total": 1},
-                "png": {"data": ""}, "unsubscribe": {"topic": "/fuzz/sub"}}[op]
+        op, field, value = rng.choice(
+            [
+                ("publish", "topic", 5),
+                ("publish", "msg", "text"),
+                ("publish", "msg", [1]),
+                ("subscribe", "topic", None),
+                ("subscribe", "throttle_rate", "fast"),
+                ("subscribe", "queue_length", 1.5),
+                ("subscribe", "compression", "zip"),
+                ("call_service", "args", "x"),
+                ("call_service", "service", {"a": 1}),
+                ("advertise", "type", ["std_msgs/String"]),
+                ("set_level", "level", "loud"),
+                ("fragment", "num", -1),
+                ("png", "data", "not base64!"),
+                ("advertise", "latch", "yes"),
+                ("unsubscribe", "bogus_field", 1),
+                ("subscribe", "type", "no_such_pkg/Nothing"),
+                ("publish", "msg", {"data": 5}),
+                ("publish", "msg", {"nope": "x"}),
+                ("advertise", "type", "geometry_msgs/Twist"),  # the bridge already publishes TOPIC as a String
+                ("call_service", "timeout", -1),
+                ("subscribe", "fragment_size", 0),
+            ]
+        )
+        base = {
+            "publish": {**valid_publish},
+            "subscribe": {"topic": "/fuzz/sub", "type": "std_msgs/String"},
+            "call_service": {"service": "/rosapi/get_time"},
+            "advertise": {"topic": TOPIC, "type": "std_msgs/String"},
+            "set_level": {"level": "error"},
+            "fragment": {"data": "{}", "num": 0, "total": 1},
+            "png": {"data": ""},
+            "unsubscribe": {"topic": "/fuzz/sub"},
+        }[op]
         frame = {**base, "op": op, "id": f"{client}:{i}", field: value}
         if op == "fragment":
             frame["id"] = f"{client}:{i}"
@@ -125,18 +162,26 @@ def generate(rng, client):
     @maker(4)
     def hostile_numbers(i):
         # (number, what an unknown op / a throttle_rate / a timeout with it must bring back)
-        number, *outcomes = rng.choice([
-            ("NaN", ("error", None), "error", "error"), ("Infinity", ("error", None), "error", "response"),
-            ("-Infinity", ("error", None), "error", "error"), ("1e999", ("error", None), "error", "response"),
-            ("1" * 4400, ("error", None), ("error", None), ("error", None)),  # over Python's int digit limit
-            ("-0", ("error", 0), None, "error")])
-        templates = ['{"op":"nope","id":%s}',
-                     '{"op":"subscribe","topic":"/fuzz/sub","id":"ID","type":"std_msgs/String","throttle_rate":%s}',
-                     '{"op":"call_service","service":"/rosapi/get_time","id":"ID","timeout":%s}']
+        number, *outcomes = rng.choice(
+            [
+                ("NaN", ("error", None), "error", "error"),
+                ("Infinity", ("error", None), "error", "response"),
+                ("-Infinity", ("error", None), "error", "error"),
+                ("1e999", ("error", None), "error", "response"),
+                ("1" * 4400, ("error", None), ("error", None), ("error", None)),  # over Python's int digit limit
+                ("-0", ("error", 0), None, "error"),
+            ]
+        )
+        templates = [
+            '{"op":"nope","id":%s}',
+            '{"op":"subscribe","topic":"/fuzz/sub","id":"ID","type":"std_msgs/String","throttle_rate":%s}',
+            '{"op":"call_service","service":"/rosapi/get_time","id":"ID","timeout":%s}',
+        ]
         which = rng.randrange(3)
         frame_id = f"{client}:{i}"
         expect = {"error": ("error", frame_id), "response": ("response", frame_id, True)}.get(
-            outcomes[which], outcomes[which])
+            outcomes[which], outcomes[which]
+        )
         return Plan((templates[which] % number).replace("ID", frame_id), expect)
 
     @maker(2)
@@ -147,8 +192,16 @@ def generate(rng, client):
 
     @maker(2)
     def oversize(i):
-        return Plan(json.dumps({**valid_publish, "msg": {"data": "z" * (MAX_MESSAGE_SIZE + rng.randint(1, 5000))},
-                                "id": f"{client}:{i}"}), ("error", None))
+        return Plan(
+            json.dumps(
+                {
+                    **valid_publish,
+                    "msg": {"data": "z" * (MAX_MESSAGE_SIZE + rng.randint(1, 5000))},
+                    "id": f"{client}:{i}",
+                }
+            ),
+            ("error", None),
+        )
 
     @maker(3)
     def binary(i):
@@ -160,8 +213,7 @@ def generate(rng, client):
     @maker(2)
     def unicode_names(i):
         name = rng.choice(["/fuzz/\u00e9t\u00e9", "/fuzz/\u4e2d", "/fuzz/\U0001f600", "/fuzz/a b", "/fuzz//x", "~x"])
-        return Plan({"op": "subscribe", "topic": name, "type": "std_msgs/String", "id": f"{client}:{i}"},
-                    "maybe-error")
+        return Plan({"op": "subscribe", "topic": name, "type": "std_msgs/String", "id": f"{client}:{i}"}, "maybe-error")
 
     weights = [w for w, _ in makers]
     plans = [Plan({"op": "advertise", "topic": TOPIC, "type": "std_msgs/String"}, None)]
@@ -193,7 +245,7 @@ async def fuzz_one_client(url, name, plans, deadline):
     conn = await websocket_connect(url, max_message_size=64 * 1024 * 1024)
     stats = {"frames": 0, "errors": 0, "responses": 0, "maybe_errors": 0}
     for start in range(0, len(plans), BATCH):
-        batch = plans[start:start + BATCH]
+        batch = plans[start : start + BATCH]
         errors_with_id, responses, idless, maybe = {}, {}, 0, 0
         for plan in batch:
             await conn.write_message(encode(plan.frame), binary=isinstance(plan.frame, bytes))
@@ -215,8 +267,10 @@ async def fuzz_one_client(url, name, plans, deadline):
         responses[marker] = False
         while responses or errors_with_id or idless > 0:
             remaining = deadline - time.monotonic()
-            assert remaining > 0, (f"batch at {start}: still waiting for responses {sorted(responses)[:5]}, "
-                                   f"errors {sorted(errors_with_id)[:5]}, {idless} id-less errors")
+            assert remaining > 0, (
+                f"batch at {start}: still waiting for responses {sorted(responses)[:5]}, "
+                f"errors {sorted(errors_with_id)[:5]}, {idless} id-less errors"
+            )
             raw = await asyncio.wait_for(conn.read_message(), remaining)
             assert raw is not None, f"the bridge closed the connection during batch {start}"
             frame = json.loads(raw)
@@ -251,7 +305,7 @@ async def fuzz_one_client(url, name, plans, deadline):
         await conn.write_message(json.dumps({"op": "publish", "topic": echo, "msg": {"data": "echo"}}))
         try:
             raw = await asyncio.wait_for(conn.read_message(), 0.5)
-        except asyncio.TimeoutError:
+        except TimeoutError:
             continue
         assert raw is not None, "the bridge closed the fuzzed connection"
         frame = json.loads(raw)
@@ -265,6 +319,7 @@ async def fuzz_one_client(url, name, plans, deadline):
 
 def test_ten_thousand_fuzzed_frames_leave_the_bridge_working(ros, node, fuzz_bridge):
     from std_msgs.msg import String
+
     proc, port = fuzz_bridge
     url = f"ws://127.0.0.1:{port}/"
     bridge = ProcStat(node_pid(ros, "/fuzz_bridge"))
@@ -304,7 +359,7 @@ def test_ten_thousand_fuzzed_frames_leave_the_bridge_working(ros, node, fuzz_bri
             pub.publish(String("back to you"))
             try:
                 frame = client.recv(timeout=0.5)
-            except asyncio.TimeoutError:
+            except TimeoutError:
                 return False
             return got and frame["op"] == "publish" and frame["msg"] == {"data": "back to you"}
 

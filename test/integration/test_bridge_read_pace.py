@@ -1,6 +1,7 @@
 """A publisher that keeps sending faster than read_pace.COALESCE_RATE is read in batches, once per window, through a
 real bridge: the bridge's event loop waits (and wakes) far fewer times than there are messages, and its client
 still gets every message, in order."""
+
 import json
 import threading
 from pathlib import Path
@@ -25,6 +26,7 @@ def loop_waits(pid):
 
 def test_a_fast_publisher_is_read_in_batches_and_every_message_arrives_in_order(bridge, ros, node):
     from std_msgs.msg import Int32
+
     topic = "/pace/fast"
     client = RawWebSocket(bridge, recv_buffer=1 << 20)
     client.send_text(json.dumps({"op": "subscribe", "topic": topic, "type": "std_msgs/Int32"}))
@@ -38,6 +40,7 @@ def test_a_fast_publisher_is_read_in_batches_and_every_message_arrives_in_order(
             got.append(json.loads(payload)["msg"]["data"])
             if len(got) == COUNT:
                 return
+
     reader = threading.Thread(target=read, daemon=True)
     try:
         wait_publisher_connected(ros, node.get_name(), topic, "/pace_bridge")

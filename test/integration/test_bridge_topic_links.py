@@ -1,6 +1,7 @@
 """The bridge's own TCPROS connections (ros_side/links.py) against nodes that misbehave the way networks and
 nodes do: a publisher that drops the bridge's first connection before answering (rospy tries again; so must
 the bridge), one that refuses it, a subscriber that stops reading."""
+
 import socket
 import struct
 import threading
@@ -11,11 +12,11 @@ from xmlrpc.server import SimpleXMLRPCServer
 import pytest
 from std_msgs.msg import String
 
-from bridge_client import WsClient
-from harness import ProcStat, node_pid, start_bridge, wait_for, wait_publisher_connected
-
 from rosbridge.ros_side import tcpros
 from rosbridge.ros_side.links import LINK_QUEUE_BYTES
+
+from bridge_client import WsClient
+from harness import ProcStat, node_pid, start_bridge, wait_for, wait_publisher_connected
 
 
 @pytest.fixture(scope="module")
@@ -61,9 +62,17 @@ class FakePublisher:
                 if self.refuse:
                     conn.sendall(tcpros.encode_header({"error": "not today"}))
                     continue
-                conn.sendall(tcpros.encode_header(
-                    tcpros.publisher_reply({"topic": self.topic, "md5sum": String._md5sum, "callerid": "/x"},
-                                           self.topic, String, False, self.name)))
+                conn.sendall(
+                    tcpros.encode_header(
+                        tcpros.publisher_reply(
+                            {"topic": self.topic, "md5sum": String._md5sum, "callerid": "/x"},
+                            self.topic,
+                            String,
+                            False,
+                            self.name,
+                        )
+                    )
+                )
                 conn.sendall(tcpros.frame(struct.pack("<I", 5) + b"hello"))
                 conn.recv(1)  # until the bridge leaves
 

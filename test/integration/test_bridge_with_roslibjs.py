@@ -1,5 +1,6 @@
 """The bridge with roslibjs run by Node: 1.x (the page's version) and 2.x (npm's current), both pinned by
 test/js/package.json and installed by tools/setup --test."""
+
 import json
 import math
 import shutil
@@ -14,7 +15,8 @@ VERSIONS = ["roslib1", "roslib2"]
 
 pytestmark = pytest.mark.skipif(
     not shutil.which("node") or not (CLIENTS / "node_modules" / "roslib2").is_dir(),
-    reason="node and test/js/node_modules are installed by tools/setup --test")
+    reason="node and test/js/node_modules are installed by tools/setup --test",
+)
 
 
 @pytest.fixture(scope="module")
@@ -49,6 +51,7 @@ def run_roslibjs(ros, roslib, url, *steps):
 
 def test_roslibjs_subscribes_publishes_and_calls(ros, roslib, url, node):
     from turtlesim.msg import Pose
+
     ros.run(["rosservice", "call", "/kill", "js_turtle"], check=False)  # (spawned by the other version's run)
     out = run_roslibjs(ros, roslib, url, "pose", "topics", "drive", "spawn", "clear", "missing", "params")
     start = out["pose"]["pose"]
@@ -62,8 +65,7 @@ def test_roslibjs_subscribes_publishes_and_calls(ros, roslib, url, node):
     assert out["params"]["value"] == {"answer": 42, "list": [1, "two"]}
 
 
-@pytest.mark.parametrize("step, service", [("serve", "/js_test/flip"),
-                                           ("serve-relative", "/js_test/relative_flip")])
+@pytest.mark.parametrize("step, service", [("serve", "/js_test/flip"), ("serve-relative", "/js_test/relative_flip")])
 def test_roslibjs_provides_a_service_to_ros(ros, roslib, url, step, service):
     proc = start_roslibjs(ros, roslib, url, step)
     wait_for(lambda: "serve-ready" in results(proc), 30, what="roslibjs to advertise")
@@ -79,6 +81,7 @@ def test_roslibjs_simple_example(ros, roslib, url, node):
     from geometry_msgs.msg import Twist
     from std_msgs.msg import String
     from std_srvs.srv import SetBool, SetBoolResponse
+
     twists = []
     echo = node.Subscriber("/cmd_vel", Twist, twists.append)
     talker = node.Publisher("/listener", String, latch=True, queue_size=1)

@@ -3,6 +3,7 @@ published from this process, HTTP clients. What many requests cost: the bridge's
 the CPU of requests gone before their answer, another client's round trips while clouds of padded rows are
 decimated in a loop; a frame id that a header cannot carry as it is; and many topic names that nobody
 publishes, or many cloud topics at once."""
+
 import ast
 import os
 import socket
@@ -40,11 +41,17 @@ def get(port, query, timeout=30):
 def padded_cloud(points, width=1, padding=1):
     """A cloud of `points` x, y float32 points in rows of `width` points, each row followed by `padding` bytes."""
     from sensor_msgs.msg import PointCloud2, PointField
+
     height = points // width
     row_step = width * 8 + padding
-    return PointCloud2(height=height, width=width, point_step=8, row_step=row_step, data=bytes(row_step * height),
-                       fields=[PointField(name=k, offset=o, datatype=PointField.FLOAT32, count=1)
-                               for k, o in (("x", 0), ("y", 4))])
+    return PointCloud2(
+        height=height,
+        width=width,
+        point_step=8,
+        row_step=row_step,
+        data=bytes(row_step * height),
+        fields=[PointField(name=k, offset=o, datatype=PointField.FLOAT32, count=1) for k, o in (("x", 0), ("y", 4))],
+    )
 
 
 @pytest.fixture(scope="module")
@@ -58,6 +65,7 @@ def bridge_proc(ros):
 def latched(node):
     """latched(topic, message): publishes message once, latched, until the module ends."""
     from sensor_msgs.msg import PointCloud2
+
     publishers = []
 
     def publish(topic, message):
@@ -65,6 +73,7 @@ def latched(node):
         publisher.publish(message)
         publishers.append(publisher)
         return topic
+
     yield publish
     for publisher in publishers:
         publisher.unregister()
@@ -100,8 +109,9 @@ def test_requests_that_leave_before_their_answer_cost_nothing_after(ros, bridge_
     cpu = stat.cpu_seconds()
     for stride in range(16, 136, 2):
         with socket.create_connection(("127.0.0.1", port)) as sock:
-            sock.sendall(f"GET /cloud?topic={topic}&max_points={points // stride} HTTP/1.1\r\n"
-                         "Host: 127.0.0.1\r\n\r\n".encode())
+            sock.sendall(
+                f"GET /cloud?topic={topic}&max_points={points // stride} HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n".encode()
+            )
     status, headers, _ = get(port, f"topic={topic}&max_points=100000")  # (after the others' jobs, if they are made)
     cpu = stat.cpu_seconds() - cpu
     print(f"the bridge's CPU: {cpu:.2f} s")
@@ -113,16 +123,22 @@ def test_requests_that_leave_before_their_answer_cost_nothing_after(ros, bridge_
 def decimations(port, topic, seconds, clients=2):
     """Requests of `topic`, each with a max_points of its own, from `clients` processes for `seconds`: how many
     were answered."""
-    code = ("import random, sys, time, urllib.request\n"
-            "port, topic, end = sys.argv[1], sys.argv[2], time.monotonic() + float(sys.argv[3])\n"
-            "n = 0\n"
-            "while time.monotonic() < end:\n"
-            "    url = f'http://127.0.0.1:{port}/cloud?topic={topic}&max_points={random.randint(1000, 200000)}'\n"
-            "    urllib.request.urlopen(url, timeout=60).read()\n"
-            "    n += 1\n"
-            "print(n)\n")
-    runs = [subprocess.Popen([sys.executable, "-c", code, str(port), topic, str(seconds)], stdout=subprocess.PIPE,
-                             text=True) for _ in range(clients)]
+    code = (
+        "import random, sys, time, urllib.request\n"
+        "port, topic, end = sys.argv[1], sys.argv[2], time.monotonic() + float(sys.argv[3])\n"
+        "n = 0\n"
+        "while time.monotonic() < end:\n"
+        "    url = f'http://127.0.0.1:{port}/cloud?topic={topic}&max_points={random.randint(1000, 200000)}'\n"
+        "    urllib.request.urlopen(url, timeout=60).read()\n"
+        "    n += 1\n"
+        "print(n)\n"
+    )
+    runs = [
+        subprocess.Popen(
+            [sys.executable, "-c", code, str(port), topic, str(seconds)], stdout=subprocess.PIPE, text=True
+        )
+        for _ in range(clients)
+    ]
     return sum(int(run.communicate(timeout=seconds + 120)[0]) for run in runs)
 
 
@@ -132,6 +148,7 @@ def test_decimating_padded_rows_does_not_hold_other_clients(ros, node, bridge_pr
     again: each such decimation held the loop 0.3-0.7 s; now 40-100 ms off it. A websocket client's poses and
     get_time calls go on meanwhile."""
     from sensor_msgs.msg import PointCloud2
+
     port, topic = bridge_proc[1], "/cloud_test/padded"
     cloud = padded_cloud(1_000_000)
     publishing = Publishing(node, topic, PointCloud2, lambda n: cloud, 2)
@@ -150,8 +167,10 @@ def test_decimating_padded_rows_does_not_hold_other_clients(ros, node, bridge_pr
     finally:
         publishing.stop()
     slowest = max(victim.call_times + victim.unanswered)
-    print(f"{answered} answers, the bridge's CPU {busy:.0%}; the victim's largest gap {gap:.3f} s at {gap_at:.2f} s "
-          f"(its own loop's stall {own_stall:.3f} s), slowest get_time {slowest:.3f} s")
+    print(
+        f"{answered} answers, the bridge's CPU {busy:.0%}; the victim's largest gap {gap:.3f} s at {gap_at:.2f} s "
+        f"(its own loop's stall {own_stall:.3f} s), slowest get_time {slowest:.3f} s"
+    )
     assert gap < VICTIM_MAX_GAP, f"the victim went {gap:.3f} s without a pose"
     assert slowest < VICTIM_MAX_CALL, f"a get_time took {slowest:.3f} s"
 
@@ -176,28 +195,33 @@ def unpublished_names(port, prefix, concurrency, seconds):
     (prefix + a number) that nobody publishes, from 4 addresses (127.0.0.2-5: an attacker beyond one address's
     share of connections), the first ones spread over a second (hundreds accepted at once hold the loop, whatever
     they ask). Its output: the requests made and their statuses."""
-    code = ("import asyncio, collections, itertools, sys, time\n"
-            "port, prefix, concurrency, end = sys.argv[1], sys.argv[2], int(sys.argv[3]), "
-            "time.monotonic() + float(sys.argv[4])\n"
-            "numbers, statuses = itertools.count(), collections.Counter()\n"
-            "async def requests(k):\n"
-            "    await asyncio.sleep(k / concurrency)\n"
-            "    address = f'127.0.0.{2 + k % 4}'\n"
-            "    while time.monotonic() < end:\n"
-            "        try:\n"
-            "            reader, writer = await asyncio.open_connection('127.0.0.1', port, local_addr=(address, 0))\n"
-            "            writer.write(f'GET /cloud?topic={prefix}{next(numbers)} HTTP/1.1\\r\\nHost: 127.0.0.1\\r\\n'\n"
-            "                         'Connection: close\\r\\n\\r\\n'.encode())\n"
-            "            statuses[(await asyncio.wait_for(reader.readline(), 60))[9:12].decode()] += 1\n"
-            "            writer.close()\n"
-            "        except (OSError, asyncio.TimeoutError) as error:\n"
-            "            statuses[type(error).__name__] += 1\n"
-            "async def main():\n"
-            "    await asyncio.gather(*(requests(k) for k in range(concurrency)))\n"
-            "asyncio.run(main())\n"
-            "print(sum(statuses.values()), dict(statuses))\n")
-    return subprocess.Popen([sys.executable, "-c", code, str(port), prefix, str(concurrency), str(seconds)],
-                            stdout=subprocess.PIPE, text=True)
+    code = (
+        "import asyncio, collections, itertools, sys, time\n"
+        "port, prefix, concurrency, end = sys.argv[1], sys.argv[2], int(sys.argv[3]), "
+        "time.monotonic() + float(sys.argv[4])\n"
+        "numbers, statuses = itertools.count(), collections.Counter()\n"
+        "async def requests(k):\n"
+        "    await asyncio.sleep(k / concurrency)\n"
+        "    address = f'127.0.0.{2 + k % 4}'\n"
+        "    while time.monotonic() < end:\n"
+        "        try:\n"
+        "            reader, writer = await asyncio.open_connection('127.0.0.1', port, local_addr=(address, 0))\n"
+        "            writer.write(f'GET /cloud?topic={prefix}{next(numbers)} HTTP/1.1\\r\\nHost: 127.0.0.1\\r\\n'\n"
+        "                         'Connection: close\\r\\n\\r\\n'.encode())\n"
+        "            statuses[(await asyncio.wait_for(reader.readline(), 60))[9:12].decode()] += 1\n"
+        "            writer.close()\n"
+        "        except (OSError, asyncio.TimeoutError) as error:\n"
+        "            statuses[type(error).__name__] += 1\n"
+        "async def main():\n"
+        "    await asyncio.gather(*(requests(k) for k in range(concurrency)))\n"
+        "asyncio.run(main())\n"
+        "print(sum(statuses.values()), dict(statuses))\n"
+    )
+    return subprocess.Popen(
+        [sys.executable, "-c", code, str(port), prefix, str(concurrency), str(seconds)],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
 
 
 def cloud_subscriptions(ros, prefix):
@@ -251,8 +275,10 @@ def test_names_nobody_publishes_do_not_hold_other_clients(ros, bridge_proc, turt
         victim.stop()
     calls = sorted(victim.call_times + victim.unanswered)
     slowest, p95 = calls[-1], calls[len(calls) * 95 // 100]
-    print(f"{made}; the victim's largest gap {gap:.3f} s at {gap_at:.2f} s (its own loop's stall {own_stall:.3f} s), "
-          f"get_time p95 {p95:.3f} s, slowest {slowest:.3f} s")
+    print(
+        f"{made}; the victim's largest gap {gap:.3f} s at {gap_at:.2f} s (its own loop's stall {own_stall:.3f} s), "
+        f"get_time p95 {p95:.3f} s, slowest {slowest:.3f} s"
+    )
     assert p95 < FLOOD_P95_CALL, f"get_time p95 {p95:.3f} s"
     assert slowest < FLOOD_MAX_STALL, f"a get_time took {slowest:.3f} s"
     assert gap < FLOOD_MAX_STALL, f"the victim went {gap:.3f} s without a pose"

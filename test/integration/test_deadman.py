@@ -1,6 +1,7 @@
 """The dead-man stop: when a client that has been driving (publishing geometry_msgs/Twist or TwistStamped)
 goes away - it closes, its connection drops, or it goes silent past deadman_timeout - the bridge publishes one
 zero message on each such topic it drove, so a real robot does not go on with its last command."""
+
 import json
 import time
 
@@ -41,13 +42,13 @@ def drive(ros, client_send, topic, type_name, recorder):
     client_send({"op": "advertise", "topic": topic, "type": type_name})
     wait_publisher_connected(ros, "/deadman_bridge", topic, _me())
     moving = {"linear": {"x": 2.0}, "angular": {"z": 1.0}}
-    client_send({"op": "publish", "topic": topic, "msg": moving if type_name.endswith("/Twist") else
-                 {"twist": moving}})
+    client_send({"op": "publish", "topic": topic, "msg": moving if type_name.endswith("/Twist") else {"twist": moving}})
     wait_for(lambda: any(_twist(msg)[0] == 2.0 for _, msg in recorder.got), 10, what="the moving command")
 
 
 def _me():
     import rospy
+
     return rospy.get_name()
 
 
@@ -89,6 +90,7 @@ def test_a_silent_driver_is_stopped_within_the_timeout_and_drives_again_when_hea
 
 def test_a_client_that_only_watches_or_publishes_other_types_stops_nothing(bridge, ros, node):
     from std_msgs.msg import String
+
     recorder = Recorder(node, "/deadman/chatter", String)
     ws = WsClient(f"ws://127.0.0.1:{bridge}/")
     ws.send({"op": "advertise", "topic": "/deadman/chatter", "type": "std_msgs/String"})

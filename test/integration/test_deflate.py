@@ -2,6 +2,7 @@
 (as every browser and roslibjs in Node do) gets its big messages deflated while its link is slow, whole, and as
 they are while it keeps up; a client that does not offer it is unchanged; the client's own compressed messages
 (each on its own: client_no_context_takeover) are taken."""
+
 import base64
 import json
 import threading
@@ -29,6 +30,7 @@ def read_in_background(client, rate, seconds):
     def read():
         for first, payload in paced_frames(client.sock, rate, seconds):
             got.append((time.monotonic(), first, payload))
+
     thread = threading.Thread(target=read, daemon=True)
     thread.start()
     return thread, got
@@ -57,8 +59,10 @@ def test_behind_a_slow_link_big_messages_arrive_deflated_and_whole_and_without_t
     plain = RawWebSocket(bridge, recv_buffer=65536)
     try:
         for client in (offering, plain):
-            for request in ({"op": "subscribe", "topic": "/deflate_slow/camera", "type": "sensor_msgs/Image"},
-                            {"op": "subscribe", "topic": "/deflate_slow/small", "type": "std_msgs/Float64"}):
+            for request in (
+                {"op": "subscribe", "topic": "/deflate_slow/camera", "type": "sensor_msgs/Image"},
+                {"op": "subscribe", "topic": "/deflate_slow/small", "type": "std_msgs/Float64"},
+            ):
                 client.send_text(json.dumps(request))
         rover.wait_connected()
         rover.start(seconds=10)
@@ -100,20 +104,25 @@ def test_the_clients_own_compressed_messages_are_taken(bridge, node):
     """A client that keeps no context between its messages, as agreed (browsers), and Tornado 6.2's client, which
     keeps it (its parser drops the answer's client_no_context_takeover)."""
     from std_msgs.msg import String
+
     received = []
     subscriber = node.Subscriber("/deflate_in", String, lambda msg: received.append(msg.data))
-    texts = {name: [f"{name} " * 10_000, f"{name} " * 10_000 + "again", "short " + name]  # (the second may point
-             for name in ("agreeing", "keeping")}                                         # back into the first)
+    texts = {
+        name: [f"{name} " * 10_000, f"{name} " * 10_000 + "again", "short " + name]  # (the second may point
+        for name in ("agreeing", "keeping")
+    }  # back into the first)
     agreeing = RawWebSocket(bridge, extensions=OFFER)
     keeping = WsClient(f"ws://127.0.0.1:{bridge}/", compression_options={})  # (compresses every message)
     try:
         assert agreeing.extensions == ANSWER and keeping.conn.headers.get("Sec-WebSocket-Extensions") == ANSWER
-        agreeing.send_text(json.dumps({"op": "advertise", "topic": "/deflate_in", "type": "std_msgs/String"}),
-                           deflated=True)
+        agreeing.send_text(
+            json.dumps({"op": "advertise", "topic": "/deflate_in", "type": "std_msgs/String"}), deflated=True
+        )
         wait_for(lambda: subscriber.get_num_connections(), 20, what="the bridge's publisher")
         for text in texts["agreeing"]:
-            agreeing.send_text(json.dumps({"op": "publish", "topic": "/deflate_in", "msg": {"data": text}}),
-                               deflated=True)
+            agreeing.send_text(
+                json.dumps({"op": "publish", "topic": "/deflate_in", "msg": {"data": text}}), deflated=True
+            )
         for text in texts["keeping"]:
             keeping.send({"op": "publish", "topic": "/deflate_in", "msg": {"data": text}})
         wait_for(lambda: len(received) >= 6, 20, what="the messages")

@@ -1,6 +1,7 @@
 """The demo's optional nodes beside turtlesim_node, run as a user runs them (rosrun): turtle_tf (world -> each
 turtle on /tf, the camera and lasers on /tf_static), turtle_laser (a LaserScan per turtle, its settings served by
 dynamic_reconfigure) and turtle_actions (each turtle's rotate_absolute action server)."""
+
 import math
 import threading
 import time
@@ -14,8 +15,10 @@ CENTRE = 5.544444561004639  # where turtle1 starts (m)
 
 @pytest.fixture(scope="module")
 def demo(ros):
-    procs = [ros.spawn(["rosrun", "turtlesim", name], name) for name in ("turtlesim_node", "turtle_tf",
-                                                                         "turtle_laser", "turtle_actions")]
+    procs = [
+        ros.spawn(["rosrun", "turtlesim", name], name)
+        for name in ("turtlesim_node", "turtle_tf", "turtle_laser", "turtle_actions")
+    ]
     yield
     for proc in procs:
         proc.stop()
@@ -29,12 +32,14 @@ def latest(node, topic, type_, predicate, timeout=20):
         if predicate(message):
             found.append(message)
         return bool(found)
+
     wait_for(look, timeout, what=f"a matching message on {topic}")
     return found[0]
 
 
 def test_tf_places_each_turtle_in_the_world_and_the_sensors_statically(demo, node):
     from tf2_msgs.msg import TFMessage
+
     tf = latest(node, "/tf", TFMessage, lambda m: any(t.child_frame_id == "turtle1" for t in m.transforms))
     turtle1 = next(t for t in tf.transforms if t.child_frame_id == "turtle1")
     assert turtle1.header.frame_id == "world"
@@ -42,11 +47,14 @@ def test_tf_places_each_turtle_in_the_world_and_the_sensors_statically(demo, nod
     assert turtle1.transform.rotation.w == pytest.approx(1.0)  # facing east
     static = latest(node, "/tf_static", TFMessage, lambda m: len(m.transforms) >= 2)
     assert {(t.header.frame_id, t.child_frame_id) for t in static.transforms} >= {
-        ("world", "turtle_camera"), ("turtle1", "turtle1/laser")}
+        ("world", "turtle_camera"),
+        ("turtle1", "turtle1/laser"),
+    }
 
 
 def test_the_laser_sees_the_walls_and_a_turtle_spawned_in_front(demo, node, ros):
     from sensor_msgs.msg import LaserScan
+
     scan = latest(node, "/turtle1/scan", LaserScan, lambda m: True)
     assert scan.header.frame_id == "turtle1/laser" and len(scan.ranges) == 360
     ahead = scan.ranges[round((0.0 - scan.angle_min) / scan.angle_increment)]
@@ -57,15 +65,21 @@ def test_the_laser_sees_the_walls_and_a_turtle_spawned_in_front(demo, node, ros)
     assert scan.ranges[index] == pytest.approx(8.0 - CENTRE - 0.45, abs=1e-3)
     assert not math.isinf(latest(node, "/turtle2/scan", LaserScan, lambda m: True).ranges[0])
     ros.run(["rosservice", "call", "/kill", "turtle2"])
-    wait_for(lambda: "/turtle2/scan" not in dict(ros.master().getPublishedTopics("")), 15,
-             what="turtle2's laser to go with it")
+    wait_for(
+        lambda: "/turtle2/scan" not in dict(ros.master().getPublishedTopics("")),
+        15,
+        what="turtle2's laser to go with it",
+    )
 
 
 # ---- the laser's settings (dynamic_reconfigure) ------------------------------------------------------------------
 
-def test_the_lasers_settings_change_what_it_publishes_and_out_of_range_values_are_clamped(demo, laser_settings, node,
-                                                                                         ros):
+
+def test_the_lasers_settings_change_what_it_publishes_and_out_of_range_values_are_clamped(
+    demo, laser_settings, node, ros
+):
     from sensor_msgs.msg import LaserScan
+
     ros.run(["rosrun", "dynamic_reconfigure", "dynparam", "set", "/turtle_laser", "rays", "90"])  # as a user does
     scan = latest(node, "/turtle1/scan", LaserScan, lambda m: len(m.ranges) == 90)
     assert scan.angle_increment == pytest.approx(2 * math.pi / 90)
@@ -97,6 +111,7 @@ def reconfigure_raw(node, **doubles):
     from dynamic_reconfigure.encoding import decode_config
     from dynamic_reconfigure.msg import Config, DoubleParameter
     from dynamic_reconfigure.srv import Reconfigure
+
     call = node.ServiceProxy("/turtle_laser/set_parameters", Reconfigure)
     config = Config(doubles=[DoubleParameter(name, value) for name, value in doubles.items()])
     return decode_config(call(config).config)
@@ -104,8 +119,10 @@ def reconfigure_raw(node, **doubles):
 
 def test_the_lasers_start_up_parameters_are_read_and_clamped_too(demo, node, ros):
     from dynamic_reconfigure.client import Client
-    proc = ros.spawn(["rosrun", "turtlesim", "turtle_laser", "__name:=laser_params", "_rays:=99999", "_rate:=2.5"],
-                     "laser_params")
+
+    proc = ros.spawn(
+        ["rosrun", "turtlesim", "turtle_laser", "__name:=laser_params", "_rays:=99999", "_rate:=2.5"], "laser_params"
+    )
     try:
         settings = Client("/laser_params", timeout=30).get_configuration(timeout=10)
         assert (settings["rays"], settings["rate"], settings["range_max"]) == (1440, 2.5, 12.0)
@@ -115,6 +132,7 @@ def test_the_lasers_start_up_parameters_are_read_and_clamped_too(demo, node, ros
 
 def scans_in_a_second(node):
     from sensor_msgs.msg import LaserScan
+
     stamps = []
     subscriber = node.Subscriber("/turtle1/scan", LaserScan, lambda m: stamps.append(m.header.stamp.to_sec()))
     wait_for(lambda: stamps, 10, what="a scan")
@@ -125,6 +143,7 @@ def scans_in_a_second(node):
 
 def test_the_lasers_noise_shows_in_its_ranges(demo, laser_settings, node):
     from sensor_msgs.msg import LaserScan
+
     laser_settings.update_configuration({"noise": 0.0, "rays": 360})
     clean = latest(node, "/turtle1/scan", LaserScan, lambda m: len(m.ranges) == 360)
     laser_settings.update_configuration({"noise": 0.2})
@@ -135,11 +154,14 @@ def test_the_lasers_noise_shows_in_its_ranges(demo, laser_settings, node):
 
 # ---- the rotate_absolute action -----------------------------------------------------------------------------------
 
+
 @pytest.fixture
 def rotate(demo, node):
     """An actionlib client of /turtle1/rotate_absolute (turtlesim/RotateAbsolute), the goal cancelled after."""
     import actionlib
+
     from turtlesim.msg import RotateAbsoluteAction
+
     client = actionlib.SimpleActionClient("/turtle1/rotate_absolute", RotateAbsoluteAction)
     assert client.wait_for_server(node.Duration(30)), "no /turtle1/rotate_absolute server"
     yield client
@@ -148,24 +170,29 @@ def rotate(demo, node):
 
 def heading(node):
     from turtlesim.msg import Pose
+
     return node.wait_for_message("/turtle1/pose", Pose, timeout=10)
 
 
 def send(rotate, theta):
     """Sends a goal; returns the feedback it gets, as a list that grows."""
     from turtlesim.msg import RotateAbsoluteGoal
+
     feedback, lock = [], threading.Lock()
 
     def received(message):
         with lock:
             feedback.append(message.remaining)
+
     rotate.send_goal(RotateAbsoluteGoal(theta=theta), feedback_cb=received)
     return feedback
 
 
 def test_a_rotate_goal_turns_the_turtle_to_its_heading_with_feedback(rotate, node):
     from actionlib_msgs.msg import GoalStatus
+
     from turtlesim.rotate import TOLERANCE, normalized
+
     start = heading(node).theta
     goal = normalized(start + 2.0)  # 2 rad counter-clockwise: about 2.5 s
     feedback = send(rotate, goal)
@@ -182,7 +209,9 @@ def test_a_rotate_goal_turns_the_turtle_to_its_heading_with_feedback(rotate, nod
 
 def test_a_cancel_stops_the_turtle_where_it_is(rotate, node):
     from actionlib_msgs.msg import GoalStatus
+
     from turtlesim.rotate import normalized
+
     feedback = send(rotate, normalized(heading(node).theta - 3.0))  # clockwise, 3 s or more
     wait_for(lambda: len(feedback) > 20, 10, what="the goal's feedback")
     rotate.cancel_goal()
@@ -199,7 +228,9 @@ def test_a_cancel_stops_the_turtle_where_it_is(rotate, node):
 
 def test_another_driver_takes_the_turtle_over_and_the_goal_is_aborted(rotate, node, ros):
     from actionlib_msgs.msg import GoalStatus
+
     from turtlesim.rotate import normalized
+
     feedback = send(rotate, normalized(heading(node).theta + 3.0))
     wait_for(lambda: feedback, 10, what="the goal's feedback")
     ros.run(["rostopic", "pub", "-1", "/turtle1/cmd_vel", "geometry_msgs/Twist", "--", "[0, 0, 0]", "[0, 0, 0]"])
@@ -211,6 +242,7 @@ def test_another_driver_takes_the_turtle_over_and_the_goal_is_aborted(rotate, no
 @pytest.mark.parametrize("theta", [math.nan, math.inf])
 def test_a_goal_that_is_not_a_number_is_aborted_with_the_reason(rotate, node, theta):
     from actionlib_msgs.msg import GoalStatus
+
     before = heading(node).theta
     send(rotate, theta)
     assert rotate.wait_for_result(node.Duration(5))

@@ -1,6 +1,7 @@
 """The bridge when things go wrong around it: a client that stops reading during a flood, a client that dies
 in the middle of a frame, the bridge itself killed and restarted under a reconnecting roslibpy client,
 turtlesim_node killed and restarted while a client drives it, and roscore restarted. Loopback only."""
+
 import os
 import signal
 import threading
@@ -33,12 +34,14 @@ def bridge_topics(ros, node_name):
 
 def publish_in_thread(publisher, make_msg, rate, count=None, stop=None):
     """Publishes make_msg(i) at `rate` Hz from a thread, `count` times or until `stop` is set."""
+
     def run():
         period, start, i = 1.0 / rate, time.monotonic(), 0
         while (count is None or i < count) and not (stop and stop.is_set()):
             publisher.publish(make_msg(i))
             i += 1
             time.sleep(max(0.0, start + i * period - time.monotonic()))
+
     thread = threading.Thread(target=run, daemon=True)
     thread.start()
     return thread
@@ -46,6 +49,7 @@ def publish_in_thread(publisher, make_msg, rate, count=None, stop=None):
 
 def test_a_client_that_stops_reading_does_not_grow_the_bridge_or_starve_others(ros, node):
     from std_msgs.msg import String
+
     proc, port = start_bridge(ros, node_name="bridge_stuck")
     try:
         pid = node_pid(ros, "/bridge_stuck")
@@ -86,14 +90,21 @@ def test_a_client_dying_mid_frame_is_cleaned_up(ros, reset):
     try:
         dying = RawWebSocket(port)
         dying.send_text('{"op":"subscribe","topic":"/faults/midframe","type":"std_msgs/String"}')
-        wait_for(lambda: "/faults/midframe" in bridge_topics(ros, f"/{node_name}"), 20,
-                 what="the bridge subscribing for the client")
-        dying.send_text('{"op":"publish","topic":"/faults/midframe","msg":{"data":"' + "y" * 50_000 + '"}}',
-                        cut_after=1000)
+        wait_for(
+            lambda: "/faults/midframe" in bridge_topics(ros, f"/{node_name}"),
+            20,
+            what="the bridge subscribing for the client",
+        )
+        dying.send_text(
+            '{"op":"publish","topic":"/faults/midframe","msg":{"data":"' + "y" * 50_000 + '"}}', cut_after=1000
+        )
         dying.close(reset=reset)
 
-        wait_for(lambda: "/faults/midframe" not in bridge_topics(ros, f"/{node_name}"), 20,
-                 what="the bridge dropping the dead client's subscription")
+        wait_for(
+            lambda: "/faults/midframe" not in bridge_topics(ros, f"/{node_name}"),
+            20,
+            what="the bridge dropping the dead client's subscription",
+        )
         client = WsClient(f"ws://127.0.0.1:{port}/")
         assert ping(client)
         client.close()
@@ -104,6 +115,7 @@ def test_a_client_dying_mid_frame_is_cleaned_up(ros, reset):
 
 def test_bridge_killed_and_restarted_under_a_reconnecting_client(ros, node):
     from std_msgs.msg import Int32
+
     port = free_port()
     proc, _ = start_bridge(ros, node_name="bridge_restart", port=port)
     ticks = node.Publisher("/faults/ticks", Int32, queue_size=10)
@@ -118,8 +130,12 @@ def test_bridge_killed_and_restarted_under_a_reconnecting_client(ros, node):
         roslibpy.Topic(client, "/faults/ticks", "std_msgs/Int32").subscribe(lambda m: got.append(m["data"]))
         cmds = roslibpy.Topic(client, "/faults/cmds", "std_msgs/Int32")
         wait_for(lambda: got, 20, what="ticks before the restart")
-        wait_for(lambda: cmds.publish(roslibpy.Message({"data": 1})) or 1 in got_cmds, 20, interval=0.2,
-                 what="a command before the restart")
+        wait_for(
+            lambda: cmds.publish(roslibpy.Message({"data": 1})) or 1 in got_cmds,
+            20,
+            interval=0.2,
+            what="a command before the restart",
+        )
 
         os.kill(node_pid(ros, "/bridge_restart"), signal.SIGKILL)  # (roslaunch runs it in a session of its own)
         proc.stop()
@@ -128,8 +144,12 @@ def test_bridge_killed_and_restarted_under_a_reconnecting_client(ros, node):
         proc, _ = start_bridge(ros, node_name="bridge_restart", port=port)
 
         wait_for(lambda: len(got) > before + 3, 60, what="ticks again after the restart")
-        wait_for(lambda: cmds.publish(roslibpy.Message({"data": 2})) or 2 in got_cmds, 60, interval=0.2,
-                 what="commands reaching ROS again after the restart")
+        wait_for(
+            lambda: cmds.publish(roslibpy.Message({"data": 2})) or 2 in got_cmds,
+            60,
+            interval=0.2,
+            what="commands reaching ROS again after the restart",
+        )
     finally:
         stop.set()
         client.close()
@@ -156,11 +176,13 @@ def test_turtlesim_killed_and_restarted_while_a_client_drives(ros, node):
         wait_for(driving, 30, interval=0.1, what="the turtle driving")
         os.kill(node_pid(ros, "/turtlesim_faults"), signal.SIGKILL)
         turtle.stop()
-        turtle = ros.spawn(["rosrun", "turtlesim", "turtlesim_node", "__name:=turtlesim_faults"],
-                           "turtlesim_faults")
+        turtle = ros.spawn(["rosrun", "turtlesim", "turtlesim_node", "__name:=turtlesim_faults"], "turtlesim_faults")
         turtle.wait_output("Spawning turtle [turtle1]", timeout=30)
-        wait_for(lambda: poses[-1]["x"] == pytest.approx(5.544445, abs=1e-3), 30,
-                 what="poses from the new turtlesim (back at the centre)")
+        wait_for(
+            lambda: poses[-1]["x"] == pytest.approx(5.544445, abs=1e-3),
+            30,
+            what="poses from the new turtlesim (back at the centre)",
+        )
         wait_for(driving, 30, interval=0.1, what="the new turtle driving")
     finally:
         client.close()
@@ -182,8 +204,9 @@ def test_roscore_restarted_under_the_bridge(tmp_path):
         assert ping(client)
 
         master.start()  # same port
-        talker = master.spawn(["rostopic", "pub", "-r", "10", "/faults/after", "std_msgs/String", "data: back"],
-                              "talker")
+        talker = master.spawn(
+            ["rostopic", "pub", "-r", "10", "/faults/after", "std_msgs/String", "data: back"], "talker"
+        )
         client.send({"op": "subscribe", "topic": "/faults/after", "type": "std_msgs/String"})
         msg = client.recv_op("publish", timeout=30, topic="/faults/after")
         assert msg["msg"] == {"data": "back"}
@@ -217,17 +240,24 @@ def test_after_a_roscore_restart_the_connected_client_drives_again(tmp_path):
         turtle = master.spawn(["rosrun", "turtlesim", "turtlesim_node"], "turtle_after")
         turtle.wait_output("Spawning turtle [turtle1]", timeout=30)
         started = time.monotonic()
-        forward = {"op": "publish", "topic": "/turtle1/cmd_vel",
-                   "msg": {"linear": {"x": 1.0, "y": 0, "z": 0}, "angular": {"x": 0, "y": 0, "z": 0}}}
+        forward = {
+            "op": "publish",
+            "topic": "/turtle1/cmd_vel",
+            "msg": {"linear": {"x": 1.0, "y": 0, "z": 0}, "angular": {"x": 0, "y": 0, "z": 0}},
+        }
 
         def moving():
             client.send(forward)
             try:
-                client.recv_until(lambda f: f.get("topic") == "/turtle1/pose"
-                                  and f["msg"]["linear_velocity"] == pytest.approx(1.0), timeout=0.1, limit=10**6)
+                client.recv_until(
+                    lambda f: f.get("topic") == "/turtle1/pose" and f["msg"]["linear_velocity"] == pytest.approx(1.0),
+                    timeout=0.1,
+                    limit=10**6,
+                )
                 return True
             except TimeoutError:
                 return False
+
         wait_for(moving, 30, interval=0.01, what="the same connection driving the new turtle")
         assert time.monotonic() - started < 5.0
 

@@ -1,6 +1,7 @@
 """Per-topic freshness through a real bridge: a client behind a slow link keeps its small topic fresh while a
 camera is subscribed (the bridge skips older messages of a topic that is behind, and says so); a client that
 keeps up loses nothing."""
+
 import json
 import time
 
@@ -12,6 +13,7 @@ from slow_link import Rover, paced_frames
 
 bridge = bridge_fixture("freshness_bridge")
 
+
 def percentile(values, fraction):
     values = sorted(values)
     return values[min(len(values) - 1, int(fraction * len(values)))]
@@ -22,9 +24,11 @@ def test_a_slow_reader_keeps_its_small_topic_fresh_while_a_camera_is_subscribed(
     rover = Rover(node, "/fresh_slow")
     client = RawWebSocket(bridge, recv_buffer=65536)
     try:
-        for request in ({"op": "set_level", "level": "warning"},
-                        {"op": "subscribe", "topic": "/fresh_slow/camera", "type": "sensor_msgs/Image"},
-                        {"op": "subscribe", "topic": "/fresh_slow/small", "type": "std_msgs/Float64"}):
+        for request in (
+            {"op": "set_level", "level": "warning"},
+            {"op": "subscribe", "topic": "/fresh_slow/camera", "type": "sensor_msgs/Image"},
+            {"op": "subscribe", "topic": "/fresh_slow/small", "type": "std_msgs/Float64"},
+        ):
             client.send_text(json.dumps(request))
         rover.wait_connected()
         rover.start(seconds=12)

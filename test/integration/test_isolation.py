@@ -1,6 +1,7 @@
 """One client never hurts another: while a hostile client (hostile.py, a process of its own) abuses the bridge,
 a well-behaved client subscribed to turtlesim's 62.5 Hz pose keeps receiving it with no gap over 0.5 s, and its
 /rosapi/get_time calls are answered within 1 s; the bridge's memory stays bounded and it keeps running."""
+
 import json
 import socket
 import struct
@@ -8,12 +9,13 @@ import time
 from pathlib import Path
 
 import pytest
+from test_security import SECRET, auth_frame
+
+from rosbridge.protocol import session as protocol
 
 import hostile
 from bridge_client import RawWebSocket, WsClient, ping
 from harness import ProcStat, node_pid, start_bridge, wait_for
-from rosbridge.protocol import session as protocol
-from test_security import SECRET, auth_frame
 
 pytestmark = pytest.mark.slow  # (deselect with -m 'not slow' for a quick run)
 
@@ -55,22 +57,33 @@ def test_a_hostile_client_does_not_hurt_a_well_behaved_one(ros, turtlesim, abuse
         args = {"authenticate": "true", "secret_file": secret}
     proc, port = start_bridge(ros, node_name=f"isolation_{abuse}", unregister_timeout=1, **args)
     try:
-        got = hostile.measure(ros, f"ws://127.0.0.1:{port}/", ProcStat(node_pid(ros, f"/isolation_{abuse}")), abuse,
-                              ATTACK_SECONDS, auth=auth_frame() if args else None)
-        print(f"{abuse}: {got['attacker']} (for {got['attacked']:.2f} s); victim's largest gap {got['gap']:.3f} s "
-              f"at {got['gap_at']:.2f} s (its own loop's longest stall then {got['victims_own_stall']:.3f} s), "
-              f"slowest get_time {got['slowest_call']:.3f} s, pings p50 {got['ping_p50'] * 1e3:.1f} ms, "
-              f"p95 {got['ping_p95'] * 1e3:.1f} ms, slowest {got['slowest_ping'] * 1e3:.1f} ms; "
-              f"bridge RSS {got['rss_growth']:+.0f} MB (peak {got['peak_rss_growth']:+.0f} MB)")
+        got = hostile.measure(
+            ros,
+            f"ws://127.0.0.1:{port}/",
+            ProcStat(node_pid(ros, f"/isolation_{abuse}")),
+            abuse,
+            ATTACK_SECONDS,
+            auth=auth_frame() if args else None,
+        )
+        print(
+            f"{abuse}: {got['attacker']} (for {got['attacked']:.2f} s); victim's largest gap {got['gap']:.3f} s "
+            f"at {got['gap_at']:.2f} s (its own loop's longest stall then {got['victims_own_stall']:.3f} s), "
+            f"slowest get_time {got['slowest_call']:.3f} s, pings p50 {got['ping_p50'] * 1e3:.1f} ms, "
+            f"p95 {got['ping_p95'] * 1e3:.1f} ms, slowest {got['slowest_ping'] * 1e3:.1f} ms; "
+            f"bridge RSS {got['rss_growth']:+.0f} MB (peak {got['peak_rss_growth']:+.0f} MB)"
+        )
         assert got["attacker_exit"] == 0, got["attacker"]
         assert got["gap"] < MAX_GAP, f"{abuse}: the victim went {got['gap']:.2f} s without a pose"
         assert got["slowest_call"] < MAX_CALL_TIME, f"{abuse}: a get_time took {got['slowest_call']:.2f} s"
-        assert got["rss_growth"] < MAX_RSS_GROWTH.get(abuse, 200), \
+        assert got["rss_growth"] < MAX_RSS_GROWTH.get(abuse, 200), (
             f"{abuse}: the bridge grew by {got['rss_growth']:.0f} MB"
-        assert got["peak_rss_growth"] < MAX_PEAK_RSS_GROWTH.get(abuse, 400), \
+        )
+        assert got["peak_rss_growth"] < MAX_PEAK_RSS_GROWTH.get(abuse, 400), (
             f"{abuse}: the bridge grew by {got['peak_rss_growth']:.0f} MB at its peak"
-        assert got["ping_p95"] < MAX_PING_P95.get(abuse, MAX_GAP), \
+        )
+        assert got["ping_p95"] < MAX_PING_P95.get(abuse, MAX_GAP), (
             f"{abuse}: the victim's pings took {got['ping_p95'] * 1e3:.0f} ms (p95)"
+        )
         assert proc.alive()
     finally:
         proc.stop()
@@ -86,8 +99,12 @@ def test_unfinished_messages_are_dropped_after_fragment_timeout_and_their_memory
     proc, port = start_bridge(ros, node_name="isolation_unfinished", fragment_timeout=timeout)
     stat = ProcStat(node_pid(ros, "/isolation_unfinished"))
     part = bytes(1_000_000)
-    fragmented = RawWebSocket.header(len(part), fin=False) + bytes(4) + part + (
-        RawWebSocket.header(len(part), opcode=0x0, fin=False) + bytes(4) + part) * 9
+    fragmented = (
+        RawWebSocket.header(len(part), fin=False)
+        + bytes(4)
+        + part
+        + (RawWebSocket.header(len(part), opcode=0x0, fin=False) + bytes(4) + part) * 9
+    )
     cut_short = RawWebSocket.header(11_000_000) + bytes(4) + bytes(10_000_000)
 
     def unfinished_by_three(slow=None):
@@ -118,8 +135,10 @@ def test_unfinished_messages_are_dropped_after_fragment_timeout_and_their_memory
         assert opcode == 0x1 and b"bogus" in payload, payload  # (its status: still served)
         slow.close()
         held_again, closed_again = unfinished_by_three()
-        print(f"held +{held:.0f} MB, closed after {closed:.1f} s; again +{held_again:.0f} MB, closed after "
-              f"{closed_again:.1f} s; then +{stat.rss_mb() - before:.0f} MB")
+        print(
+            f"held +{held:.0f} MB, closed after {closed:.1f} s; again +{held_again:.0f} MB, closed after "
+            f"{closed_again:.1f} s; then +{stat.rss_mb() - before:.0f} MB"
+        )
         # (their memory served the next ones, but for what malloc kept of the first ones' heap: 8 MB seen; kept,
         # the first 30 MB would come on top)
         assert held > 25 and held_again < held + 15
@@ -161,14 +180,18 @@ def test_a_departed_clients_type_does_not_bind_the_topic(ros, node):
     """A client subscribes to /squat/cmd_vel as std_msgs/String and leaves; the master still remembers that type,
     but nobody uses the topic any more: another client may advertise it as a Twist (a turtle spawned there)."""
     from geometry_msgs.msg import Twist
+
     proc, port = start_bridge(ros, node_name="isolation_squat", unregister_timeout=1)
     try:
         squatter = WsClient(f"ws://127.0.0.1:{port}/")
         squatter.send({"op": "subscribe", "topic": "/squat/cmd_vel", "type": "std_msgs/String"})
         wait_for(lambda: "/squat/cmd_vel" in dict(ros.master().getTopicTypes()), 10, what="the squatted type")
         squatter.close()
-        wait_for(lambda: not any(t == "/squat/cmd_vel" for t, _ in ros.master().getSystemState()[1]), 10,
-                 what="the squatter's subscription gone")
+        wait_for(
+            lambda: not any(t == "/squat/cmd_vel" for t, _ in ros.master().getSystemState()[1]),
+            10,
+            what="the squatter's subscription gone",
+        )
         got = []
         sub = node.Subscriber("/squat/cmd_vel", Twist, got.append)
         driver = WsClient(f"ws://127.0.0.1:{port}/")
@@ -192,8 +215,11 @@ def test_a_client_leaving_releases_its_descriptors(ros):
     before = count()
     for i in range(150):
         client.send({"op": "subscribe", "topic": f"/isolation/fd{i}", "type": "std_msgs/String"})
-    wait_for(lambda: sum(t.startswith("/isolation/fd") for t, _ in ros.master().getSystemState()[1]) == 150, 30,
-             what="150 subscriptions")
+    wait_for(
+        lambda: sum(t.startswith("/isolation/fd") for t, _ in ros.master().getSystemState()[1]) == 150,
+        30,
+        what="150 subscriptions",
+    )
     assert count() > before
     client.close()
     wait_for(lambda: count() <= before + 5, 30, what=f"the descriptors back to {before} (now {count()})")
@@ -232,8 +258,14 @@ def test_a_client_that_never_reads_is_closed_after_websocket_ping_timeout(ros):
     proc, port = start_bridge(ros, node_name="isolation_never_reads", websocket_ping_timeout=2)
     pid = node_pid(ros, "/isolation_never_reads")
     descriptors = lambda: len(list(Path(f"/proc/{pid}/fd").iterdir()))  # noqa: E731
-    call = json.dumps({"op": "call_service", "service": "/rosapi/get_param", "id": "big",
-                       "args": {"name": "/isolation/unset", "default": json.dumps("B" * 3_000_000)}}).encode()
+    call = json.dumps(
+        {
+            "op": "call_service",
+            "service": "/rosapi/get_param",
+            "id": "big",
+            "args": {"name": "/isolation/unset", "default": json.dumps("B" * 3_000_000)},
+        }
+    ).encode()
     try:
         time.sleep(1)
         before = descriptors()
@@ -275,8 +307,9 @@ def test_clients_that_do_not_authenticate_make_way_for_one_that_does(ros, tmp_pa
     Before, the client that came to authenticate got 503 for as long as they stayed."""
     secret = tmp_path / "secret"
     secret.write_text(SECRET)
-    proc, port = start_bridge(ros, node_name="isolation_no_auth", authenticate="true", secret_file=secret,
-                              max_clients=5)
+    proc, port = start_bridge(
+        ros, node_name="isolation_no_auth", authenticate="true", secret_file=secret, max_clients=5
+    )
     try:
         idle = [RawWebSocket(port) for _ in range(5)]
         time.sleep(0.5)

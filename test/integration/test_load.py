@@ -1,6 +1,7 @@
 """The bridge under many clients (loopback only): a thousand websocket clients connecting, subscribing,
 publishing and leaving (half of them cleanly, half by dropping the connection) must leave no trace: no
 growth in the bridge's threads or ROS registrations, memory within a bound, /client_count back to 0."""
+
 import asyncio
 import json
 import threading
@@ -18,7 +19,9 @@ CLIENTS_PER_ROUND = 250
 def registrations(ros, node_name):
     """(topic, role) pairs the bridge node holds at the master, apart from the ones it always has."""
     pubs, subs, _ = ros.master().getSystemState()
-    held = {(t, "pub") for t, nodes in pubs if node_name in nodes} | {(t, "sub") for t, nodes in subs if node_name in nodes}
+    held = {(t, "pub") for t, nodes in pubs if node_name in nodes} | {
+        (t, "sub") for t, nodes in subs if node_name in nodes
+    }
     return {r for r in held if r[0].startswith("/load/")}
 
 
@@ -31,8 +34,9 @@ async def crowd(url, n):
         async with gate:
             ws = await websocket_connect(url, connect_timeout=60)
             await ws.write_message(json.dumps({"op": "subscribe", "topic": "/load/tick", "type": "std_msgs/Int32"}))
-            await ws.write_message(json.dumps({"op": "advertise", "topic": f"/load/cmd{i % 10}",
-                                               "type": "std_msgs/Int32"}))
+            await ws.write_message(
+                json.dumps({"op": "advertise", "topic": f"/load/cmd{i % 10}", "type": "std_msgs/Int32"})
+            )
             await ws.write_message(json.dumps({"op": "publish", "topic": f"/load/cmd{i % 10}", "msg": {"data": i}}))
         while True:
             frame = await asyncio.wait_for(ws.read_message(), 60)
@@ -52,6 +56,7 @@ async def crowd(url, n):
 
 def test_a_thousand_clients_coming_and_going_leave_no_trace(ros, node):
     from std_msgs.msg import Int32
+
     proc, port = start_bridge(ros, node_name="bridge_load", unregister_timeout=1)
     tick = node.Publisher("/load/tick", Int32, queue_size=10)
     stop = threading.Event()
@@ -59,6 +64,7 @@ def test_a_thousand_clients_coming_and_going_leave_no_trace(ros, node):
     def ticking():  # 20 Hz, so every new subscriber soon gets one
         while not stop.wait(0.05):
             tick.publish(Int32(1))
+
     threading.Thread(target=ticking, daemon=True).start()
     counts = []
     count_sub = node.Subscriber("/client_count", Int32, lambda m: counts.append(m.data))
@@ -70,8 +76,11 @@ def test_a_thousand_clients_coming_and_going_leave_no_trace(ros, node):
         def round_of_clients():
             loop.run_until_complete(crowd(url, CLIENTS_PER_ROUND))
             wait_for(lambda: counts and counts[-1] == 0, 30, what="/client_count back to 0")
-            wait_for(lambda: not registrations(ros, "/bridge_load"), 30,
-                     what="the bridge to drop the clients' topics at the master")
+            wait_for(
+                lambda: not registrations(ros, "/bridge_load"),
+                30,
+                what="the bridge to drop the clients' topics at the master",
+            )
 
         round_of_clients()  # warm-up: the allocator and the thread pools reach their working size
         baseline_rss, baseline_threads = ProcStat(pid).rss_mb(), ProcStat(pid).threads()

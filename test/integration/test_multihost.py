@@ -3,6 +3,7 @@
 namespaces on a private virtual switch (10.77.0.1-4/24, reachable from nothing else); every process gets
 ROS_MASTER_URI and ROS_IP as a user would set them. Needs root and iproute2; skipped (saying why) otherwise.
 `drive` below is the roslibpy client that runs on machine 4."""
+
 import json
 import logging
 import os
@@ -42,8 +43,11 @@ def netns_unavailable():
         return f"`ip netns add` fails here: {res.stderr.strip()}"
     try:
         res = subprocess.run(["ip", "netns", "exec", probe, "true"], capture_output=True, text=True, timeout=30)
-        reason = None if res.returncode == 0 else \
-            f"`ip netns exec` fails here: {res.stderr.strip() or f'exit status {res.returncode}'}"
+        reason = (
+            None
+            if res.returncode == 0
+            else f"`ip netns exec` fails here: {res.stderr.strip() or f'exit status {res.returncode}'}"
+        )
     except subprocess.TimeoutExpired:
         reason = "`ip netns exec NAME true` did not finish within 30 s"
     res = ip("netns", "del", probe, check=False)
@@ -84,23 +88,36 @@ class Lan:
             ip("netns", "del", ns, check=False)
 
     def env(self, host):
-        env = {k: v for k, v in os.environ.items() if not k.startswith("ROS_") or k in (
-            "ROS_PACKAGE_PATH", "ROS_ROOT", "ROS_DISTRO", "ROS_ETC_DIR", "ROS_VERSION", "ROS_PYTHON_VERSION")}
-        env.update(ROS_MASTER_URI=MASTER_URI, ROS_IP=f"{SUBNET}.{HOSTS[host]}", PYTHONUNBUFFERED="1",
-                   ROS_HOME=str(self.workdir / host), ROS_LOG_DIR=str(self.workdir / host / "log"),
-                   PATH="/usr/bin:/bin:/usr/sbin:/sbin:" + os.environ.get("PATH", ""))
+        env = {
+            k: v
+            for k, v in os.environ.items()
+            if not k.startswith("ROS_")
+            or k in ("ROS_PACKAGE_PATH", "ROS_ROOT", "ROS_DISTRO", "ROS_ETC_DIR", "ROS_VERSION", "ROS_PYTHON_VERSION")
+        }
+        env.update(
+            ROS_MASTER_URI=MASTER_URI,
+            ROS_IP=f"{SUBNET}.{HOSTS[host]}",
+            PYTHONUNBUFFERED="1",
+            ROS_HOME=str(self.workdir / host),
+            ROS_LOG_DIR=str(self.workdir / host / "log"),
+            PATH="/usr/bin:/bin:/usr/sbin:/sbin:" + os.environ.get("PATH", ""),
+        )
         env.pop("DISPLAY", None)
         return env
 
     def spawn(self, host, args, name):
-        proc = Proc(["ip", "netns", "exec", self.ns[host], *args], self.env(host),
-                    self.workdir / f"{host}-{name}.log")
+        proc = Proc(["ip", "netns", "exec", self.ns[host], *args], self.env(host), self.workdir / f"{host}-{name}.log")
         self.procs.append(proc)
         return proc
 
     def run(self, host, args, timeout=30, env=None):
-        return subprocess.run(["ip", "netns", "exec", self.ns[host], *args], env={**self.env(host), **(env or {})},
-                              capture_output=True, text=True, timeout=timeout)
+        return subprocess.run(
+            ["ip", "netns", "exec", self.ns[host], *args],
+            env={**self.env(host), **(env or {})},
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+        )
 
 
 @pytest.fixture
@@ -120,17 +137,36 @@ def test_turtle_driven_from_a_fourth_machine_through_the_bridge(lan):
     core.wait_output("started core service", timeout=40)
     robot = lan.spawn("robot", ["rosrun", "turtlesim", "turtlesim_node"], "turtlesim")
     robot.wait_output("Spawning turtle [turtle1]", timeout=40)
-    bridge = lan.spawn("bridge", ["roslaunch", "turtlesim", "rosbridge_websocket.launch",
-                                  f"address:={SUBNET}.3", f"port:={BRIDGE_PORT}"], "bridge")
-    wait_for(lambda: not bridge.alive() or lan.run("client", [
-        sys.executable, "-c", f"import socket; socket.create_connection(('{SUBNET}.3', {BRIDGE_PORT}), 1)"
-    ]).returncode == 0, 40, what="the bridge listening on 10.77.0.3 (seen from machine 4)")
+    bridge = lan.spawn(
+        "bridge",
+        ["roslaunch", "turtlesim", "rosbridge_websocket.launch", f"address:={SUBNET}.3", f"port:={BRIDGE_PORT}"],
+        "bridge",
+    )
+    wait_for(
+        lambda: (
+            not bridge.alive()
+            or lan.run(
+                "client",
+                [sys.executable, "-c", f"import socket; socket.create_connection(('{SUBNET}.3', {BRIDGE_PORT}), 1)"],
+            ).returncode
+            == 0
+        ),
+        40,
+        what="the bridge listening on 10.77.0.3 (seen from machine 4)",
+    )
     assert bridge.alive(), bridge.output()
 
     here = Path(__file__).resolve().parent
-    client = lan.run("client", [sys.executable, "-c", f"import {Path(__file__).stem}; "
-                                f"{Path(__file__).stem}.drive('ws://{SUBNET}.3:{BRIDGE_PORT}')"],
-                     timeout=90, env={"PYTHONPATH": f"{here}:{here.parent}"})
+    client = lan.run(
+        "client",
+        [
+            sys.executable,
+            "-c",
+            f"import {Path(__file__).stem}; {Path(__file__).stem}.drive('ws://{SUBNET}.3:{BRIDGE_PORT}')",
+        ],
+        timeout=90,
+        env={"PYTHONPATH": f"{here}:{here.parent}"},
+    )
     assert client.returncode == 0, f"client failed:\n{client.stdout}\n{client.stderr}\nbridge:\n{bridge.output()}"
     seen = json.loads(client.stdout.strip().splitlines()[-1])
 
@@ -148,8 +184,11 @@ def test_turtle_driven_from_a_fourth_machine_through_the_bridge(lan):
 def test_bridge_listens_only_on_the_address_it_is_given(lan):
     core = lan.spawn("master", ["roscore"], "roscore")
     core.wait_output("started core service", timeout=40)
-    bridge = lan.spawn("bridge", ["roslaunch", "turtlesim", "rosbridge_websocket.launch",
-                                  f"address:={SUBNET}.3", f"port:={BRIDGE_PORT}"], "bridge")
+    bridge = lan.spawn(
+        "bridge",
+        ["roslaunch", "turtlesim", "rosbridge_websocket.launch", f"address:={SUBNET}.3", f"port:={BRIDGE_PORT}"],
+        "bridge",
+    )
 
     def reachable(target):
         probe = f"import socket; socket.create_connection(('{target}', {BRIDGE_PORT}), 1)"
@@ -161,6 +200,7 @@ def test_bridge_listens_only_on_the_address_it_is_given(lan):
 
 
 # ---- machine 4: the roslibpy client ------------------------------------------------------------------------
+
 
 def drive(url):
     """Drives turtle1 forward at 2 m/s for about 1.5 s; prints the poses before and after, and the node list."""

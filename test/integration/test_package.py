@@ -1,5 +1,6 @@
 """The catkin package itself: catkin_lint is clean, and `catkin_make install` gives working nodes, launch file
 and page, used from the install space alone (nothing of the devel space or the source tree on the paths)."""
+
 import os
 import shutil
 import subprocess
@@ -26,8 +27,14 @@ def install_space(tmp_path_factory):
             copy = shutil.copytree if entry.is_dir() else shutil.copy2
             copy(entry, pkg / entry.name)
     env = {"PATH": "/usr/bin:/bin", "HOME": os.environ.get("HOME", "/root")}
-    res = subprocess.run(["catkin_make", "-DPYTHON_EXECUTABLE=/usr/bin/python3", "install"], cwd=ws, env=env,
-                         capture_output=True, text=True, timeout=600)
+    res = subprocess.run(
+        ["catkin_make", "-DPYTHON_EXECUTABLE=/usr/bin/python3", "install"],
+        cwd=ws,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     yield ws / "install"
     shutil.rmtree(ws, ignore_errors=True)
@@ -35,10 +42,20 @@ def install_space(tmp_path_factory):
 
 def installed(ros, install, command):
     """Runs `command` in bash with only the install space's setup sourced, against the private master."""
-    env = {"PATH": "/usr/bin:/bin", "HOME": ros.env.get("HOME", "/root"), "PYTHONUNBUFFERED": "1",
-           **{k: ros.env[k] for k in ("ROS_MASTER_URI", "ROS_IP", "ROS_HOME", "ROS_LOG_DIR")}}
-    return ["env", "-i", *(f"{k}={v}" for k, v in env.items()), "bash", "-c",
-            f"source {install}/setup.bash && exec {command}"]
+    env = {
+        "PATH": "/usr/bin:/bin",
+        "HOME": ros.env.get("HOME", "/root"),
+        "PYTHONUNBUFFERED": "1",
+        **{k: ros.env[k] for k in ("ROS_MASTER_URI", "ROS_IP", "ROS_HOME", "ROS_LOG_DIR")},
+    }
+    return [
+        "env",
+        "-i",
+        *(f"{k}={v}" for k, v in env.items()),
+        "bash",
+        "-c",
+        f"source {install}/setup.bash && exec {command}",
+    ]
 
 
 @pytest.mark.slow
@@ -47,13 +64,15 @@ def test_installed_messages_nodes_launch_file_and_page(ros, install_space):
     assert (install_space / "share" / "turtlesim" / "web" / "vendor" / "roslib.min.js").is_file()
     assert not (install_space / "share" / "turtlesim" / "web" / "node_modules").exists()
 
-    show = subprocess.run(installed(ros, install_space, "rosmsg show turtlesim/Pose"), capture_output=True,
-                          text=True, timeout=60)
+    show = subprocess.run(
+        installed(ros, install_space, "rosmsg show turtlesim/Pose"), capture_output=True, text=True, timeout=60
+    )
     assert "float32 linear_velocity" in show.stdout, show.stdout + show.stderr
     # the demo nodes' generated types: the action's messages and the laser's dynamic_reconfigure module
-    for command, expected in (("rosmsg show turtlesim/RotateAbsoluteGoal", "float32 theta"),
-                              ("python3 -c 'from turtlesim.cfg import LaserConfig; print(LaserConfig.max)'",
-                               "'rays': 1440")):
+    for command, expected in (
+        ("rosmsg show turtlesim/RotateAbsoluteGoal", "float32 theta"),
+        ("python3 -c 'from turtlesim.cfg import LaserConfig; print(LaserConfig.max)'", "'rays': 1440"),
+    ):
         shown = subprocess.run(installed(ros, install_space, command), capture_output=True, text=True, timeout=60)
         assert expected in shown.stdout, shown.stdout + shown.stderr
 
@@ -68,13 +87,24 @@ def run_sim_and_bridge(ros, space, name):
     bridge = None
     try:
         sim.wait_output("Spawning turtle [turtle1]", 30)
-        wait_for(lambda: f"/{name}_sim" in dict(ros.master().getSystemState()[0]).get("/turtle1/pose", []), 30,
-                 what=f"/{name}_sim's /turtle1/pose at the master")  # (registered a moment after its log line)
+        wait_for(
+            lambda: f"/{name}_sim" in dict(ros.master().getSystemState()[0]).get("/turtle1/pose", []),
+            30,
+            what=f"/{name}_sim's /turtle1/pose at the master",
+        )  # (registered a moment after its log line)
         port = free_port()
-        bridge = ros.spawn(installed(ros, space, "roslaunch turtlesim rosbridge_websocket.launch "
-                                     f"port:={port} address:=127.0.0.1 node_name:={name}_bridge"), f"{name}_bridge")
-        assert "app.js" in wait_for(lambda: fetch(f"http://127.0.0.1:{port}/"), 30,
-                                    what=f"the page from the {name} bridge ({bridge.log_path})")
+        bridge = ros.spawn(
+            installed(
+                ros,
+                space,
+                "roslaunch turtlesim rosbridge_websocket.launch "
+                f"port:={port} address:=127.0.0.1 node_name:={name}_bridge",
+            ),
+            f"{name}_bridge",
+        )
+        assert "app.js" in wait_for(
+            lambda: fetch(f"http://127.0.0.1:{port}/"), 30, what=f"the page from the {name} bridge ({bridge.log_path})"
+        )
         assert "export function start" in fetch(f"http://127.0.0.1:{port}/app.js")
         assert "ROSLIB" in fetch(f"http://127.0.0.1:{port}/vendor/roslib.min.js")
     finally:
@@ -86,9 +116,19 @@ def run_sim_and_bridge(ros, space, name):
 # Every type a tutorial command, the page, the demo or a test reads the definition of (`rosmsg show`,
 # `rossrv show`, rosapi's message details): each needs its ros-*-msgs Debian package, which tools/setup installs.
 DEFINITIONS = {
-    "msg": ["geometry_msgs/Twist", "geometry_msgs/Vector3", "std_msgs/String", "std_msgs/Int32",
-            "rosgraph_msgs/Log", "turtlesim/Pose", "turtlesim/Color", "sensor_msgs/Image",
-            "sensor_msgs/CompressedImage", "visualization_msgs/Marker", "turtlesim/RotateAbsoluteActionGoal"],
+    "msg": [
+        "geometry_msgs/Twist",
+        "geometry_msgs/Vector3",
+        "std_msgs/String",
+        "std_msgs/Int32",
+        "rosgraph_msgs/Log",
+        "turtlesim/Pose",
+        "turtlesim/Color",
+        "sensor_msgs/Image",
+        "sensor_msgs/CompressedImage",
+        "visualization_msgs/Marker",
+        "turtlesim/RotateAbsoluteActionGoal",
+    ],
     "srv": ["std_srvs/Empty", "std_srvs/SetBool", "std_srvs/Trigger", "turtlesim/Spawn"],
 }
 
@@ -104,16 +144,26 @@ def test_the_readme_workspace_route(ros, tmp_path):
     """The README's route: clone into a workspace's src, `bash tools/setup` there, `catkin_make`, then rosrun and
     roslaunch from that workspace find one executable each and the bridge serves the page."""
     pkg = tmp_path / "catkin_ws" / "src" / "turtlesim"
-    listed = subprocess.run(["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"], cwd=REPO,
-                            capture_output=True, text=True, check=True)
+    listed = subprocess.run(
+        ["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     for name in filter(None, listed.stdout.split("\0")):  # what a clone of this tree holds (edits included)
         if (REPO / name).is_file():
             (pkg / name).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(REPO / name, pkg / name)
-    env = {"PATH": "/usr/bin:/bin", "HOME": os.environ.get("HOME", "/root"),
-           "XDG_CACHE_HOME": str(tmp_path / "cache")}  # setup's own workspace: kept out of the user's cache
-    for command, cwd in ((["bash", "tools/setup"], pkg), (["catkin_make", "-DPYTHON_EXECUTABLE=/usr/bin/python3"],
-                                                           tmp_path / "catkin_ws")):
+    env = {
+        "PATH": "/usr/bin:/bin",
+        "HOME": os.environ.get("HOME", "/root"),
+        "XDG_CACHE_HOME": str(tmp_path / "cache"),
+    }  # setup's own workspace: kept out of the user's cache
+    for command, cwd in (
+        (["bash", "tools/setup"], pkg),
+        (["catkin_make", "-DPYTHON_EXECUTABLE=/usr/bin/python3"], tmp_path / "catkin_ws"),
+    ):
         res = subprocess.run(command, cwd=cwd, env=env, capture_output=True, text=True, timeout=900)
         assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
 

@@ -1,4 +1,5 @@
 """rosbridge.ros_side.rosapi against a real roscore, checked against what the stock CLI tools report."""
+
 import json
 import re
 import time
@@ -6,10 +7,11 @@ import time
 import pytest
 import yaml
 
-from harness import wait_for
 from rosbridge.globs import Globs
-from rosbridge.ros_side.rosapi import Rosapi, RosapiError, SERVICES
 from rosbridge.message_types import UnknownType, message_class
+from rosbridge.ros_side.rosapi import SERVICES, Rosapi, RosapiError
+
+from harness import wait_for
 
 BRIDGE = "/rosapi_test_bridge"  # the node name the bridge would give rosapi
 
@@ -22,12 +24,15 @@ def graph(ros, node):
     from std_msgs.msg import Empty as EmptyMsg
     from std_srvs.srv import Empty, EmptyResponse
 
-    chatter = ros.spawn(["rostopic", "pub", "-r", "5", "/rosapi_test/chatter", "std_msgs/String", "data: hi"],
-                        "chatter")
+    chatter = ros.spawn(
+        ["rostopic", "pub", "-r", "5", "/rosapi_test/chatter", "std_msgs/String", "data: hi"], "chatter"
+    )
     sub = node.Subscriber("/rosapi_test/cmd", Twist, lambda msg: None)
     srv = node.Service("/rosapi_test/reset", Empty, lambda req: EmptyResponse())
-    action = [node.Publisher(f"/rosapi_test/act/{t}", EmptyMsg, queue_size=1)
-              for t in ("goal", "cancel", "result", "feedback", "status")]
+    action = [
+        node.Publisher(f"/rosapi_test/act/{t}", EmptyMsg, queue_size=1)
+        for t in ("goal", "cancel", "result", "feedback", "status")
+    ]
     try:
         ros.run(["rosparam", "set", "/rosapi_test/gain", "2.5"])
         ros.run(["rosparam", "set", "/rosapi_test/label", "turtle"])
@@ -60,8 +65,9 @@ def cli_items(text):
 
 def cli_topics(ros):
     """{topic: type} from `rostopic list -v`."""
-    return {m[1]: m[2] for m in re.finditer(r"^ \* (\S+) \[([^\]]*)\]", ros.run(["rostopic", "list", "-v"]).stdout,
-                                            re.M)}
+    return {
+        m[1]: m[2] for m in re.finditer(r"^ \* (\S+) \[([^\]]*)\]", ros.run(["rostopic", "list", "-v"]).stdout, re.M)
+    }
 
 
 def cli_node_info(ros, node_name):
@@ -75,6 +81,7 @@ def cli_node_info(ros, node_name):
 
 
 # ---- topics
+
 
 def test_topics_match_rostopic_list(ros, graph, rosapi):
     def ours():
@@ -127,9 +134,12 @@ def test_action_servers_are_namespaces_with_the_five_action_topics(graph, rosapi
 
 # ---- services
 
+
 def test_services_match_rosservice_list_plus_rosapi(ros, graph, rosapi):
-    services = settle(lambda: rosapi.call("/rosapi/services")["services"],
-                      lambda: sorted(set(ros.run(["rosservice", "list"]).stdout.split()) | set(SERVICES)))
+    services = settle(
+        lambda: rosapi.call("/rosapi/services")["services"],
+        lambda: sorted(set(ros.run(["rosservice", "list"]).stdout.split()) | set(SERVICES)),
+    )
     assert "/rosapi_test/reset" in services and "/rosapi/get_param" in services
 
 
@@ -149,8 +159,7 @@ def test_service_type_node_host_match_rosservice(ros, graph, rosapi):
 def test_services_for_type_and_providers_match_rosservice_find(ros, graph, rosapi):
     empties = ros.run(["rosservice", "find", "std_srvs/Empty"]).stdout.split()
     assert rosapi.call("/rosapi/services_for_type", {"type": "std_srvs/Empty"}) == {"services": sorted(empties)}
-    assert rosapi.call("/rosapi/services_for_type", {"type": "rosapi/GetParam"}) == {
-        "services": ["/rosapi/get_param"]}
+    assert rosapi.call("/rosapi/services_for_type", {"type": "rosapi/GetParam"}) == {"services": ["/rosapi/get_param"]}
     providers = sorted({ros.run(["rosservice", "node", s]).stdout.strip() for s in empties})
     assert rosapi.call("/rosapi/service_providers", {"service": "std_srvs/Empty"}) == {"providers": providers}
     assert rosapi.call("/rosapi/service_providers", {"service": "/rosapi_test/reset"}) == {"providers": [graph]}
@@ -158,9 +167,12 @@ def test_services_for_type_and_providers_match_rosservice_find(ros, graph, rosap
 
 # ---- nodes
 
+
 def test_nodes_match_rosnode_list(ros, graph, rosapi):
-    nodes = settle(lambda: rosapi.call("/rosapi/nodes")["nodes"],
-                   lambda: sorted(set(ros.run(["rosnode", "list"]).stdout.split()) | {BRIDGE}))
+    nodes = settle(
+        lambda: rosapi.call("/rosapi/nodes")["nodes"],
+        lambda: sorted(set(ros.run(["rosnode", "list"]).stdout.split()) | {BRIDGE}),
+    )
     assert graph in nodes and "/rosout" in nodes
 
 
@@ -168,14 +180,21 @@ def test_node_details_match_rosnode_info(ros, graph, rosapi):
     for node_name in (graph, "/rosout"):
         info = cli_node_info(ros, node_name)
         assert rosapi.call("/rosapi/node_details", {"node": node_name}) == {
-            "publishing": info["Publications"], "subscribing": info["Subscriptions"], "services": info["Services"]}
+            "publishing": info["Publications"],
+            "subscribing": info["Subscriptions"],
+            "services": info["Services"],
+        }
     details = rosapi.call("/rosapi/node_details", {"node": BRIDGE})
     assert details["services"] == sorted(SERVICES)
     assert rosapi.call("/rosapi/node_details", {"node": "/nobody"}) == {
-        "publishing": [], "subscribing": [], "services": []}
+        "publishing": [],
+        "subscribing": [],
+        "services": [],
+    }
 
 
 # ---- types
+
 
 def cli_fields(ros, command, type_name):
     """Top-level (fields, constants) of `rosmsg show` / `rossrv show` text."""
@@ -190,19 +209,30 @@ def cli_fields(ros, command, type_name):
 def cli_typedef_fields(typedef):
     """A typedef's fields written back as `rosmsg show` writes them, e.g. ("float64[9]", "K")."""
     suffix = {-1: "", 0: "[]"}
-    return [(t + suffix.get(n, f"[{n}]"), name)
-            for t, n, name in zip(typedef["fieldtypes"], typedef["fieldarraylen"], typedef["fieldnames"])]
+    return [
+        (t + suffix.get(n, f"[{n}]"), name)
+        for t, n, name in zip(typedef["fieldtypes"], typedef["fieldarraylen"], typedef["fieldnames"])
+    ]
 
 
-@pytest.mark.parametrize("type_name", ["geometry_msgs/Twist", "geometry_msgs/PoseWithCovarianceStamped",
-                                       "geometry_msgs/PoseArray", "turtlesim/Pose", "std_msgs/Empty"])
+@pytest.mark.parametrize(
+    "type_name",
+    [
+        "geometry_msgs/Twist",
+        "geometry_msgs/PoseWithCovarianceStamped",
+        "geometry_msgs/PoseArray",
+        "turtlesim/Pose",
+        "std_msgs/Empty",
+    ],
+)
 def test_message_details_match_rosmsg_show(ros, rosapi, type_name):
     typedefs = rosapi.call("/rosapi/message_details", {"type": type_name})["typedefs"]
     assert typedefs[0]["type"] == type_name
     fields, constants = cli_fields(ros, "rosmsg", type_name)
     assert cli_typedef_fields(typedefs[0]) == fields
     assert sorted(zip(typedefs[0]["constnames"], typedefs[0]["constvalues"])) == sorted(
-        (name.split("=")[0], name.split("=")[1]) for _, name in constants)
+        (name.split("=")[0], name.split("=")[1]) for _, name in constants
+    )
     listed = [t["type"] for t in typedefs]
     assert len(listed) == len(set(listed))
     nested = {t for t, n in zip(typedefs[0]["fieldtypes"], typedefs[0]["fieldarraylen"]) if "/" in t or t == "time"}
@@ -223,10 +253,16 @@ def test_message_details_constants_match_the_definition(rosapi):
 def test_message_details_examples_and_array_lengths(rosapi):
     info = rosapi.call("/rosapi/message_details", {"type": "sensor_msgs/CameraInfo"})["typedefs"]
     by_type = {t["type"]: t for t in info}
-    camera = dict(zip(by_type["sensor_msgs/CameraInfo"]["fieldnames"],
-                      zip(by_type["sensor_msgs/CameraInfo"]["fieldtypes"],
-                          by_type["sensor_msgs/CameraInfo"]["fieldarraylen"],
-                          by_type["sensor_msgs/CameraInfo"]["examples"])))
+    camera = dict(
+        zip(
+            by_type["sensor_msgs/CameraInfo"]["fieldnames"],
+            zip(
+                by_type["sensor_msgs/CameraInfo"]["fieldtypes"],
+                by_type["sensor_msgs/CameraInfo"]["fieldarraylen"],
+                by_type["sensor_msgs/CameraInfo"]["examples"],
+            ),
+        )
+    )
     assert camera["header"] == ("std_msgs/Header", -1, "{}")
     assert camera["height"] == ("uint32", -1, "0")
     assert camera["distortion_model"] == ("string", -1, "")
@@ -235,11 +271,21 @@ def test_message_details_examples_and_array_lengths(rosapi):
     assert camera["roi"] == ("sensor_msgs/RegionOfInterest", -1, "{}")
     roi = by_type["sensor_msgs/RegionOfInterest"]
     assert roi["examples"][roi["fieldnames"].index("do_rectify")] == "False"
-    assert by_type["time"] == {"type": "time", "fieldnames": ["secs", "nsecs"], "fieldtypes": ["int32", "int32"],
-                               "fieldarraylen": [-1, -1], "examples": ["0", "0"], "constnames": [],
-                               "constvalues": []}
-    assert [t["type"] for t in info] == ["sensor_msgs/CameraInfo", "std_msgs/Header", "time",
-                                         "sensor_msgs/RegionOfInterest"]
+    assert by_type["time"] == {
+        "type": "time",
+        "fieldnames": ["secs", "nsecs"],
+        "fieldtypes": ["int32", "int32"],
+        "fieldarraylen": [-1, -1],
+        "examples": ["0", "0"],
+        "constnames": [],
+        "constvalues": [],
+    }
+    assert [t["type"] for t in info] == [
+        "sensor_msgs/CameraInfo",
+        "std_msgs/Header",
+        "time",
+        "sensor_msgs/RegionOfInterest",
+    ]
 
 
 def test_service_request_and_response_details_match_rossrv_show(ros, rosapi):
@@ -265,6 +311,7 @@ def test_unknown_types_are_errors(rosapi):
 
 
 # ---- parameters
+
 
 def rosparam_get(ros, name):
     return yaml.safe_load(ros.run(["rosparam", "get", name]).stdout)
@@ -303,15 +350,17 @@ def test_bad_param_values_are_refused_with_clear_errors(graph, rosapi):
     with pytest.raises(RosapiError, match="null"):
         rosapi.call("/rosapi/set_param", {"name": "/rosapi_test/bad", "value": "[1, null]"})
     with pytest.raises(RosapiError, match="cannot store"):
-        rosapi.call("/rosapi/set_param", {"name": "/rosapi_test/bad", "value": str(2 ** 40)})
+        rosapi.call("/rosapi/set_param", {"name": "/rosapi_test/bad", "value": str(2**40)})
     with pytest.raises(RosapiError, match="invalid parameter name"):
         rosapi.call("/rosapi/get_param", {"name": "bad name!"})
     assert rosapi.call("/rosapi/has_param", {"name": "/rosapi_test/bad"}) == {"exists": False}
 
 
 def test_get_param_names_and_search_param(ros, graph, rosapi):
-    settle(lambda: rosapi.call("/rosapi/get_param_names")["names"],
-           lambda: sorted(ros.run(["rosparam", "list"]).stdout.split()))
+    settle(
+        lambda: rosapi.call("/rosapi/get_param_names")["names"],
+        lambda: sorted(ros.run(["rosparam", "list"]).stdout.split()),
+    )
     assert rosapi.call("/rosapi/search_param", {"name": "rosapi_test"}) == {"global_name": "/rosapi_test"}
     assert rosapi.call("/rosapi/search_param", {"name": "no_such_param"}) == {"global_name": ""}
 
@@ -323,6 +372,7 @@ def test_get_time_is_the_ros_time(rosapi):
 
 
 # ---- requests
+
 
 def test_bad_requests_are_clear_errors(rosapi):
     with pytest.raises(RosapiError, match="has no field 'topik'"):
@@ -347,6 +397,7 @@ def test_handles_and_lists_every_rosapi_service(rosapi):
 
 def test_unreachable_master_is_a_clear_error(node):
     from harness import free_port
+
     lost = Rosapi(f"http://127.0.0.1:{free_port()}", BRIDGE, None, node.get_rostime)
     with pytest.raises(RosapiError, match="cannot reach the ROS master"):
         lost.call("/rosapi/topics")
@@ -354,11 +405,19 @@ def test_unreachable_master_is_a_clear_error(node):
 
 # ---- globs
 
+
 @pytest.fixture
 def filtered(ros, node):
-    return Rosapi(ros.uri, BRIDGE, Globs.parse(topics_glob="[/rosapi_test/*]", services_glob="['/rosapi_test/*']",
-                                               params_glob="[/rosapi_test/gain, /rosapi_test/nested]"),
-                  node.get_rostime)
+    return Rosapi(
+        ros.uri,
+        BRIDGE,
+        Globs.parse(
+            topics_glob="[/rosapi_test/*]",
+            services_glob="['/rosapi_test/*']",
+            params_glob="[/rosapi_test/gain, /rosapi_test/nested]",
+        ),
+        node.get_rostime,
+    )
 
 
 def test_topics_glob_hides_topics_everywhere(graph, filtered):
@@ -384,16 +443,22 @@ def test_services_glob_hides_services_everywhere(graph, filtered):
 
 def test_params_glob_hides_and_protects_params(ros, graph, filtered):
     assert filtered.call("/rosapi/get_param_names")["names"] == [
-        "/rosapi_test/gain", "/rosapi_test/nested/a", "/rosapi_test/nested/b", "/rosapi_test/nested/c/d"]
+        "/rosapi_test/gain",
+        "/rosapi_test/nested/a",
+        "/rosapi_test/nested/b",
+        "/rosapi_test/nested/c/d",
+    ]
     assert filtered.call("/rosapi/get_param", {"name": "/rosapi_test/gain"}) == {"value": "2.5"}
-    assert json.loads(filtered.call("/rosapi/get_param", {"name": "/rosapi_test/nested"})["value"])["c"] == {
-        "d": True}
-    for service, args in [("/rosapi/get_param", {}), ("/rosapi/set_param", {"value": "1"}),
-                          ("/rosapi/delete_param", {}), ("/rosapi/get_param", {"name": "/rosapi_test"})]:
+    assert json.loads(filtered.call("/rosapi/get_param", {"name": "/rosapi_test/nested"})["value"])["c"] == {"d": True}
+    for service, args in [
+        ("/rosapi/get_param", {}),
+        ("/rosapi/set_param", {"value": "1"}),
+        ("/rosapi/delete_param", {}),
+        ("/rosapi/get_param", {"name": "/rosapi_test"}),
+    ]:
         with pytest.raises(RosapiError, match="hidden by params_glob"):
             filtered.call(service, {"name": "/rosapi_test/label", **args})
     assert rosparam_get(ros, "/rosapi_test/label") == "turtle"
     assert filtered.call("/rosapi/has_param", {"name": "/rosapi_test/label"}) == {"exists": False}
     assert filtered.call("/rosapi/search_param", {"name": "rosapi_test"}) == {"global_name": ""}
-    assert filtered.call("/rosapi/search_param", {"name": "/rosapi_test/gain"}) == {
-        "global_name": "/rosapi_test/gain"}
+    assert filtered.call("/rosapi/search_param", {"name": "/rosapi_test/gain"}) == {"global_name": "/rosapi_test/gain"}

@@ -1,15 +1,17 @@
 """The /rosapi services through the running bridge, called by roslibpy as a client would, checked against
 the stock CLI tools; and the launch args' globs hiding topics, services and parameters."""
+
 import socket
 import time
 
 import pytest
 import roslibpy
 import yaml
+from test_rosapi_against_cli import graph, settle  # noqa: F401  (graph is a fixture)
+
+from rosbridge.ros_side.rosapi import SERVICES
 
 from harness import start_bridge, wait_for
-from rosbridge.ros_side.rosapi import SERVICES
-from test_rosapi_against_cli import graph, settle  # noqa: F401  (graph is a fixture)
 
 
 def connect(port):
@@ -37,8 +39,13 @@ def bridge(ros, graph):
 
 @pytest.fixture(scope="module")
 def glob_bridge(ros, graph):
-    yield from bridge_and_client(ros, "rosapi_glob_bridge", topics_glob="[/rosapi_test/*]",
-                                 services_glob="['/rosapi_test/*']", params_glob="[/rosapi_test/gain]")
+    yield from bridge_and_client(
+        ros,
+        "rosapi_glob_bridge",
+        topics_glob="[/rosapi_test/*]",
+        services_glob="['/rosapi_test/*']",
+        params_glob="[/rosapi_test/gain]",
+    )
 
 
 def cli_list(ros, *args):
@@ -54,8 +61,9 @@ def test_get_topics_and_types_match_rostopic(ros, bridge):
 
 
 def test_get_services_match_rosservice_plus_rosapi(ros, bridge):
-    services = settle(lambda: sorted(bridge.get_services()),
-                      lambda: sorted(set(cli_list(ros, "rosservice", "list")) | set(SERVICES)))
+    services = settle(
+        lambda: sorted(bridge.get_services()), lambda: sorted(set(cli_list(ros, "rosservice", "list")) | set(SERVICES))
+    )
     assert "/rosapi_test/reset" in services and "/rosapi/get_param" in services
     assert bridge.get_service_type("/rosapi_test/reset") == "std_srvs/Empty"
     assert bridge.get_service_type("/rosapi/topics") == "rosapi/Topics"
@@ -120,12 +128,15 @@ def test_params_get_set_delete_agree_with_rosparam(ros, bridge):
     settle(lambda: sorted(bridge.get_params()), lambda: cli_list(ros, "rosparam", "list"))
     assert roslibpy.Param(bridge, "/rosapi_test/gain").get() == 2.5
     assert bridge.get_param("/rosapi_test/nested") == yaml.safe_load(
-        ros.run(["rosparam", "get", "/rosapi_test/nested"]).stdout)
+        ros.run(["rosparam", "get", "/rosapi_test/nested"]).stdout
+    )
 
     param = roslibpy.Param(bridge, "/rosapi_test/from_client")
     param.set({"speed": 1.5, "names": ["a", "b"]}, timeout=30)
     assert yaml.safe_load(ros.run(["rosparam", "get", "/rosapi_test/from_client"]).stdout) == {
-        "speed": 1.5, "names": ["a", "b"]}
+        "speed": 1.5,
+        "names": ["a", "b"],
+    }
     assert "/rosapi_test/from_client/speed" in bridge.get_params()
     param.delete(timeout=30)
     assert ros.run(["rosparam", "get", "/rosapi_test/from_client"], check=False).returncode != 0

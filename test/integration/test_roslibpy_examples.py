@@ -2,6 +2,7 @@
 rosbridge at 127.0.0.1:9090) check, run against our bridge with roslibpy from .build/venv. Its wheel ships no
 tests, so they are written again here, one for each. Differences: the bridge listens on a free port, and
 rospy_tutorials/AddTwoInts (not packaged by Debian) is replaced by std_srvs/SetBool carrying the sum as text."""
+
 import threading
 import time
 
@@ -68,6 +69,7 @@ def test_topic_with_header(client):
 
 def test_a_service_advertised_and_called_by_one_client_whose_handler_returns_false(client):
     """tests/ros1/test_service.py test_add_two_ints_service: the handler fills the response, returns False."""
+
     def add_two_ints(request, response):
         response["success"] = True
         response["message"] = str(2 + 40)
@@ -77,7 +79,8 @@ def test_a_service_advertised_and_called_by_one_client_whose_handler_returns_fal
     service.advertise(add_two_ints)
     time.sleep(1)
     result = roslibpy.Service(client, "/test_sum_service", "std_srvs/SetBool").call(
-        roslibpy.ServiceRequest({"data": True}), timeout=20)
+        roslibpy.ServiceRequest({"data": True}), timeout=20
+    )
     assert result["message"] == "42"
     service.unadvertise()
 
@@ -87,8 +90,10 @@ def test_an_empty_service(client):
     service = roslibpy.Service(client, "/test_empty_service", "std_srvs/Empty")
     service.advertise(lambda request, response: True)
     time.sleep(1)
-    assert roslibpy.Service(client, "/test_empty_service", "std_srvs/Empty").call(
-        roslibpy.ServiceRequest(), timeout=20) == {}
+    assert (
+        roslibpy.Service(client, "/test_empty_service", "std_srvs/Empty").call(roslibpy.ServiceRequest(), timeout=20)
+        == {}
+    )
     service.unadvertise()
 
 

@@ -1,6 +1,7 @@
 """Security of live bridges: the listening address, the origin allow-list, the Host check (DNS rebinding), the
 globs as a wall (not only a filter of rosapi lists), rosauth authentication that cannot be bypassed, TLS, and the
 message size limit."""
+
 import hashlib
 import json
 import socket
@@ -62,8 +63,9 @@ def test_the_bridge_listens_only_on_the_given_address(ros, address):
 # ---- origins ----------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def origin_bridge(ros):
-    proc, port = start_bridge(ros, node_name="security_origin_bridge", allowed_origins="[http://good.example:8080, "
-                                                                            "https://*.robots.lan]")
+    proc, port = start_bridge(
+        ros, node_name="security_origin_bridge", allowed_origins="[http://good.example:8080, https://*.robots.lan]"
+    )
     yield port
     proc.stop()
 
@@ -87,17 +89,28 @@ def refused_with_403(port, origin, host_header=None):
     return error.value.code == 403
 
 
-@pytest.mark.parametrize("origin", ["http://good.example:8080", "HTTP://GOOD.EXAMPLE:8080", "https://a.robots.lan",
-                                    "https://b.c.robots.lan"])
+@pytest.mark.parametrize(
+    "origin", ["http://good.example:8080", "HTTP://GOOD.EXAMPLE:8080", "https://a.robots.lan", "https://b.c.robots.lan"]
+)
 def test_allowed_origins_connect(origin_bridge, origin):
     client = WsClient(f"ws://127.0.0.1:{origin_bridge}/", headers={"Origin": origin})
     assert ping(client)
     client.close()
 
 
-@pytest.mark.parametrize("origin", ["http://evil.example", "http://good.example:8081", "https://good.example:8080",
-                                   "http://good.example:8080.evil.example", "https://robots.lan.evil.example",
-                                   "http://a.robots.lan", "null", ""])
+@pytest.mark.parametrize(
+    "origin",
+    [
+        "http://evil.example",
+        "http://good.example:8081",
+        "https://good.example:8080",
+        "http://good.example:8080.evil.example",
+        "https://robots.lan.evil.example",
+        "http://a.robots.lan",
+        "null",
+        "",
+    ],
+)
 def test_other_origins_are_refused_with_403(origin_bridge, origin):
     assert refused_with_403(origin_bridge, origin)
 
@@ -126,8 +139,11 @@ def test_default_allows_this_machines_pages_on_any_port_and_from_disk(default_br
 
 
 def test_default_refuses_look_alike_origins(default_bridge):
-    for origin in ("http://localhost.evil.example", f"http://127.0.0.1.evil.example:{default_bridge}",
-                   "http://192.0.2.7:8000"):
+    for origin in (
+        "http://localhost.evil.example",
+        f"http://127.0.0.1.evil.example:{default_bridge}",
+        "http://192.0.2.7:8000",
+    ):
         assert refused_with_403(default_bridge, origin)
 
 
@@ -158,14 +174,16 @@ def rebind_bridge(ros, node, tmp_path_factory):
     """A bridge that has something to steal: a bag, a latched camera picture and a latched cloud; and a reverse
     proxy's public name in allowed_hosts. (proc, port)."""
     from sensor_msgs.msg import Image, PointCloud2
+
     folder = tmp_path_factory.mktemp("rebind_bags")
     (folder / "run.bag").write_bytes(BAG_BYTES)
     camera = node.Publisher(f"{REBIND}/camera", Image, queue_size=1, latch=True)
     camera.publish(Image(width=4, height=2, encoding="mono8", step=4, data=bytes(8)))
     cloud = node.Publisher(f"{REBIND}/cloud", PointCloud2, queue_size=1, latch=True)
     cloud.publish(big_cloud(100))
-    proc, port = start_bridge(ros, node_name="security_rebind_bridge", bag_folder=str(folder),
-                              allowed_hosts="[robots.example, *.robots.lan]")
+    proc, port = start_bridge(
+        ros, node_name="security_rebind_bridge", bag_folder=str(folder), allowed_hosts="[robots.example, *.robots.lan]"
+    )
     yield proc, port
     proc.stop()
     camera.unregister()
@@ -175,11 +193,20 @@ def rebind_bridge(ros, node, tmp_path_factory):
 def browser_get(port, path, host):
     """(status, body) of a GET as a browser sends it for a page's fetch() of its own site (the name `host`
     re-pointed at 127.0.0.1 by the attacker's DNS): no Origin, the page's Referer and the usual headers."""
-    request = urllib.request.Request(f"http://127.0.0.1:{port}{path}", headers={
-        "Host": host, "Connection": "keep-alive", "Accept": "*/*", "Accept-Language": "en-US,en;q=0.9",
-        "User-Agent": "Mozilla/5.0 (X11; Linux x86_64) AppleWebKit/537.36 (KHTML, like Gecko) Chrome/120.0",
-        "Referer": f"http://{host}/", "Sec-Fetch-Site": "same-origin", "Sec-Fetch-Mode": "cors",
-        "Sec-Fetch-Dest": "empty"})
+    request = urllib.request.Request(
+        f"http://127.0.0.1:{port}{path}",
+        headers={
+            "Host": host,
+            "Connection": "keep-alive",
+            "Accept": "*/*",
+            "Accept-Language": "en-US,en;q=0.9",
+            "User-Agent": "Mozilla/5.0 (X11; Linux x86_64) AppleWebKit/537.36 (KHTML, like Gecko) Chrome/120.0",
+            "Referer": f"http://{host}/",
+            "Sec-Fetch-Site": "same-origin",
+            "Sec-Fetch-Mode": "cors",
+            "Sec-Fetch-Dest": "empty",
+        },
+    )
     try:
         with urllib.request.urlopen(request, timeout=20) as answer:
             return answer.status, answer.read(len(BAG_BYTES))  # (a stream goes on: its start is enough)
@@ -187,9 +214,17 @@ def browser_get(port, path, host):
         return error.code, error.read()
 
 
-REBIND_PATHS = ["/bags/run.bag", "/bags", f"/snapshot?topic={REBIND}/camera", f"/cloud?topic={REBIND}/cloud",
-                f"/stream?topic={REBIND}/camera", f"/stream_viewer?topic={REBIND}/camera", "/streams", "/",
-                "/app.js"]
+REBIND_PATHS = [
+    "/bags/run.bag",
+    "/bags",
+    f"/snapshot?topic={REBIND}/camera",
+    f"/cloud?topic={REBIND}/cloud",
+    f"/stream?topic={REBIND}/camera",
+    f"/stream_viewer?topic={REBIND}/camera",
+    "/streams",
+    "/",
+    "/app.js",
+]
 
 
 @pytest.mark.parametrize("path", REBIND_PATHS)
@@ -205,20 +240,44 @@ def test_a_dns_rebinding_page_reads_nothing(rebind_bridge, path):
 def test_a_dns_rebinding_page_opens_no_websocket(rebind_bridge):
     """A browser sends the page's Origin with a websocket; Host is checked before it, with or without one."""
     _, port = rebind_bridge
-    for headers in ({"Host": f"evil.example:{port}"},
-                    {"Host": f"evil.example:{port}", "Origin": f"http://evil.example:{port}"}):
+    for headers in (
+        {"Host": f"evil.example:{port}"},
+        {"Host": f"evil.example:{port}", "Origin": f"http://evil.example:{port}"},
+    ):
         with pytest.raises(tornado.httpclient.HTTPClientError) as error:
             WsClient(f"ws://127.0.0.1:{port}/", headers=headers)
         assert error.value.code == 403, headers
 
 
-@pytest.mark.parametrize("make_host", [
-    lambda port: f"127.0.0.1:{port}", lambda port: f"localhost:{port}", lambda port: "localhost",
-    lambda port: f"LOCALHOST.:{port}", lambda port: f"[::1]:{port}", lambda port: f"{socket.gethostname()}:{port}",
-    lambda port: f"{socket.gethostname().split('.')[0]}.local:{port}", lambda port: f"app.localhost:{port}",
-    lambda port: "robots.example", lambda port: "Robots.Example:8443", lambda port: "rover1.robots.lan",
-], ids=["127.0.0.1", "localhost", "localhost without port", "localhost.", "[::1]", "host name", "mDNS name",
-        "*.localhost", "allowed_hosts", "allowed_hosts with port", "allowed_hosts pattern"])
+@pytest.mark.parametrize(
+    "make_host",
+    [
+        lambda port: f"127.0.0.1:{port}",
+        lambda port: f"localhost:{port}",
+        lambda port: "localhost",
+        lambda port: f"LOCALHOST.:{port}",
+        lambda port: f"[::1]:{port}",
+        lambda port: f"{socket.gethostname()}:{port}",
+        lambda port: f"{socket.gethostname().split('.')[0]}.local:{port}",
+        lambda port: f"app.localhost:{port}",
+        lambda port: "robots.example",
+        lambda port: "Robots.Example:8443",
+        lambda port: "rover1.robots.lan",
+    ],
+    ids=[
+        "127.0.0.1",
+        "localhost",
+        "localhost without port",
+        "localhost.",
+        "[::1]",
+        "host name",
+        "mDNS name",
+        "*.localhost",
+        "allowed_hosts",
+        "allowed_hosts with port",
+        "allowed_hosts pattern",
+    ],
+)
 def test_this_machines_names_and_allowed_hosts_still_work(rebind_bridge, make_host):
     _, port = rebind_bridge
     host = make_host(port)
@@ -256,13 +315,25 @@ def test_a_refused_host_is_logged_once_with_the_launch_arg_that_allows_it(rebind
 
 def test_hosts_that_allowed_origins_allows_are_served(origin_bridge):
     """A page allowed_origins lists may be served by the bridge under that name (a reverse proxy passing it on)."""
-    for host, status in [("good.example:8080", 200), ("a.robots.lan", 200), ("good.example", 403),
-                         ("a.robots.lan.evil.example", 403)]:
+    for host, status in [
+        ("good.example:8080", 200),
+        ("a.robots.lan", 200),
+        ("good.example", 403),
+        ("a.robots.lan.evil.example", 403),
+    ]:
         assert browser_get(origin_bridge, "/", host)[0] == status, host
 
 
-@pytest.mark.parametrize("path", ["/../../../../etc/passwd", "/%2e%2e/%2e%2e/%2e%2e/etc/passwd",
-                                  "/..%2f..%2f..%2fetc%2fpasswd", "//etc/passwd", "/vendor/../../package.xml"])
+@pytest.mark.parametrize(
+    "path",
+    [
+        "/../../../../etc/passwd",
+        "/%2e%2e/%2e%2e/%2e%2e/etc/passwd",
+        "/..%2f..%2f..%2fetc%2fpasswd",
+        "//etc/passwd",
+        "/vendor/../../package.xml",
+    ],
+)
 def test_the_page_server_serves_nothing_outside_web_root(default_bridge, path):
     with socket.create_connection(("127.0.0.1", default_bridge), timeout=10) as conn:
         conn.sendall(f"GET {path} HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n".encode())
@@ -323,8 +394,13 @@ def test_only_the_pages_own_files_are_served(page_bridge, path):
 # ---- globs ------------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def glob_bridge(ros):
-    proc, port = start_bridge(ros, node_name="security_glob_bridge", topics_glob="[/sec/open/*]",
-                              services_glob="[/sec/open/*]", params_glob="[/sec/open/*]")
+    proc, port = start_bridge(
+        ros,
+        node_name="security_glob_bridge",
+        topics_glob="[/sec/open/*]",
+        services_glob="[/sec/open/*]",
+        params_glob="[/sec/open/*]",
+    )
     yield port
     proc.stop()
 
@@ -343,16 +419,20 @@ def refused(reply, name):
     return reply["result"] is False and name in json.dumps(reply["values"])
 
 
-@pytest.mark.parametrize("frame", [
-    {"op": "subscribe", "topic": "/sec/hidden/pose", "type": "std_msgs/String"},
-    {"op": "advertise", "topic": "/sec/hidden/cmd", "type": "std_msgs/String"},
-    {"op": "publish", "topic": "/sec/hidden/cmd", "msg": {"data": "x"}},
-    {"op": "call_service", "service": "/sec/hidden/reset"},
-    {"op": "advertise_service", "service": "/sec/hidden/offer", "type": "std_srvs/Empty"},
-    {"op": "call_service", "service": "/rosapi/get_param", "args": {"name": "/sec/hidden/gain"}},
-    {"op": "call_service", "service": "/rosapi/set_param", "args": {"name": "/sec/hidden/gain", "value": "1"}},
-    {"op": "call_service", "service": "/rosapi/delete_param", "args": {"name": "/sec/hidden/gain"}},
-], ids=lambda frame: f"{frame['op']}-{frame.get('topic') or frame['service']}")
+@pytest.mark.parametrize(
+    "frame",
+    [
+        {"op": "subscribe", "topic": "/sec/hidden/pose", "type": "std_msgs/String"},
+        {"op": "advertise", "topic": "/sec/hidden/cmd", "type": "std_msgs/String"},
+        {"op": "publish", "topic": "/sec/hidden/cmd", "msg": {"data": "x"}},
+        {"op": "call_service", "service": "/sec/hidden/reset"},
+        {"op": "advertise_service", "service": "/sec/hidden/offer", "type": "std_srvs/Empty"},
+        {"op": "call_service", "service": "/rosapi/get_param", "args": {"name": "/sec/hidden/gain"}},
+        {"op": "call_service", "service": "/rosapi/set_param", "args": {"name": "/sec/hidden/gain", "value": "1"}},
+        {"op": "call_service", "service": "/rosapi/delete_param", "args": {"name": "/sec/hidden/gain"}},
+    ],
+    ids=lambda frame: f"{frame['op']}-{frame.get('topic') or frame['service']}",
+)
 def test_hidden_names_are_refused(glob_client, frame):
     name = frame["args"]["name"] if "args" in frame else frame.get("topic") or frame["service"]
     reply = glob_client.request({**frame, "id": "hidden"})
@@ -364,8 +444,9 @@ def test_relative_service_names_meet_the_globs_as_ros_resolves_them(glob_client)
     """roslib 2.x calls "rosapi/topics": resolved in the bridge's namespace ("/"), as rospy does."""
     reply = glob_client.request({"op": "call_service", "service": "rosapi/topics", "id": "relative rosapi"})
     assert reply["op"] == "service_response" and reply["result"] is True, reply
-    assert refused(glob_client.request({"op": "call_service", "service": "sec/hidden/reset", "id": "r"}),
-                   "/sec/hidden/reset")
+    assert refused(
+        glob_client.request({"op": "call_service", "service": "sec/hidden/reset", "id": "r"}), "/sec/hidden/reset"
+    )
 
 
 def test_a_library_call_of_a_hidden_service_fails_at_once(glob_bridge):
@@ -385,6 +466,7 @@ def hidden_things(ros, node):
     """A latched publisher, a service and a parameter under /sec/hidden, which the glob bridge hides."""
     from std_msgs.msg import String
     from std_srvs.srv import Empty, EmptyResponse
+
     ros.run(["rosparam", "set", "/sec/hidden/gain", "7"])
     calls = []
     server = node.Service("/sec/hidden/reset", Empty, lambda req: calls.append(req) or EmptyResponse())
@@ -401,26 +483,41 @@ def test_hidden_topics_and_services_stay_hidden_from_ros(ros, glob_client, hidde
     """Nothing reaches ROS or comes back from it through a refused name."""
     glob_client.request({"op": "subscribe", "topic": "/sec/hidden/pose", "id": "s"})
     assert glob_client.request({"op": "call_service", "service": "/sec/hidden/reset", "id": "c"})
-    glob_client.request({"op": "call_service", "service": "/rosapi/set_param", "id": "p",
-                         "args": {"name": "/sec/hidden/gain", "value": "8"}})
+    glob_client.request(
+        {
+            "op": "call_service",
+            "service": "/rosapi/set_param",
+            "id": "p",
+            "args": {"name": "/sec/hidden/gain", "value": "8"},
+        }
+    )
     assert ping(glob_client)  # no publish frame of the hidden topic came in between
     assert hidden_things == [] and ros.run(["rosparam", "get", "/sec/hidden/gain"]).stdout.strip() == "7"
 
 
-@pytest.mark.parametrize("service, args", [
-    ("/rosapi/topics", {}), ("/rosapi/topics_and_raw_types", {}),
-    ("/rosapi/topics_for_type", {"type": "std_msgs/String"}),
-    ("/rosapi/topic_type", {"topic": "/sec/hidden/pose"}), ("/rosapi/publishers", {"topic": "/sec/hidden/pose"}),
-    ("/rosapi/services", {}), ("/rosapi/services_for_type", {"type": "std_srvs/Empty"}),
-    ("/rosapi/service_type", {"service": "/sec/hidden/reset"}),
-    ("/rosapi/service_providers", {"service": "/sec/hidden/reset"}),
-    ("/rosapi/service_node", {"service": "/sec/hidden/reset"}),
-    ("/rosapi/service_host", {"service": "/sec/hidden/reset"}),
-    ("/rosapi/get_param_names", {}), ("/rosapi/has_param", {"name": "/sec/hidden/gain"}),
-    ("/rosapi/search_param", {"name": "gain"}), ("/rosapi/search_param", {"name": "/sec/hidden/gain"}),
-    ("/rosapi/get_param", {"name": "/"}), ("/rosapi/get_param", {"name": "/sec"}),
-    ("/rosapi/get_param", {"name": "sec/hidden/gain"}),
-])
+@pytest.mark.parametrize(
+    "service, args",
+    [
+        ("/rosapi/topics", {}),
+        ("/rosapi/topics_and_raw_types", {}),
+        ("/rosapi/topics_for_type", {"type": "std_msgs/String"}),
+        ("/rosapi/topic_type", {"topic": "/sec/hidden/pose"}),
+        ("/rosapi/publishers", {"topic": "/sec/hidden/pose"}),
+        ("/rosapi/services", {}),
+        ("/rosapi/services_for_type", {"type": "std_srvs/Empty"}),
+        ("/rosapi/service_type", {"service": "/sec/hidden/reset"}),
+        ("/rosapi/service_providers", {"service": "/sec/hidden/reset"}),
+        ("/rosapi/service_node", {"service": "/sec/hidden/reset"}),
+        ("/rosapi/service_host", {"service": "/sec/hidden/reset"}),
+        ("/rosapi/get_param_names", {}),
+        ("/rosapi/has_param", {"name": "/sec/hidden/gain"}),
+        ("/rosapi/search_param", {"name": "gain"}),
+        ("/rosapi/search_param", {"name": "/sec/hidden/gain"}),
+        ("/rosapi/get_param", {"name": "/"}),
+        ("/rosapi/get_param", {"name": "/sec"}),
+        ("/rosapi/get_param", {"name": "sec/hidden/gain"}),
+    ],
+)
 def test_rosapi_answers_never_show_hidden_names(glob_client, hidden_things, service, args):
     """Either refused (the error may repeat the name asked for) or answered without a trace of /sec/hidden."""
     reply = glob_client.request({"op": "call_service", "service": service, "args": args, "id": service})
@@ -430,14 +527,16 @@ def test_rosapi_answers_never_show_hidden_names(glob_client, hidden_things, serv
 
 
 def test_node_details_hide_what_the_node_does_on_hidden_names(glob_client, hidden_things, node):
-    reply = glob_client.request({"op": "call_service", "service": "/rosapi/node_details", "id": "n",
-                                 "args": {"node": node.get_name()}})
+    reply = glob_client.request(
+        {"op": "call_service", "service": "/rosapi/node_details", "id": "n", "args": {"node": node.get_name()}}
+    )
     assert reply["result"], reply
     assert "/sec/hidden" not in json.dumps(reply["values"]), reply
 
 
 def test_open_names_still_work(node, glob_client):
     from std_msgs.msg import String
+
     got = []
     sub = node.Subscriber("/sec/open/cmd", String, lambda m: got.append(m.data))
     try:
@@ -446,6 +545,7 @@ def test_open_names_still_work(node, glob_client):
         def delivered():
             glob_client.send({"op": "publish", "topic": "/sec/open/cmd", "msg": {"data": "open"}})
             return got
+
         assert wait_for(delivered, 20, interval=0.2, what="the open topic in rospy")[0] == "open"
     finally:
         sub.unregister()
@@ -460,8 +560,15 @@ def mac_for(secret, client, dest, rand, t, level, end):
 def auth_frame(secret=SECRET, t=None, end=None, rand="r4nd0m", **changes):
     t = time.time() if t is None else t
     end = t + 60 if end is None else end
-    frame = {"op": "auth", "client": "127.0.0.1", "dest": "127.0.0.1", "rand": rand, "t": t, "level": "admin",
-             "end": end}
+    frame = {
+        "op": "auth",
+        "client": "127.0.0.1",
+        "dest": "127.0.0.1",
+        "rand": rand,
+        "t": t,
+        "level": "admin",
+        "end": end,
+    }
     frame["mac"] = mac_for(secret, frame["client"], frame["dest"], rand, t, frame["level"], end)
     frame.update(changes)
     return frame
@@ -492,14 +599,18 @@ def not_executed(client, frame=GET_TIME):
     return reply["op"] == "status" and reply["level"] == "error" and "not authenticated" in reply["msg"]
 
 
-@pytest.mark.parametrize("frame", [  # besides subscribe and rosapi calls, in test_bridge_launch_args.py
-    {"op": "publish", "topic": "/sec/cmd", "msg": {}, "id": "t"},
-    {"op": "advertise_service", "service": "/sec/offer", "type": "std_srvs/Empty", "id": "t"},
-    {"op": "set_level", "level": "info", "id": "t"},
-    # wrapped ops: a fragment or png must not smuggle a request past authentication
-    {"op": "fragment", "id": "t", "data": GET_TIME_TEXT, "num": 0, "total": 1},
-    {"op": "png", "id": "t", "data": "iVBORw0KGgo="},
-], ids=lambda frame: frame["op"])
+@pytest.mark.parametrize(
+    "frame",
+    [  # besides subscribe and rosapi calls, in test_bridge_launch_args.py
+        {"op": "publish", "topic": "/sec/cmd", "msg": {}, "id": "t"},
+        {"op": "advertise_service", "service": "/sec/offer", "type": "std_srvs/Empty", "id": "t"},
+        {"op": "set_level", "level": "info", "id": "t"},
+        # wrapped ops: a fragment or png must not smuggle a request past authentication
+        {"op": "fragment", "id": "t", "data": GET_TIME_TEXT, "num": 0, "total": 1},
+        {"op": "png", "id": "t", "data": "iVBORw0KGgo="},
+    ],
+    ids=lambda frame: frame["op"],
+)
 def test_every_op_before_auth_is_refused(auth_client, frame):
     assert not_executed(auth_client, frame)
     assert not_executed(auth_client)
@@ -507,11 +618,17 @@ def test_every_op_before_auth_is_refused(auth_client, frame):
 
 # The auth frames below are made when the test runs, not when it is collected: made earlier, their `t` would be
 # out of the bridge's auth_time_delta by then, and a frame refused for its time proves nothing about its flaw.
-@pytest.mark.parametrize("make_text", [
-    lambda: "x" + json.dumps(auth_frame()),  # junk before the JSON (the reference then runs the next ops unauthenticated)
-    lambda: json.dumps(auth_frame())[:-1],
-    lambda: json.dumps([auth_frame()]),
-], ids=["junk before", "cut short", "in a list"])
+@pytest.mark.parametrize(
+    "make_text",
+    [
+        lambda: (
+            "x" + json.dumps(auth_frame())
+        ),  # junk before the JSON (the reference then runs the next ops unauthenticated)
+        lambda: json.dumps(auth_frame())[:-1],
+        lambda: json.dumps([auth_frame()]),
+    ],
+    ids=["junk before", "cut short", "in a list"],
+)
 def test_junk_around_auth_is_not_authentication(auth_client, make_text):
     auth_client.send(make_text())
     assert not_executed(auth_client)
@@ -522,18 +639,24 @@ def test_binary_auth_is_not_authentication(auth_client):
     assert not_executed(auth_client)
 
 
-@pytest.mark.parametrize("name, make_frame", [pytest.param(name, make, id=name) for name, make in [
-    ("missing mac", lambda: {k: v for k, v in auth_frame().items() if k != "mac"}),
-    ("missing t", lambda: {k: v for k, v in auth_frame().items() if k != "t"}),
-    ("missing end", lambda: {k: v for k, v in auth_frame().items() if k != "end"}),
-    ("only op", lambda: {"op": "auth"}),
-    ("wrong secret", lambda: auth_frame(secret="guess")),
-    ("empty mac", lambda: auth_frame(mac="")),
-    ("mac as number", lambda: auth_frame(mac=0)),
-    ("t an hour ahead", lambda: auth_frame(t=time.time() + 3600)),
-    ("t NaN", lambda: {**auth_frame(), "t": float("nan")}),
-    ("end Infinity", lambda: {**auth_frame(), "end": float("inf")}),
-]])
+@pytest.mark.parametrize(
+    "name, make_frame",
+    [
+        pytest.param(name, make, id=name)
+        for name, make in [
+            ("missing mac", lambda: {k: v for k, v in auth_frame().items() if k != "mac"}),
+            ("missing t", lambda: {k: v for k, v in auth_frame().items() if k != "t"}),
+            ("missing end", lambda: {k: v for k, v in auth_frame().items() if k != "end"}),
+            ("only op", lambda: {"op": "auth"}),
+            ("wrong secret", lambda: auth_frame(secret="guess")),
+            ("empty mac", lambda: auth_frame(mac="")),
+            ("mac as number", lambda: auth_frame(mac=0)),
+            ("t an hour ahead", lambda: auth_frame(t=time.time() + 3600)),
+            ("t NaN", lambda: {**auth_frame(), "t": float("nan")}),
+            ("end Infinity", lambda: {**auth_frame(), "end": float("inf")}),
+        ]
+    ],
+)
 def test_bad_auth_is_refused_and_the_socket_closed(auth_client, name, make_frame):
     auth_client.send(json.dumps(make_frame()))
     reply = auth_client.recv()
@@ -557,8 +680,9 @@ def test_a_replayed_mac_is_refused_once_its_time_window_is_over(auth_bridge):
 
 
 def auth_query(frame):
-    return urllib.parse.urlencode({name: frame[name] for name in ("mac", "client", "dest", "rand", "t", "level",
-                                                                  "end")})
+    return urllib.parse.urlencode(
+        {name: frame[name] for name in ("mac", "client", "dest", "rand", "t", "level", "end")}
+    )
 
 
 def test_a_query_string_whose_t_lies_ahead_counts_that_within_its_window(auth_bridge):
@@ -593,9 +717,28 @@ def test_without_a_secret_nobody_gets_in(ros):
 def tls_bridge(ros):
     folder = make_workdir("tls")
     cert, key = folder / "cert.pem", folder / "key.pem"
-    subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-subj", "/CN=localhost",
-                    "-addext", "subjectAltName=DNS:localhost,IP:127.0.0.1", "-days", "1",
-                    "-keyout", str(key), "-out", str(cert)], check=True, capture_output=True)
+    subprocess.run(
+        [
+            "openssl",
+            "req",
+            "-x509",
+            "-newkey",
+            "rsa:2048",
+            "-nodes",
+            "-subj",
+            "/CN=localhost",
+            "-addext",
+            "subjectAltName=DNS:localhost,IP:127.0.0.1",
+            "-days",
+            "1",
+            "-keyout",
+            str(key),
+            "-out",
+            str(cert),
+        ],
+        check=True,
+        capture_output=True,
+    )
     proc, port = start_bridge(ros, node_name="security_tls_bridge", ssl="true", certfile=str(cert), keyfile=str(key))
     yield port, cert
     proc.stop()
@@ -637,7 +780,7 @@ def test_a_frame_over_max_message_size_gets_an_error_and_the_connection_goes_on(
         # the same size in fragments is refused too, and the connection still works
         text = json.dumps({"op": "publish", "topic": "/sec/big", "msg": {"data": "z" * 9_000_000}, "id": "big"})
         step = 1_000_000
-        parts = [text[i:i + step] for i in range(0, len(text), step)]
+        parts = [text[i : i + step] for i in range(0, len(text), step)]
         for num, part in enumerate(parts):
             client.send({"op": "fragment", "id": "big", "data": part, "num": num, "total": len(parts)})
         reply = client.recv_op("status", timeout=30)
@@ -649,8 +792,9 @@ def test_a_frame_over_max_message_size_gets_an_error_and_the_connection_goes_on(
 
 # ---- HTTP bounds: request bodies, connections per address ------------------------------------------------------
 def post_head(path, length, host="localhost"):
-    return (f"POST {path} HTTP/1.1\r\nHost: {host}\r\nContent-Type: application/json\r\n"
-            f"Content-Length: {length}\r\n\r\n").encode()
+    return (
+        f"POST {path} HTTP/1.1\r\nHost: {host}\r\nContent-Type: application/json\r\nContent-Length: {length}\r\n\r\n"
+    ).encode()
 
 
 def answer_head(sock, timeout):
@@ -690,8 +834,9 @@ def test_a_body_larger_than_any_endpoint_takes_is_refused_at_its_headers_and_nev
 
 
 def urllib_post(port, path, data):
-    request = urllib.request.Request(f"http://127.0.0.1:{port}{path}", data=data,
-                                     headers={"Content-Type": "application/json"})
+    request = urllib.request.Request(
+        f"http://127.0.0.1:{port}{path}", data=data, headers={"Content-Type": "application/json"}
+    )
     try:
         with urllib.request.urlopen(request, timeout=20) as answer:
             return answer.status, answer.read().decode()
@@ -719,8 +864,9 @@ def test_stalled_bodies_from_one_address_leave_the_descriptors_to_others(ros):
             assert answer_head(other, 5).startswith(b"HTTP/1.1 404"), "the other address was not served"
         assert time.monotonic() - started < 2
         answers = [answer_head(sock, 0.2) for sock in stalled[-100:]]
-        assert all(answer.startswith(b"HTTP/1.1 503") and b"max_connections_per_address" in answer
-                   for answer in answers), answers[:3]
+        assert all(
+            answer.startswith(b"HTTP/1.1 503") and b"max_connections_per_address" in answer for answer in answers
+        ), answers[:3]
         stalled[0].settimeout(15)
         assert stalled[0].recv(100) == b""  # closed, its body late (a timeout would raise)
     finally:

@@ -3,6 +3,7 @@ bridge, rospy publishers in this process, and HTTP read from raw sockets (so tha
 reads): decodable JPEGs at the topic's rate, snapshots, sizes, encodings, the newest frame and never a backlog
 for a slow reader, shared encodes, memory and the encoder bounded whatever is asked, the list, bad requests, access
 rules (a stream ending at its authentication's end), and no leak."""
+
 import collections
 import hashlib
 import io
@@ -27,8 +28,9 @@ STALLED = 12.0  # the module bridge's websocket_ping_timeout: how long a frame m
 def camera_pictures(width, height, count=4, noise=0.25):
     """Pictures that compress like a camera's: a gradient with some noise, a different one each frame."""
     base = Image.linear_gradient("L").resize((width, height)).convert("RGB")
-    return [Image.blend(base, Image.effect_noise((width, height), 60 + 10 * i).convert("RGB"), noise)
-            for i in range(count)]
+    return [
+        Image.blend(base, Image.effect_noise((width, height), 60 + 10 * i).convert("RGB"), noise) for i in range(count)
+    ]
 
 
 class Camera:
@@ -37,6 +39,7 @@ class Camera:
 
     def __init__(self, node, topic, rate, make, cls=None):
         from sensor_msgs.msg import Image as RosImage
+
         self.pub = node.Publisher(topic, cls or RosImage, queue_size=1)
         self.make, self.rate, self.node = make, rate, node
         self.published = collections.OrderedDict()
@@ -64,19 +67,27 @@ class Camera:
 
 def image_maker(pictures, encoding="rgb8"):
     from sensor_msgs.msg import Image as RosImage
+
     raws = [picture.tobytes() for picture in pictures]
 
     def make(index, stamp):
         picture = pictures[index % len(pictures)]
-        msg = RosImage(width=picture.width, height=picture.height, encoding=encoding,
-                       step=len(picture.getbands()) * picture.width, data=raws[index % len(raws)])
+        msg = RosImage(
+            width=picture.width,
+            height=picture.height,
+            encoding=encoding,
+            step=len(picture.getbands()) * picture.width,
+            data=raws[index % len(raws)],
+        )
         msg.header.stamp, msg.header.frame_id = stamp, "camera"
         return msg
+
     return make
 
 
 def compressed_maker(pictures):
     from sensor_msgs.msg import CompressedImage
+
     files = []
     for picture in pictures:
         out = io.BytesIO()
@@ -87,6 +98,7 @@ def compressed_maker(pictures):
         msg = CompressedImage(format="jpeg", data=files[index % len(files)])
         msg.header.stamp = stamp
         return msg
+
     return make, files
 
 
@@ -100,8 +112,11 @@ class Http:
             self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, rcvbuf)
         self.sock.settimeout(timeout)
         self.sock.connect(("127.0.0.1", port))
-        lines = [f"GET {path} HTTP/1.1", f"Host: 127.0.0.1:{port}",
-                 *(f"{name}: {value}" for name, value in (headers or {}).items())]
+        lines = [
+            f"GET {path} HTTP/1.1",
+            f"Host: 127.0.0.1:{port}",
+            *(f"{name}: {value}" for name, value in (headers or {}).items()),
+        ]
         self.sock.sendall(("\r\n".join(lines) + "\r\n\r\n").encode())
         self.buf = bytearray()
         head = self.until(b"\r\n\r\n").decode()
@@ -121,7 +136,7 @@ class Http:
             self.fill()
         at = self.buf.index(marker)
         out = bytes(self.buf[:at])
-        del self.buf[:at + len(marker)]
+        del self.buf[: at + len(marker)]
         return out
 
     def exactly(self, count):
@@ -185,8 +200,9 @@ def camera(node):
 
 def wait_streaming(port, topic, timeout=20):
     """Waits until a snapshot of `topic` comes (the bridge and the publisher are connected)."""
-    return wait_for(lambda: get(port, f"/snapshot?topic={topic}")[0] == 200, timeout, interval=0.2,
-                    what=f"a snapshot of {topic}")
+    return wait_for(
+        lambda: get(port, f"/snapshot?topic={topic}")[0] == 200, timeout, interval=0.2, what=f"a snapshot of {topic}"
+    )
 
 
 # ---- the stream -------------------------------------------------------------------------------------------------
@@ -213,9 +229,17 @@ def test_a_stream_delivers_decodable_jpegs_at_the_topics_rate(bridge, camera):
         assert jpeg_size(body) == (640, 480)
 
 
-@pytest.mark.parametrize("query, size", [
-    ("width=320", (320, 240)), ("height=120", (160, 120)), ("width=100&height=100", (100, 100)),
-    ("width=0&height=0", (640, 480)), ("width=-1&height=-1", (640, 480)), ("quality=20&width=64", (64, 48))])
+@pytest.mark.parametrize(
+    "query, size",
+    [
+        ("width=320", (320, 240)),
+        ("height=120", (160, 120)),
+        ("width=100&height=100", (100, 100)),
+        ("width=0&height=0", (640, 480)),
+        ("width=-1&height=-1", (640, 480)),
+        ("quality=20&width=64", (64, 48)),
+    ],
+)
 def test_width_and_height(bridge, camera, query, size):
     wait_streaming(bridge, "/streams_test/cam")
     stream = Http(bridge, f"/stream?topic=/streams_test/cam&{query}")
@@ -228,12 +252,14 @@ def test_width_and_height(bridge, camera, query, size):
 
 def test_invert_turns_the_picture_over(bridge, node):
     from sensor_msgs.msg import Image as RosImage
+
     top_white = bytes([255] * 3 * 32 * 16 + [0] * 3 * 32 * 16)  # 32x32: the top half white
 
     def make(index, stamp):
         msg = RosImage(width=32, height=32, encoding="rgb8", step=96, data=top_white)
         msg.header.stamp = stamp
         return msg
+
     cam = Camera(node, "/streams_test/halves", 20, make)
     try:
         wait_streaming(bridge, "/streams_test/halves")
@@ -277,16 +303,20 @@ def test_a_stream_waits_for_a_topic_published_later(bridge, node):
 
 
 # ---- encodings --------------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("encoding, pixel, expected", [
-    ("bgr8", (255, 0, 0), (0, 0, 255)), ("rgba8", (0, 255, 0, 9), (0, 255, 0)), ("mono8", (77,), (77, 77, 77))])
+@pytest.mark.parametrize(
+    "encoding, pixel, expected",
+    [("bgr8", (255, 0, 0), (0, 0, 255)), ("rgba8", (0, 255, 0, 9), (0, 255, 0)), ("mono8", (77,), (77, 77, 77))],
+)
 def test_encodings(bridge, node, encoding, pixel, expected):
     from sensor_msgs.msg import Image as RosImage
+
     topic = f"/streams_test/{encoding}"
 
     def make(index, stamp):
         msg = RosImage(width=16, height=16, encoding=encoding, step=16 * len(pixel), data=bytes(pixel) * 256)
         msg.header.stamp = stamp
         return msg
+
     cam = Camera(node, topic, 20, make)
     try:
         wait_streaming(bridge, topic)
@@ -302,10 +332,14 @@ def test_an_unsupported_encoding_is_named(bridge, node):
 
     def make(index, stamp):
         return RosImage(width=4, height=4, encoding="yuv422", step=8, data=bytes(32))
+
     cam = Camera(node, "/streams_test/yuv", 20, make)
     try:
-        status, _, body = wait_for(lambda: (answer := get(bridge, "/snapshot?topic=/streams_test/yuv"))[0] != 504
-                                   and answer, 20, what="an answer")
+        status, _, body = wait_for(
+            lambda: (answer := get(bridge, "/snapshot?topic=/streams_test/yuv"))[0] != 504 and answer,
+            20,
+            what="an answer",
+        )
         assert status == 415 and b"encoding 'yuv422' is not supported" in body
         stream = Http(bridge, "/stream?topic=/streams_test/yuv")
         headers, body = stream.part()  # the stream's last part says why
@@ -322,6 +356,7 @@ def test_compressed_images_pass_through_or_are_made_jpegs(bridge, node):
     """type=ros_compressed takes <topic>/compressed as it is (web_video_server); a CompressedImage topic asked as
     mjpeg goes out as it is unless a size or quality is asked."""
     from sensor_msgs.msg import CompressedImage
+
     pictures = camera_pictures(320, 240)
     raw = Camera(node, "/streams_test/pair", 10, image_maker(pictures))
     make, files = compressed_maker(pictures)
@@ -329,8 +364,10 @@ def test_compressed_images_pass_through_or_are_made_jpegs(bridge, node):
     try:
         wait_streaming(bridge, "/streams_test/pair")
         wait_streaming(bridge, "/streams_test/pair/compressed")
-        for path in ("/stream?topic=/streams_test/pair&type=ros_compressed",
-                     "/stream?topic=/streams_test/pair/compressed"):
+        for path in (
+            "/stream?topic=/streams_test/pair&type=ros_compressed",
+            "/stream?topic=/streams_test/pair/compressed",
+        ):
             stream = Http(bridge, path)
             headers, body = stream.part()
             stream.close()
@@ -371,6 +408,7 @@ def test_a_slow_reader_gets_fresh_frames_never_a_backlog_and_memory_stays_bounde
         def read_fast():
             while not done.is_set():
                 fast_parts.append(fast.part()[0]["x-timestamp"])
+
         reader = threading.Thread(target=read_fast, daemon=True)
         reader.start()
         rss_before = stat.rss_mb()
@@ -424,6 +462,7 @@ def test_viewers_of_the_same_size_and_quality_share_one_encode(bridge_proc, node
                     counts[index] += 1
             except (OSError, EOFError):  # (closed at the end)
                 pass
+
         readers = [threading.Thread(target=read, args=(i,), daemon=True) for i in range(len(streams))]
         for reader in readers:
             reader.start()
@@ -498,11 +537,13 @@ def test_adaptive_keeps_the_frame_rate_on_a_narrow_link(bridge, node):
     adaptive, fixed = results["adaptive=1"], results["quality=50"]
     widths = collections.Counter(width for _, _, width, _ in adaptive)
     ages = sorted(read - cam.published[stamp] for _, stamp, _, read in adaptive)
-    print(f"frames/s over 6 s: adaptive {len(adaptive) / 6:.1f}, fixed {len(fixed) / 6:.1f}; adaptive widths "
-          f"{sorted(widths.items())}, age p50 {ages[len(ages) // 2]:.3f} s, p95 {ages[int(len(ages) * .95)]:.3f} s")
+    print(
+        f"frames/s over 6 s: adaptive {len(adaptive) / 6:.1f}, fixed {len(fixed) / 6:.1f}; adaptive widths "
+        f"{sorted(widths.items())}, age p50 {ages[len(ages) // 2]:.3f} s, p95 {ages[int(len(ages) * 0.95)]:.3f} s"
+    )
     assert len(adaptive) / 6 > 14 and len(adaptive) > 2 * len(fixed), (len(adaptive), len(fixed))
     assert widths[640] < len(adaptive) / 4, widths
-    assert ages[int(len(ages) * .95)] < 0.5
+    assert ages[int(len(ages) * 0.95)] < 0.5
 
 
 def closed_by_the_server(server_port, client_port):
@@ -524,8 +565,12 @@ def test_a_viewer_that_stops_reading_is_dropped(ros, camera):
         wait_streaming(port, "/streams_test/cam")
         connected = time.monotonic()
         stream = Http(port, "/stream?topic=/streams_test/cam", rcvbuf=4096)
-        wait_for(lambda: closed_by_the_server(port, stream.sock.getsockname()[1]), 4 * timeout, interval=0.1,
-                 what="the bridge to close the stalled viewer")
+        wait_for(
+            lambda: closed_by_the_server(port, stream.sock.getsockname()[1]),
+            4 * timeout,
+            interval=0.1,
+            what="the bridge to close the stalled viewer",
+        )
         assert time.monotonic() - connected > timeout, "dropped before its frame stalled for the timeout"
         with pytest.raises((EOFError, ConnectionError)):
             while True:  # what was sent, then the end
@@ -539,6 +584,7 @@ def test_a_viewer_that_stops_reading_is_dropped(ros, camera):
 def latched_image(node, topic, picture, encoding="rgb8"):
     """A latched publisher of one sensor_msgs/Image of `picture` (unregister it after)."""
     from sensor_msgs.msg import Image as RosImage
+
     pub = node.Publisher(topic, RosImage, queue_size=1, latch=True)
     pub.publish(image_maker([picture], encoding)(0, node.Time.now()))
     return pub
@@ -555,6 +601,7 @@ def snapshots_at_once(port, paths, answered=None):
         answers[index] = (status, time.monotonic() - start, body)
         if answered is not None:
             answered.set()
+
     threads = [threading.Thread(target=one, args=(index,), daemon=True) for index in range(len(paths))]
     for thread in threads:
         thread.start()
@@ -597,8 +644,13 @@ def test_the_variants_a_latched_frame_keeps_are_bounded_in_bytes(bridge_proc, no
     pub = latched_image(node, "/streams_test/latched", camera_pictures(640, 480, 1, noise=0.5)[0])
     try:
         rss = stat.rss_mb()
-        answers = snapshots_at_once(port, [f"/snapshot?topic=/streams_test/latched&width={width}&height={height}"
-                                           f"&quality=100" for width, height in sizes])
+        answers = snapshots_at_once(
+            port,
+            [
+                f"/snapshot?topic=/streams_test/latched&width={width}&height={height}&quality=100"
+                for width, height in sizes
+            ],
+        )
         grown = stat.rss_mb() - rss  # (the topic is still watched: it lingers after its last snapshot)
     finally:
         pub.unregister()
@@ -616,9 +668,19 @@ def test_a_flood_of_sizes_on_one_topic_does_not_starve_another_topic(bridge, nod
     flood, answered = [], threading.Event()
     try:
         wait_streaming(bridge, "/streams_test/flooded")
-        flooding = threading.Thread(target=lambda: flood.extend(snapshots_at_once(bridge, [
-            f"/snapshot?topic=/streams_test/flooded&width={4096 - 16 * index}&height=2048&quality=100"
-            for index in range(24)], answered)), daemon=True)
+        flooding = threading.Thread(
+            target=lambda: flood.extend(
+                snapshots_at_once(
+                    bridge,
+                    [
+                        f"/snapshot?topic=/streams_test/flooded&width={4096 - 16 * index}&height=2048&quality=100"
+                        for index in range(24)
+                    ],
+                    answered,
+                )
+            ),
+            daemon=True,
+        )
         flooding.start()
         assert answered.wait(20), "no answer to the flood"
         start = time.monotonic()
@@ -629,8 +691,10 @@ def test_a_flood_of_sizes_on_one_topic_does_not_starve_another_topic(bridge, nod
         flooded.close()
     times = sorted(seconds for status, seconds, _ in flood if status == 200)
     each = (times[-1] - times[0]) / (len(times) - 1)  # (the flood's encodes take turns with nothing else but one)
-    print(f"the other camera's snapshot waited {waited:.2f} s, {waited / each:.1f} of the flood's encodes "
-          f"({each:.3f} s each; {len(times)} of 24 answered in {times[0]:.2f}-{times[-1]:.2f} s)")
+    print(
+        f"the other camera's snapshot waited {waited:.2f} s, {waited / each:.1f} of the flood's encodes "
+        f"({each:.3f} s each; {len(times)} of 24 answered in {times[0]:.2f}-{times[-1]:.2f} s)"
+    )
     assert status == 200 and jpeg_size(body) == (320, 240)
     assert waited < 4 * each, (waited, each)
 
@@ -667,6 +731,7 @@ def what_readers_got(port, socks):
 def noise_camera(node):
     """/streams_test/noise: noise, 2048x1024 rgb8 at 2 Hz; asked at 4096x2048 and quality 100, a 12 MB JPEG."""
     import os
+
     pictures = [Image.frombytes("RGB", (2048, 1024), os.urandom(2048 * 1024 * 3)) for _ in range(2)]
     cam = Camera(node, "/streams_test/noise", 2, image_maker(pictures))
     yield cam
@@ -695,8 +760,14 @@ def test_snapshots_to_stalled_readers_are_bounded_in_memory_and_others_still_ans
     stat = ProcStat(proc.pid)
     rss = stat.rss_mb()
     stat.reset_peak_rss()
-    readers = stalled_readers(port, [f"/snapshot?topic=/streams_test/noise&width=4096&height=2048&quality="
-                                     f"{100 - index % 5}" for index in range(24)], 0.25)
+    readers = stalled_readers(
+        port,
+        [
+            f"/snapshot?topic=/streams_test/noise&width=4096&height=2048&quality={100 - index % 5}"
+            for index in range(24)
+        ],
+        0.25,
+    )
     try:
         time.sleep(3)  # (the last ones answered)
         held = stat.rss_mb() - rss
@@ -708,8 +779,10 @@ def test_snapshots_to_stalled_readers_are_bounded_in_memory_and_others_still_ans
     finally:
         for sock in readers:
             sock.close()
-    print(f"the bridge held {held:.0f} MB above its {rss:.0f} MB (peak {peak:.0f} MB); the readers: {dict(answers)};"
-          f" a normal snapshot waited {waited:.2f} s")
+    print(
+        f"the bridge held {held:.0f} MB above its {rss:.0f} MB (peak {peak:.0f} MB); the readers: {dict(answers)};"
+        f" a normal snapshot waited {waited:.2f} s"
+    )
     assert status == 200 and jpeg_size(body) == (320, 160)
     assert waited < 3
     assert held < 175 and peak < 275, (held, peak)
@@ -725,8 +798,14 @@ def test_stalled_stream_viewers_of_many_sizes_are_bounded_in_memory_and_a_normal
     stat = ProcStat(proc.pid)
     rss = stat.rss_mb()
     stat.reset_peak_rss()
-    readers = stalled_readers(port, [f"/stream?topic=/streams_test/noise&width={4096 - 8 * index}&height=2048&"
-                                     f"quality={100 - index % 3}" for index in range(30)], 0.1)
+    readers = stalled_readers(
+        port,
+        [
+            f"/stream?topic=/streams_test/noise&width={4096 - 8 * index}&height=2048&quality={100 - index % 3}"
+            for index in range(30)
+        ],
+        0.1,
+    )
     normal = Http(port, "/stream?topic=/streams_test/noise&width=320")
     try:
         normal.part()
@@ -740,8 +819,10 @@ def test_stalled_stream_viewers_of_many_sizes_are_bounded_in_memory_and_a_normal
         normal.close()
         for sock in readers:
             sock.close()
-    print(f"the bridge held {held:.0f} MB above its {rss:.0f} MB (peak {peak:.0f} MB); the stalled viewers: "
-          f"{dict(answers)}; the normal one got {len(stamps)} frames in 6 s")
+    print(
+        f"the bridge held {held:.0f} MB above its {rss:.0f} MB (peak {peak:.0f} MB); the stalled viewers: "
+        f"{dict(answers)}; the normal one got {len(stamps)} frames in 6 s"
+    )
     assert len(stamps) >= 8, stamps  # (of 12)
     assert held < 175 and peak < 275, (held, peak)
 
@@ -751,21 +832,25 @@ def test_a_snapshot_counts_in_max_clients_until_sent_and_is_dropped_if_it_stalls
     so readers that never read could hold any number of pictures), and one not gone after websocket_ping_timeout is
     dropped, as a stream's is (it was held for good)."""
     timeout = 3.0
-    proc, port = start_bridge(ros, node_name="streams_snapshot_bridge", topics_glob=GLOB, max_clients=2,
-                              websocket_ping_timeout=timeout)
+    proc, port = start_bridge(
+        ros, node_name="streams_snapshot_bridge", topics_glob=GLOB, max_clients=2, websocket_ping_timeout=timeout
+    )
     try:
         wait_streaming(port, "/streams_test/cam")
         time.sleep(0.5)  # (that snapshot's place given back)
         connected = time.monotonic()
-        readers = stalled_readers(port, ["/snapshot?topic=/streams_test/cam&width=1920&height=1440&quality=100"] * 2,
-                                  0)
+        readers = stalled_readers(port, ["/snapshot?topic=/streams_test/cam&width=1920&height=1440&quality=100"] * 2, 0)
         for sock in readers:
             assert sock.recv(12, socket.MSG_PEEK) == b"HTTP/1.1 200"  # (answered: its picture is being sent)
         status, _, body = get(port, "/snapshot?topic=/streams_test/cam&width=32")
         assert status == 503 and b"too many camera stream viewers" in body
         for sock in readers:
-            wait_for(lambda: closed_by_the_server(port, sock.getsockname()[1]), 4 * timeout, interval=0.1,
-                     what="the bridge to close the stalled snapshot")
+            wait_for(
+                lambda: closed_by_the_server(port, sock.getsockname()[1]),
+                4 * timeout,
+                interval=0.1,
+                what="the bridge to close the stalled snapshot",
+            )
         assert time.monotonic() - connected > timeout, "dropped before its picture stalled for the timeout"
         for sock in readers:
             sock.close()
@@ -778,16 +863,23 @@ def test_a_snapshot_counts_in_max_clients_until_sent_and_is_dropped_if_it_stalls
 def test_the_list_of_image_topics(bridge, camera, node):
     from sensor_msgs.msg import CompressedImage
     from std_msgs.msg import String
+
     make, _ = compressed_maker(camera_pictures(32, 24, 1))
     compressed = Camera(node, "/streams_test/small/compressed", 5, make, CompressedImage)
     text = node.Publisher("/streams_test/text", String, queue_size=1)
     hidden = Camera(node, "/hidden_cam", 5, image_maker(camera_pictures(32, 24, 1)))
     try:
+
         def listed():
             status, headers, body = get(bridge, "/streams?format=json")
             topics = {entry["topic"]: entry["type"] for entry in json.loads(body)["topics"]}
-            return status == 200 and headers["content-type"] == "application/json" and \
-                "/streams_test/small/compressed" in topics and topics
+            return (
+                status == 200
+                and headers["content-type"] == "application/json"
+                and "/streams_test/small/compressed" in topics
+                and topics
+            )
+
         topics = wait_for(listed, 10, what="the compressed topic listed")
         assert topics["/streams_test/cam"] == "sensor_msgs/Image"
         assert topics["/streams_test/small/compressed"] == "sensor_msgs/CompressedImage"
@@ -811,22 +903,25 @@ def test_the_viewer_page_shows_the_stream(bridge):
     assert status == 400 and headers["content-type"].startswith("text/plain")  # (not a page: no script runs)
 
 
-@pytest.mark.parametrize("query, status, text", [
-    ("", 400, "topic is required"),
-    ("topic=/streams_test/cam&quality=abc", 400, "quality must be an integer from 1 to 100, got 'abc'"),
-    ("topic=/streams_test/cam&quality=0", 400, "quality must be an integer from 1 to 100"),
-    ("topic=/streams_test/cam&quality=101", 400, "quality must be an integer from 1 to 100"),
-    ("topic=/streams_test/cam&width=-5", 400, "width must be an integer from 0 to 4096, got '-5'"),
-    ("topic=/streams_test/cam&height=1e3", 400, "height must be an integer"),
-    ("topic=/streams_test/cam&width=99999", 400, "width must be an integer from 0 to 4096"),
-    ("topic=/streams_test/cam&type=vp8", 400, "stream type 'vp8' is not supported"),
-    ("topic=/streams_test/cam&type=h264", 400, "video codecs are not offered"),
-    ("topic=/streams_test/cam&adaptive=maybe", 400, "adaptive must be 1 or 0"),
-    ("topic=/streams_test/cam&default_transport=theora", 400, "default_transport must be raw or compressed"),
-    ("topic=/streams_test/a%20b", 400, "is not a ROS topic name"),
-    ("topic=/rosout", 403, "not allowed by topics_glob"),
-    ("topic=/secret_cam", 403, "topic '/secret_cam' is not allowed by topics_glob ['/streams_test/*']"),
-])
+@pytest.mark.parametrize(
+    "query, status, text",
+    [
+        ("", 400, "topic is required"),
+        ("topic=/streams_test/cam&quality=abc", 400, "quality must be an integer from 1 to 100, got 'abc'"),
+        ("topic=/streams_test/cam&quality=0", 400, "quality must be an integer from 1 to 100"),
+        ("topic=/streams_test/cam&quality=101", 400, "quality must be an integer from 1 to 100"),
+        ("topic=/streams_test/cam&width=-5", 400, "width must be an integer from 0 to 4096, got '-5'"),
+        ("topic=/streams_test/cam&height=1e3", 400, "height must be an integer"),
+        ("topic=/streams_test/cam&width=99999", 400, "width must be an integer from 0 to 4096"),
+        ("topic=/streams_test/cam&type=vp8", 400, "stream type 'vp8' is not supported"),
+        ("topic=/streams_test/cam&type=h264", 400, "video codecs are not offered"),
+        ("topic=/streams_test/cam&adaptive=maybe", 400, "adaptive must be 1 or 0"),
+        ("topic=/streams_test/cam&default_transport=theora", 400, "default_transport must be raw or compressed"),
+        ("topic=/streams_test/a%20b", 400, "is not a ROS topic name"),
+        ("topic=/rosout", 403, "not allowed by topics_glob"),
+        ("topic=/secret_cam", 403, "topic '/secret_cam' is not allowed by topics_glob ['/streams_test/*']"),
+    ],
+)
 @pytest.mark.parametrize("endpoint", ["stream", "snapshot", "stream_viewer"])
 def test_bad_requests_are_refused_with_a_clear_text(bridge, endpoint, query, status, text):
     got, headers, body = get(bridge, f"/{endpoint}?{query}")
@@ -836,6 +931,7 @@ def test_bad_requests_are_refused_with_a_clear_text(bridge, endpoint, query, sta
 
 def test_a_topic_that_is_not_an_image_is_404(bridge, node):
     from std_msgs.msg import String
+
     pub = node.Publisher("/streams_test/words", String, queue_size=1)
     try:
         wait_for(lambda: get(bridge, "/stream?topic=/streams_test/words")[0] == 404, 10, what="404")
@@ -868,8 +964,14 @@ SECRET = "streams-secret"
 
 
 def auth_query(secret=SECRET, **changes):
-    fields = {"client": "127.0.0.1", "dest": "127.0.0.1", "rand": "r4nd", "t": int(time.time()), "level": "admin",
-              "end": int(time.time()) + 600}
+    fields = {
+        "client": "127.0.0.1",
+        "dest": "127.0.0.1",
+        "rand": "r4nd",
+        "t": int(time.time()),
+        "level": "admin",
+        "end": int(time.time()) + 600,
+    }
     fields.update(changes)
     text = "".join(str(fields[name]) for name in ("client", "dest", "rand", "t", "level", "end"))
     fields["mac"] = hashlib.sha512((secret + text).encode()).hexdigest()
@@ -881,8 +983,9 @@ def auth_bridge(ros):
     """The port of a bridge with authenticate on (secret SECRET)."""
     secret_file = make_workdir("streams-auth") / "secret"
     secret_file.write_text(SECRET)
-    proc, port = start_bridge(ros, node_name="streams_auth_bridge", authenticate="true",
-                              secret_file=str(secret_file), topics_glob=GLOB)
+    proc, port = start_bridge(
+        ros, node_name="streams_auth_bridge", authenticate="true", secret_file=str(secret_file), topics_glob=GLOB
+    )
     yield port
     proc.stop()
 
@@ -901,8 +1004,10 @@ def test_authenticate_requires_the_rosauth_fields(auth_bridge, camera):
     assert status == 401 and b"t and end must be numbers" in body
     good = auth_query()
     status, headers, body = wait_for(
-        lambda: (answer := get(port, f"/snapshot?topic=/streams_test/cam&{good}"))[0] == 200 and answer, 20,
-        what="an authenticated snapshot")
+        lambda: (answer := get(port, f"/snapshot?topic=/streams_test/cam&{good}"))[0] == 200 and answer,
+        20,
+        what="an authenticated snapshot",
+    )
     assert jpeg_size(body) == (640, 480)
     stream = Http(port, f"/stream?topic=/streams_test/cam&width=64&{good}")
     assert stream.status == 200 and jpeg_size(stream.part()[1]) == (64, 48)
@@ -954,6 +1059,7 @@ def test_viewers_are_bounded_by_max_clients(ros, camera):
 # ---- no leak ----------------------------------------------------------------------------------------------------
 def open_fds(pid):
     import os
+
     return len(os.listdir(f"/proc/{pid}/fd"))
 
 

@@ -1,4 +1,5 @@
 """turtle_teleop_key as a real process reading a pseudo-terminal, checked with a rospy subscriber."""
+
 import os
 import queue
 import signal
@@ -15,6 +16,7 @@ BANNER = "Reading from keyboard\n---------------------------\nUse arrow keys to 
 def twists(node):
     """A queue of the Twists published on /turtle1/cmd_vel, and the subscriber filling it."""
     from geometry_msgs.msg import Twist
+
     received = queue.Queue()
     subscriber = node.Subscriber("/turtle1/cmd_vel", Twist, received.put)
     yield received, subscriber
@@ -41,6 +43,7 @@ def start_teleop(ros, terminal, twists):
     proc = ros.spawn(["rosrun", "turtlesim", "turtle_teleop_key"], "teleop", stdin=terminal)
     proc.wait_output(BANNER, timeout=30)
     import rospy
+
     wait_publisher_connected(ros, "/teleop_turtle", "/turtle1/cmd_vel", rospy.get_name())
     return proc
 
@@ -94,8 +97,10 @@ def test_ctrl_c_quits_with_0_and_restores_the_terminal(ros, pty, twists):
 def test_without_a_terminal_it_says_so_and_exits_1(ros):
     res = ros.run(["rosrun", "turtlesim", "turtle_teleop_key"], check=False, input="")
     assert res.returncode == 1
-    assert res.stderr.strip() == ("turtle_teleop_key: standard input is not a terminal; "
-                                  "run it in a terminal to drive the turtle with the arrow keys")
+    assert res.stderr.strip() == (
+        "turtle_teleop_key: standard input is not a terminal; "
+        "run it in a terminal to drive the turtle with the arrow keys"
+    )
     assert res.stdout == ""
 
 

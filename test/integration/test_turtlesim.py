@@ -1,4 +1,5 @@
 """turtlesim_node as a real process, driven with the stock CLI tools and rospy like the ROS tutorials."""
+
 import signal
 
 import pytest
@@ -7,12 +8,12 @@ from harness import wait_for
 
 TURTLE1_TOPICS = {"/turtle1/cmd_vel", "/turtle1/color_sensor", "/turtle1/pose"}
 TURTLE1_SERVICES = {"/turtle1/set_pen", "/turtle1/teleport_absolute", "/turtle1/teleport_relative"}
-GLOBAL_SERVICES = {"/clear", "/reset", "/spawn", "/kill", "/turtlesim/get_loggers",
-                   "/turtlesim/set_logger_level"}
+GLOBAL_SERVICES = {"/clear", "/reset", "/spawn", "/kill", "/turtlesim/get_loggers", "/turtlesim/set_logger_level"}
 
 
 def pose_of(rospy, name="turtle1"):
     from turtlesim.msg import Pose
+
     return rospy.wait_for_message(f"/{name}/pose", Pose, timeout=10)
 
 
@@ -30,6 +31,7 @@ def services(ros):
 
 def color_of(rospy, name="turtle1"):
     from turtlesim.msg import Color
+
     c = rospy.wait_for_message(f"/{name}/color_sensor", Color, timeout=10)
     return c.r, c.g, c.b
 
@@ -39,14 +41,15 @@ def log_lines(proc):
     result = []
     for line in proc.output().splitlines():
         if line.startswith("[") and "]: " in line:
-            result.append((line[1:line.index("]")], line.split("]: ", 1)[1]))
+            result.append((line[1 : line.index("]")], line.split("]: ", 1)[1]))
     return result
 
 
 def test_startup_logs_and_nothing_else_headless(turtlesim):
     assert log_lines(turtlesim) == [
         ("INFO", "Starting turtlesim with node name /turtlesim"),
-        ("INFO", "Spawning turtle [turtle1] at x=[5.544445], y=[5.544445], theta=[0.000000]")]
+        ("INFO", "Spawning turtle [turtle1] at x=[5.544445], y=[5.544445], theta=[0.000000]"),
+    ]
 
 
 def test_the_ros_graph_of_the_node(ros, turtlesim):
@@ -64,18 +67,31 @@ def test_the_ros_graph_of_the_node(ros, turtlesim):
 
 def test_rosmsg_show_pose(ros):
     assert ros.run(["rosmsg", "show", "turtlesim/Pose"]).stdout.split("\n")[:5] == [
-        "float32 x", "float32 y", "float32 theta", "float32 linear_velocity", "float32 angular_velocity"]
+        "float32 x",
+        "float32 y",
+        "float32 theta",
+        "float32 linear_velocity",
+        "float32 angular_velocity",
+    ]
 
 
 def test_rostopic_echo_shows_turtle1_at_rest_in_the_centre(ros, turtlesim):
     out = ros.run(["rostopic", "echo", "-n", "1", "/turtle1/pose"]).stdout
-    assert out.split("\n")[:5] == ["x: 5.544444561004639", "y: 5.544444561004639", "theta: 0.0",
-                                   "linear_velocity: 0.0", "angular_velocity: 0.0"]
+    assert out.split("\n")[:5] == [
+        "x: 5.544444561004639",
+        "y: 5.544444561004639",
+        "theta: 0.0",
+        "linear_velocity: 0.0",
+        "angular_velocity: 0.0",
+    ]
 
 
 def test_background_parameters_default_and_the_sensor_reads_them(ros, turtlesim, node):
-    assert [ros.run(["rosparam", "get", f"/turtlesim/background_{c}"]).stdout.strip() for c in "rgb"] == \
-        ["69", "86", "255"]
+    assert [ros.run(["rosparam", "get", f"/turtlesim/background_{c}"]).stdout.strip() for c in "rgb"] == [
+        "69",
+        "86",
+        "255",
+    ]
     assert color_of(node) == (69, 86, 255)
 
 
@@ -92,20 +108,34 @@ def test_a_preset_background_parameter_is_kept_and_used(ros, start_turtlesim, no
 def test_a_bad_background_parameter_is_reported_and_the_default_used(ros, start_turtlesim, node):
     proc = start_turtlesim(params={"background_g": "green"})
     assert color_of(node) == (69, 86, 255)
-    assert ("WARN", "Parameter /turtlesim/background_g must be an integer from 0 to 255, not 'green': "
-                    "using 86") in log_lines(proc)
+    assert (
+        "WARN",
+        "Parameter /turtlesim/background_g must be an integer from 0 to 255, not 'green': using 86",
+    ) in log_lines(proc)
 
 
 def test_driving_with_rostopic_pub_moves_the_turtle_and_it_stops(ros, turtlesim, node):
     from turtlesim.msg import Pose
+
     poses = []
     recorder = node.Subscriber("/turtle1/pose", Pose, poses.append)
     try:
         wait_for(lambda: poses, 10, what="poses")
-        ros.run(["rostopic", "pub", "-1", "/turtle1/cmd_vel", "geometry_msgs/Twist",
-                 "{linear: {x: 2.0, y: 0.0, z: 0.0}, angular: {x: 0.0, y: 0.0, z: 0.0}}"])
-        wait_for(lambda: any(p.linear_velocity for p in poses) and poses[-1].linear_velocity == 0.0, 10,
-                 what="the turtle to move and stop")
+        ros.run(
+            [
+                "rostopic",
+                "pub",
+                "-1",
+                "/turtle1/cmd_vel",
+                "geometry_msgs/Twist",
+                "{linear: {x: 2.0, y: 0.0, z: 0.0}, angular: {x: 0.0, y: 0.0, z: 0.0}}",
+            ]
+        )
+        wait_for(
+            lambda: any(p.linear_velocity for p in poses) and poses[-1].linear_velocity == 0.0,
+            10,
+            what="the turtle to move and stop",
+        )
     finally:
         recorder.unregister()
     moving = [p for p in poses if p.linear_velocity == 2.0]
@@ -119,13 +149,19 @@ def test_spawn_and_kill_add_and_remove_a_turtles_interface(ros, turtlesim, node)
     turtlesim.wait_output("Spawning turtle [turtle2] at x=[2.000000], y=[3.000000], theta=[0.500000]")
     pose = pose_of(node, "turtle2")
     assert (pose.x, pose.y, pose.theta) == (2.0, 3.0, 0.5)
-    wait_for(lambda: {"/turtle2/pose", "/turtle2/color_sensor", "/turtle2/cmd_vel"} <= topics(ros), 10,
-             what="turtle2's topics")
+    wait_for(
+        lambda: {"/turtle2/pose", "/turtle2/color_sensor", "/turtle2/cmd_vel"} <= topics(ros),
+        10,
+        what="turtle2's topics",
+    )
     assert {"/turtle2/set_pen", "/turtle2/teleport_absolute", "/turtle2/teleport_relative"} <= services(ros)
 
     ros.run(["rosservice", "call", "/kill", "turtle2"])
-    wait_for(lambda: not any(t.startswith("/turtle2/") for t in topics(ros) | services(ros)), 10,
-             what="turtle2's topics and services to go")
+    wait_for(
+        lambda: not any(t.startswith("/turtle2/") for t in topics(ros) | services(ros)),
+        10,
+        what="turtle2's topics and services to go",
+    )
     assert ros.run(["rosservice", "call", "/spawn", "4", "4", "0", ""]).stdout.strip() == 'name: "turtle3"'
 
 
@@ -156,7 +192,9 @@ def test_set_pen_clear_and_reset(ros, turtlesim, node):
     pose = wait_for(lambda: (p := pose_of(node)).x == 5.544444561004639 and p, 10, what="turtle1 in the centre")
     assert (pose.y, pose.theta) == (5.544444561004639, 0.0)
     assert log_lines(turtlesim)[-1] == (
-        "INFO", "Spawning turtle [turtle1] at x=[5.544445], y=[5.544445], theta=[0.000000]")
+        "INFO",
+        "Spawning turtle [turtle1] at x=[5.544445], y=[5.544445], theta=[0.000000]",
+    )
     assert ros.run(["rosservice", "call", "/spawn", "1", "1", "0", ""]).stdout.strip() == 'name: "turtle2"'
 
 
@@ -191,6 +229,7 @@ def test_bad_requests_fail_clearly_and_the_node_carries_on(ros, turtlesim, node)
 
 def test_a_killed_turtles_services_fail(ros, turtlesim, node):
     from turtlesim.srv import TeleportAbsolute
+
     ros.run(["rosservice", "call", "/spawn", "1", "1", "0", "doomed"])
     held = node.ServiceProxy("/doomed/teleport_absolute", TeleportAbsolute, persistent=True)
     held(2.0, 2.0, 0.0)
@@ -231,6 +270,7 @@ def test_sigusr1_saves_a_snapshot_headless_too(tmp_path, start_turtlesim):
 def png_size(path):
     """The picture's size, or None while the file is still being written (PIL cannot read it yet)."""
     from PIL import Image
+
     try:
         with Image.open(path) as picture:
             return picture.size

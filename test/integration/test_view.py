@@ -1,5 +1,6 @@
 """The turtlesim window on a virtual X server (Xvfb): its title and size, what it shows (SIGUSR1 snapshot
 and a grab of the real X screen) and that it goes away with the node."""
+
 import ctypes
 import ctypes.util
 import os
@@ -35,35 +36,53 @@ def window_geometry(display):
     """(x, y, width, height) of the window titled TurtleSim, or None (also while it is still 1x1: Tk maps a
     window before it gives it its size, and a busy machine lets a test look in between)."""
     res = os.popen(f"DISPLAY={display} xwininfo -name TurtleSim 2>/dev/null").read()
-    values = dict(re.findall(r"^\s*(Absolute upper-left X|Absolute upper-left Y|Width|Height):\s+(-?\d+)",
-                             res, re.M))
+    values = dict(re.findall(r"^\s*(Absolute upper-left X|Absolute upper-left Y|Width|Height):\s+(-?\d+)", res, re.M))
     if len(values) < 4 or (values["Width"], values["Height"]) == ("1", "1"):
         return None
     return tuple(int(values[k]) for k in ("Absolute upper-left X", "Absolute upper-left Y", "Width", "Height"))
 
 
 class ClientMessage(ctypes.Structure):
-    _fields_ = [("type", ctypes.c_int), ("serial", ctypes.c_ulong), ("send_event", ctypes.c_int),
-                ("display", ctypes.c_void_p), ("window", ctypes.c_ulong), ("message_type", ctypes.c_ulong),
-                ("format", ctypes.c_int), ("data", ctypes.c_long * 5), ("padding", ctypes.c_long * 12)]
+    _fields_ = [
+        ("type", ctypes.c_int),
+        ("serial", ctypes.c_ulong),
+        ("send_event", ctypes.c_int),
+        ("display", ctypes.c_void_p),
+        ("window", ctypes.c_ulong),
+        ("message_type", ctypes.c_ulong),
+        ("format", ctypes.c_int),
+        ("data", ctypes.c_long * 5),
+        ("padding", ctypes.c_long * 12),
+    ]
 
 
 def close_window(display, title):
     """What a window manager does when the user clicks the close button: a WM_DELETE_WINDOW message."""
-    window_id = int(re.search(r"Window id: (0x[0-9a-f]+)",
-                              os.popen(f"DISPLAY={display} xwininfo -name {title}").read()).group(1), 16)
+    window_id = int(
+        re.search(r"Window id: (0x[0-9a-f]+)", os.popen(f"DISPLAY={display} xwininfo -name {title}").read()).group(1),
+        16,
+    )
     xlib = ctypes.CDLL(ctypes.util.find_library("X11"))
     xlib.XOpenDisplay.restype = ctypes.c_void_p
     xlib.XInternAtom.restype = ctypes.c_ulong
     xlib.XInternAtom.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.c_int]
-    xlib.XSendEvent.argtypes = [ctypes.c_void_p, ctypes.c_ulong, ctypes.c_int, ctypes.c_long,
-                                ctypes.POINTER(ClientMessage)]
+    xlib.XSendEvent.argtypes = [
+        ctypes.c_void_p,
+        ctypes.c_ulong,
+        ctypes.c_int,
+        ctypes.c_long,
+        ctypes.POINTER(ClientMessage),
+    ]
     xlib.XFlush.argtypes = xlib.XCloseDisplay.argtypes = [ctypes.c_void_p]
     connection = xlib.XOpenDisplay(display.encode())
     assert connection, f"cannot open display {display}"
     try:
-        event = ClientMessage(type=33, window=window_id, format=32,  # 33: ClientMessage
-                              message_type=xlib.XInternAtom(connection, b"WM_PROTOCOLS", 0))
+        event = ClientMessage(
+            type=33,
+            window=window_id,
+            format=32,  # 33: ClientMessage
+            message_type=xlib.XInternAtom(connection, b"WM_PROTOCOLS", 0),
+        )
         event.data[0] = xlib.XInternAtom(connection, b"WM_DELETE_WINDOW", 0)
         assert xlib.XSendEvent(connection, window_id, 0, 0, ctypes.byref(event))
         xlib.XFlush(connection)
@@ -88,7 +107,9 @@ def _load(path):
 
 def drive_in_an_arc(rospy):
     from geometry_msgs.msg import Twist
+
     from turtlesim.msg import Pose
+
     publisher = rospy.Publisher("/turtle1/cmd_vel", Twist, queue_size=1)
     wait_for(lambda: publisher.get_num_connections() > 0, 10, what="the cmd_vel connection")
     twist = Twist()
@@ -111,6 +132,7 @@ def test_the_window_is_titled_turtlesim_and_500_by_500(windowed):
 
 def test_the_window_shows_the_trail_and_the_turtles(windowed, display, node):
     from turtlesim.srv import Spawn
+
     proc, snapshot_path, (left, top, _, _) = windowed
     node.ServiceProxy("/spawn", Spawn)(2.0, 2.0, 0.0, "")
     pose = drive_in_an_arc(node)
@@ -146,8 +168,9 @@ def test_closing_the_window_ends_the_node(ros, windowed, display):
     proc, _, _ = windowed
     close_window(display, "TurtleSim")
     wait_for(lambda: not proc.alive(), 15, what="turtlesim_node to exit")
-    wait_for(lambda: "/turtlesim" not in ros.run(["rosnode", "list"]).stdout.split(), 10,
-             what="/turtlesim to unregister")
+    wait_for(
+        lambda: "/turtlesim" not in ros.run(["rosnode", "list"]).stdout.split(), 10, what="/turtlesim to unregister"
+    )
 
 
 def test_with_a_window_only_the_startup_lines_are_logged(windowed):

@@ -9,6 +9,7 @@ built for the tests. Debian's python3-actionlib ships actionlib's own test actio
 
     test/nodes/fibonacci_server.py [_step:=0.1]   (action server /tools_fibonacci)
 """
+
 import actionlib
 import rospy
 from actionlib.msg import TestAction, TestFeedback, TestResult

@@ -10,14 +10,22 @@ module that could drift from what the generator writes. The callback takes the c
 
     test/nodes/reconfigure_node.py [__name:=tools_reconfigure]
 """
+
 import rospy
 from dynamic_reconfigure.cfg import TestConfig
 from dynamic_reconfigure.server import Server
 
 
 def changed(config, level):
-    rospy.loginfo("reconfigured (level %d): int_=%s int_enum_=%s double_=%s str_=%r bool_=%s", level,
-                  config["int_"], config["int_enum_"], config["double_"], config["str_"], config["bool_"])
+    rospy.loginfo(
+        "reconfigured (level %d): int_=%s int_enum_=%s double_=%s str_=%r bool_=%s",
+        level,
+        config["int_"],
+        config["int_enum_"],
+        config["double_"],
+        config["str_"],
+        config["bool_"],
+    )
     return config
 
 

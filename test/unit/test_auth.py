@@ -1,5 +1,6 @@
 """rosauth's MAC check (auth.mac_is_valid, the `auth` op's) and UrlMacs (the HTTP endpoints' query strings): a MAC
 in a URL is valid auth_time_delta seconds in all, however far ahead of the bridge's clock its t lay."""
+
 import hashlib
 
 from rosbridge.auth import UrlMacs, mac_is_valid

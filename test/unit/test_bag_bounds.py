@@ -1,5 +1,6 @@
 """bag_bounds: a bag's size as rosbag writes it (checked against files rosbag.Bag writes), the folder's space with
 its reservations, and the black box's bounds (its memory measured)."""
+
 import gc
 import random
 import tracemalloc
@@ -10,8 +11,18 @@ import rosbag
 from sensor_msgs.msg import Image
 from std_msgs.msg import Empty, String
 
-from rosbridge.http.bag_bounds import (CHUNK, CHUNK_CONNECTION, CHUNK_THRESHOLD, ENTRY_BYTES, FILE_HEADER, MESSAGE, BagSize,
-                                  BlackBox, FolderSpace, connection_bytes)
+from rosbridge.http.bag_bounds import (
+    CHUNK,
+    CHUNK_CONNECTION,
+    CHUNK_THRESHOLD,
+    ENTRY_BYTES,
+    FILE_HEADER,
+    MESSAGE,
+    BagSize,
+    BlackBox,
+    FolderSpace,
+    connection_bytes,
+)
 
 
 def written(tmp_path, messages):
@@ -33,19 +44,26 @@ def counted(messages):
 def test_an_empty_message_costs_its_record_and_index_entry(tmp_path):
     one, thousand = [("/e", Empty, b"")], [("/e", Empty, b"")] * 1000
     assert written(tmp_path, thousand) - written(tmp_path, one) == 999 * MESSAGE
-    assert counted(one) == written(tmp_path, one) == FILE_HEADER + MESSAGE + 2 * connection_bytes("/e", Empty) \
-        + CHUNK + CHUNK_CONNECTION
+    assert (
+        counted(one)
+        == written(tmp_path, one)
+        == FILE_HEADER + MESSAGE + 2 * connection_bytes("/e", Empty) + CHUNK + CHUNK_CONNECTION
+    )
 
 
-@pytest.mark.parametrize("count, kinds", [
-    (1000, [("/e", Empty, 0)]),
-    (100_000, [("/e", Empty, 0)]),  # 6 chunks
-    (20_000, [("/e", Empty, 0), ("/text", String, 300), ("/camér\u00e4", Image, 5000)]),  # (non-ASCII names too)
-])
+@pytest.mark.parametrize(
+    "count, kinds",
+    [
+        (1000, [("/e", Empty, 0)]),
+        (100_000, [("/e", Empty, 0)]),  # 6 chunks
+        (20_000, [("/e", Empty, 0), ("/text", String, 300), ("/camér\u00e4", Image, 5000)]),  # (non-ASCII names too)
+    ],
+)
 def test_the_size_is_the_file_s_when_every_chunk_holds_every_topic(tmp_path, count, kinds):
     rng = random.Random(count)
-    messages = [(topic, cls, bytes(rng.randint(0, most))) for topic, cls, most in
-                (rng.choice(kinds) for _ in range(count))]
+    messages = [
+        (topic, cls, bytes(rng.randint(0, most))) for topic, cls, most in (rng.choice(kinds) for _ in range(count))
+    ]
     assert counted(messages) == written(tmp_path, messages)
 
 
@@ -97,8 +115,15 @@ def test_a_black_box_bag_is_within_what_the_box_counts_and_its_connections(tmp_p
         box.add(i / 1000, "/e", Empty, b"")
         box.add(i / 1000, "/text", String, bytes(i % 40))
     entries = [(topic, cls, data) for _, topic, cls, data in box.entries()]
-    assert written(tmp_path, entries) <= box.bag_bytes() <= FILE_HEADER + box.max_bytes + 2 * (
-        connection_bytes("/e", Empty) + connection_bytes("/text", String)) + CHUNK + 2 * CHUNK_CONNECTION
+    assert (
+        written(tmp_path, entries)
+        <= box.bag_bytes()
+        <= FILE_HEADER
+        + box.max_bytes
+        + 2 * (connection_bytes("/e", Empty) + connection_bytes("/text", String))
+        + CHUNK
+        + 2 * CHUNK_CONNECTION
+    )
 
 
 @pytest.mark.parametrize("kind", [bytes, bytearray])
@@ -132,8 +157,10 @@ def test_the_black_box_gives_the_collector_nothing_to_walk_per_entry():
 def test_a_save_reads_the_entries_as_they_were_while_the_box_goes_on():
     """Entries span segments (full at 4096 entries or 1 MB); a copy taken for a save keeps what the box held then,
     oldest first, whatever the box takes in or lets go of afterwards."""
+
     def message(i):
         return ("/a", String, i.to_bytes(4, "little") * (i % 7)) if i % 3 else ("/b", Empty, b"")
+
     big = ("/big", Image, bytes(range(256)) * 12_000)  # 3 MB: a segment of its own
     box = BlackBox(seconds=1e9, max_bytes=10_000 * ENTRY_BYTES + 3_200_000)
     added = []
@@ -141,7 +168,7 @@ def test_a_save_reads_the_entries_as_they_were_while_the_box_goes_on():
         entry = big if i == 5000 else message(i)
         box.add(float(i), *entry)
         added.append((float(i), *entry))
-    kept = added[-len(box):]
+    kept = added[-len(box) :]
     assert len(box) < 12_000 and kept[0][0] > 0 and box.bytes <= box.max_bytes
     copy = box.entries()
     for i in range(12_000, 30_000):  # (every entry of the copy leaves the box)

@@ -1,6 +1,7 @@
 """bags.Writer, the bag writer thread's queue: bounded in jobs as well as in bytes, so that empty messages (a few
 bytes each) cannot pile up hundreds of thousands of jobs behind a slow disk; and what a bag being written holds in
 memory (bags.write_message)."""
+
 import threading
 import tracemalloc
 
@@ -9,9 +10,10 @@ import pytest
 import rosbag
 from std_msgs.msg import Empty
 
-from fakes import Loop
 from rosbridge.http.bag_bounds import MESSAGE
 from rosbridge.http.bag_recorder import WRITER_QUEUE_BYTES, WRITER_QUEUE_JOBS, Writer, raw, write_message
+
+from fakes import Loop
 
 
 @pytest.fixture

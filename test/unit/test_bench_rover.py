@@ -1,5 +1,6 @@
 """The rover bench's own checks (bench/nav_clients.py, bench/nav_ceiling.py, bench/nav_messages.py): what they call
 whole and right is, and what is not is caught; else the bench's "all right" would say nothing."""
+
 import json
 import math
 import struct
@@ -14,6 +15,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
 import nav_clients  # noqa: E402
 import nav_messages  # noqa: E402
 from nav_ceiling import Frames  # noqa: E402
+
 from rosbridge.protocol.encoded import TopicMessage  # noqa: E402
 
 
@@ -37,8 +39,9 @@ def test_every_stream_as_the_bridge_sends_it_is_whole_and_right(name):
 
 
 def test_a_wrong_cell_point_range_or_word_is_caught():
-    scan, diagnostics, cloud, grid = (nav_clients.Expected(nav_messages.BY_NAME[n])
-                                      for n in ("scan", "diagnostics", "points", "map"))
+    scan, diagnostics, cloud, grid = (
+        nav_clients.Expected(nav_messages.BY_NAME[n]) for n in ("scan", "diagnostics", "points", "map")
+    )
 
     def decoded(name, compression="none"):
         frame = bridge_frames(nav_messages.BY_NAME[name], compression)[1][0]
@@ -91,7 +94,7 @@ def test_the_ceiling_writes_each_push_stamp_where_the_bridges_bytes_have_their_s
         stream = nav_messages.BY_NAME[name]
         expected = nav_clients.Expected(stream)
         for compression in ("none", "cbor", "cbor-raw"):
-            (frame, text), = Frames(stream, compression, None).stamped(now)
+            ((frame, text),) = Frames(stream, compression, None).stamped(now)
             assert text == (compression == "none")
             msg = json.loads(frame)["msg"] if text else cbor2.loads(frame)["msg"]
             if compression == "cbor-raw":
@@ -111,10 +114,11 @@ def test_a_fragmented_message_is_put_together_even_when_its_total_is_a_fraction(
     client.encodings["fix"] = "json"
     _, (text,) = bridge_frames(stream, "none")
     text = text.decode()
-    parts = [text[i:i + 50] for i in range(0, len(text), 50)]
+    parts = [text[i : i + 50] for i in range(0, len(text), 50)]
     for num, part in enumerate(parts):
-        client.frame(json.dumps({"op": "fragment", "id": 0, "data": part, "num": num,
-                                 "total": (len(text) - 1) / 50 + 1}))
+        client.frame(
+            json.dumps({"op": "fragment", "id": 0, "data": part, "num": num, "total": (len(text) - 1) / 50 + 1})
+        )
     (arrival,) = record.arrivals["fix"]
     assert arrival[2] > len(text) and record.checks["fix"] == {"checked": 1, "wrong": 0, "first_wrong": None}
 
@@ -126,6 +130,6 @@ def test_fragments_of_two_messages_under_one_id_are_said_not_to_make_a_message()
     client = nav_clients.Rosbridge(record)
     client.encodings["fix"] = "json"
     text = bridge_frames(stream, "none")[1][0].decode()
-    for num, part in enumerate([text[:40], "{\"op\": \"publish\", \"to", text[80:]]):
+    for num, part in enumerate([text[:40], '{"op": "publish", "to', text[80:]]):
         client.frame(json.dumps({"op": "fragment", "id": 0, "data": part, "num": num, "total": 3}))
     assert record.arrivals["fix"] == [] and record.statuses[0][1].startswith("{'op': 'undecodable'")

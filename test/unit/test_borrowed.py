@@ -1,5 +1,6 @@
 """The names rosbridge.borrowed takes from inside Tornado and rospy, checked against the installed versions:
 a version that moves or changes one fails here, by name (see borrowed.py for why each is used)."""
+
 import inspect
 import os
 
@@ -53,6 +54,7 @@ def test_rospy_node_handler_asks_its_protocol_handlers_in_order():
 def test_rosbag_keeps_an_index_entry_per_message_written_that_can_be_cleared(tmp_path):
     import rosbag
     from std_msgs.msg import Empty
+
     with rosbag.Bag(str(tmp_path / "a.bag"), "w") as bag:
         for _ in range(3):
             bag.write("/empty", Empty())

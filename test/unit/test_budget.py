@@ -1,8 +1,10 @@
 """The per-client budget: a turn every few frames (or bytes), waits beyond the rates, a burst of one second."""
+
 import pytest
 
-from fakes import Clock
 from rosbridge.transport.budget import BYTES_PER_TURN, FRAMES_PER_TURN, ClientBudget
+
+from fakes import Clock
 
 
 def test_unlimited_rates_still_take_turns():
@@ -22,7 +24,7 @@ def test_beyond_the_frame_rate_the_client_waits_for_its_tokens():
     clock = Clock()
     budget = ClientBudget(FRAMES_PER_TURN * 10, 0, clock)  # ten turns a second
     waits = [budget.after_frame(1) for _ in range(FRAMES_PER_TURN * 11)]
-    assert all(w in (None, 0.0) for w in waits[:FRAMES_PER_TURN * 10])
+    assert all(w in (None, 0.0) for w in waits[: FRAMES_PER_TURN * 10])
     assert waits[-1] == pytest.approx(0.1)  # one turn too many: a tenth of a second to wait
     clock.now += 1.0  # a second later the burst is back (and no more than that)
     assert all(budget.after_frame(1) in (None, 0.0) for _ in range(FRAMES_PER_TURN * 9))

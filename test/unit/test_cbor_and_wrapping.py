@@ -1,4 +1,6 @@
-"""Wire encodings (rosbridge.codec.cbor and .wrapping): CBOR with RFC 8746 typed arrays, JSON packed into PNG, fragments."""
+"""Wire encodings (rosbridge.codec.cbor and .wrapping): CBOR with RFC 8746 typed arrays, JSON packed into PNG,
+fragments."""
+
 import base64
 import io
 import json
@@ -9,27 +11,36 @@ import tracemalloc
 
 import cbor2
 import genpy
-import pytest
-from hypothesis import given, settings, strategies as st
 import geometry_msgs.msg
+import pytest
 import sensor_msgs.msg
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from PIL import Image
-
 from test_json_values import AllTypes, deserialized, serialized
 from test_json_values_properties import EACH_TYPE, messages
 from test_ros_to_json import BIG_COUNTS, CLASSES, GRID, BigArrays, big_arrays_message, map_bytes
-from rosbridge.codec.fields import parse_slot_type
-from rosbridge.codec.json_values import dumps, from_json
+
 from rosbridge.codec import BIG_BYTES
 from rosbridge.codec.cbor import cbor_parts, raw_publish_parts, to_cbor_value
+from rosbridge.codec.fields import parse_slot_type
+from rosbridge.codec.json_values import dumps, from_json
 from rosbridge.codec.ros_to_cbor import cbor_value
 from rosbridge.codec.wrapping import fragments, png_frame, png_unframe
 from rosbridge.protocol.encoded import SplicedFrame, cbor_frame
 
 # element type -> (size in bytes, signed, float, struct code)
-NUMERIC = {"int8": (1, True, False, "b"), "uint16": (2, False, False, "H"), "int16": (2, True, False, "h"),
-           "uint32": (4, False, False, "I"), "int32": (4, True, False, "i"), "uint64": (8, False, False, "Q"),
-           "int64": (8, True, False, "q"), "float32": (4, True, True, "f"), "float64": (8, True, True, "d")}
+NUMERIC = {
+    "int8": (1, True, False, "b"),
+    "uint16": (2, False, False, "H"),
+    "int16": (2, True, False, "h"),
+    "uint32": (4, False, False, "I"),
+    "int32": (4, True, False, "i"),
+    "uint64": (8, False, False, "Q"),
+    "int64": (8, True, False, "q"),
+    "float32": (4, True, True, "f"),
+    "float64": (8, True, True, "d"),
+}
 
 
 def rfc8746_tag(size, signed, is_float):
@@ -62,12 +73,36 @@ def cbor_decoded(msg):
 
 
 def sample():
-    return deserialized(AllTypes(
-        b=True, i8=-5, u64=2**64 - 1, f32=0.5, f64=-2.5, s="ü", t=genpy.Time(5, 6), d=genpy.Duration(-7, 8),
-        bools=[True, False], i8s=[-128, 127], u16s=[1, 2, 65535], i16s=[-32768], u32s=[2**32 - 1], i32s=[-2**31, 5],
-        u64s=[2**64 - 1], i64s=[-2**63], f32s=[0.25, -1e30], f64s=[1e-300, 2.0], strings=["x", ""],
-        times=[genpy.Time(1, 1)], durations=[genpy.Duration(1), genpy.Duration(-2)], bytes=bytes(range(256)),
-        chars=b"wxyz", fixed_bytes=b"\x00\x01", signed_bytes=[-1, 1], points=[geometry_msgs.msg.Point(1, 2, 3)]))
+    return deserialized(
+        AllTypes(
+            b=True,
+            i8=-5,
+            u64=2**64 - 1,
+            f32=0.5,
+            f64=-2.5,
+            s="ü",
+            t=genpy.Time(5, 6),
+            d=genpy.Duration(-7, 8),
+            bools=[True, False],
+            i8s=[-128, 127],
+            u16s=[1, 2, 65535],
+            i16s=[-32768],
+            u32s=[2**32 - 1],
+            i32s=[-(2**31), 5],
+            u64s=[2**64 - 1],
+            i64s=[-(2**63)],
+            f32s=[0.25, -1e30],
+            f64s=[1e-300, 2.0],
+            strings=["x", ""],
+            times=[genpy.Time(1, 1)],
+            durations=[genpy.Duration(1), genpy.Duration(-2)],
+            bytes=bytes(range(256)),
+            chars=b"wxyz",
+            fixed_bytes=b"\x00\x01",
+            signed_bytes=[-1, 1],
+            points=[geometry_msgs.msg.Point(1, 2, 3)],
+        )
+    )
 
 
 def test_numeric_arrays_are_little_endian_typed_arrays_with_rfc8746_tags():
@@ -80,8 +115,11 @@ def test_numeric_arrays_are_little_endian_typed_arrays_with_rfc8746_tags():
             tag = raw[name]
             assert isinstance(tag, cbor2.CBORTag) and tag.tag == rfc8746_tag(size, signed, is_float), name
             values = list(struct.unpack(f"<{len(getattr(msg, name))}{code}", tag.value))
-            expected = [struct.unpack("<f", struct.pack("<f", v))[0] for v in getattr(msg, name)] \
-                if base == "float32" else list(getattr(msg, name))
+            expected = (
+                [struct.unpack("<f", struct.pack("<f", v))[0] for v in getattr(msg, name)]
+                if base == "float32"
+                else list(getattr(msg, name))
+            )
             assert values == expected, name
 
 
@@ -130,15 +168,27 @@ def test_the_cbor_raw_op_is_what_cbor2_writes_and_big_bytes_go_by_reference(size
     data = bytearray(os.urandom(size))
     parts = raw_publish_parts(topic, data, stamp)
     secs = int(stamp)
-    assert b"".join(parts) == cbor2.dumps({"op": "publish", "topic": topic, "msg": {
-        "bytes": bytes(data), "secs": secs, "nsecs": int((stamp - secs) * 1e9)}})
+    assert b"".join(parts) == cbor2.dumps(
+        {
+            "op": "publish",
+            "topic": topic,
+            "msg": {"bytes": bytes(data), "secs": secs, "nsecs": int((stamp - secs) * 1e9)},
+        }
+    )
     assert len(parts) == (3 if size >= BIG_BYTES else 1)
     if size >= BIG_BYTES:
         assert parts[1] is data  # not copied
 
 
-TEXTS = ["", "1", "{}", "[1]", '"ab"', dumps({"op": "publish", "topic": "/t", "msg": {"data": "x" * 1000}}),
-         dumps({"s": "héllo ☃ 😀", "n": [1, 2.5, None]})]
+TEXTS = [
+    "",
+    "1",
+    "{}",
+    "[1]",
+    '"ab"',
+    dumps({"op": "publish", "topic": "/t", "msg": {"data": "x" * 1000}}),
+    dumps({"s": "héllo ☃ 😀", "n": [1, 2.5, None]}),
+]
 
 
 @pytest.mark.parametrize("text", TEXTS, ids=lambda text: f"{len(text)}-chars")
@@ -156,7 +206,7 @@ def test_png_as_roslibjs_reads_it(text):
         rgba = image.convert("RGBA").tobytes()
     text_from_canvas = "".join(chr(rgba[i]) + chr(rgba[i + 1]) + chr(rgba[i + 2]) for i in range(0, len(rgba), 4))
     assert json.loads(text_from_canvas) == json.loads(text)
-    assert set(text_from_canvas[len(text_from_canvas.rstrip("\n")):]) <= {"\n"}
+    assert set(text_from_canvas[len(text_from_canvas.rstrip("\n")) :]) <= {"\n"}
     assert abs(width - height) <= max(2, width // 10)  # about square, as the reference makes them
 
 
@@ -169,8 +219,9 @@ def test_fragments():
     text = dumps({"op": "publish", "topic": "/t", "msg": {"data": "abcdefghij" * 10}})
     parts = fragments(text, 7, "publish:/t:1")
     assert [part["num"] for part in parts] == list(range(len(parts))) and len(parts) == math.ceil(len(text) / 7)
-    assert all(part["op"] == "fragment" and part["id"] == "publish:/t:1" and part["total"] == len(parts)
-               for part in parts)
+    assert all(
+        part["op"] == "fragment" and part["id"] == "publish:/t:1" and part["total"] == len(parts) for part in parts
+    )
     assert all(len(part["data"]) == 7 for part in parts[:-1]) and 1 <= len(parts[-1]["data"]) <= 7
     assert "".join(part["data"] for part in parts) == text
 
@@ -194,14 +245,16 @@ GOOD_PNG = base64.b64decode(png_frame('{"a":1}' * 50))
 
 
 def spoiled_png(cut, noise):
-    return base64.b64encode(GOOD_PNG[:cut] + noise + GOOD_PNG[cut + len(noise):]).decode()
+    return base64.b64encode(GOOD_PNG[:cut] + noise + GOOD_PNG[cut + len(noise) :]).decode()
 
 
 @settings(deadline=None, max_examples=300)
-@given(junk=st.binary(max_size=200).map(lambda raw: base64.b64encode(raw).decode())
-       | st.text(max_size=50)
-       | st.integers(0, len(GOOD_PNG)).map(lambda cut: base64.b64encode(GOOD_PNG[:cut]).decode())
-       | st.builds(spoiled_png, st.integers(0, len(GOOD_PNG)), st.binary(min_size=1, max_size=40)))
+@given(
+    junk=st.binary(max_size=200).map(lambda raw: base64.b64encode(raw).decode())
+    | st.text(max_size=50)
+    | st.integers(0, len(GOOD_PNG)).map(lambda cut: base64.b64encode(GOOD_PNG[:cut]).decode())
+    | st.builds(spoiled_png, st.integers(0, len(GOOD_PNG)), st.binary(min_size=1, max_size=40))
+)
 def test_png_unframe_of_junk_raises_only_value_error(junk):
     """(PIL itself raises OSError, SyntaxError and more for broken images.)"""
     try:
@@ -213,17 +266,20 @@ def test_png_unframe_of_junk_raises_only_value_error(junk):
 @pytest.mark.parametrize("sizes", [[BIG_BYTES], [BIG_BYTES - 1, 70_000], [70_000, 100, 1 << 17]])
 def test_big_byte_strings_are_put_in_place_exactly_as_cbor2_would_write_them(sizes):
     blobs = [os.urandom(size) for size in sizes]
-    messages = [sensor_msgs.msg.Image(height=1, width=len(blob), encoding="mono8", step=len(blob), data=blob)
-                for blob in blobs]
+    messages = [
+        sensor_msgs.msg.Image(height=1, width=len(blob), encoding="mono8", step=len(blob), data=blob) for blob in blobs
+    ]
     obj = {"op": "publish", "topic": "/camera", "msg": [to_cbor_value(m) for m in messages]}
-    expected = cbor2.dumps({"op": "publish", "topic": "/camera",
-                            "msg": [{**to_cbor_value(m), "data": m.data} for m in messages]})
+    expected = cbor2.dumps(
+        {"op": "publish", "topic": "/camera", "msg": [{**to_cbor_value(m), "data": m.data} for m in messages]}
+    )
     assert b"".join(cbor_parts(obj)) == expected
 
 
 # ---------------------------------------------------------------------------------------------------------
 # ROS bytes straight to CBOR (rosbridge.codec.ros_to_cbor): what to_cbor_value gives for genpy's message, with no
 # genpy message and every array of numbers taken from the bytes as they are
+
 
 def publish_cbor(value):
     return b"".join(cbor_parts({"op": "publish", "topic": "/t", "msg": value}))
@@ -284,11 +340,13 @@ def test_float32_arrays_keep_their_bits():
 
 def test_a_map_and_a_cloud_as_cbor_are_not_copied():
     grid = serialized(GRID())[:-4] + map_bytes(2000)
-    cloud = sensor_msgs.msg.PointCloud2(height=1, width=300_000, point_step=16, row_step=4_800_000,
-                                        data=os.urandom(4_800_000), is_dense=True)
-    cloud.fields = [sensor_msgs.msg.PointField(name=name, offset=4 * i, datatype=7, count=1)
-                    for i, name in enumerate("xyz")]
-    cases = ((GRID, grid, grid[-2000 * 2000:]), (sensor_msgs.msg.PointCloud2, serialized(cloud), cloud.data))
+    cloud = sensor_msgs.msg.PointCloud2(
+        height=1, width=300_000, point_step=16, row_step=4_800_000, data=os.urandom(4_800_000), is_dense=True
+    )
+    cloud.fields = [
+        sensor_msgs.msg.PointField(name=name, offset=4 * i, datatype=7, count=1) for i, name in enumerate("xyz")
+    ]
+    cases = ((GRID, grid, grid[-2000 * 2000 :]), (sensor_msgs.msg.PointCloud2, serialized(cloud), cloud.data))
     for cls, data, cells in cases:
         convert = cbor_value(cls)
         cbor_frame({"op": "publish", "topic": "/t", "msg": convert(data)})  # (what is made once: not counted)

@@ -1,6 +1,7 @@
 """cloud.py: a sensor_msgs/PointCloud2 read from its serialized bytes and decimated to a bounded number of
 little-endian float32 triples (x, y, z / intensity / 0), whatever its fields' types, byte order and row padding;
 the strides few distinct max_points come to, and the answers kept within a bound in bytes."""
+
 import io
 import math
 import struct
@@ -28,15 +29,22 @@ def cloud_message(points, fields, formats, point_step, height=1, row_padding=0, 
     rows = []
     for r in range(height):
         row = bytearray()
-        for values in points[r * width:(r + 1) * width]:
+        for values in points[r * width : (r + 1) * width]:
             point = bytearray(point_step)
-            for (name, offset, _), letter, value in zip(fields, formats, values):
+            for (_name, offset, _), letter, value in zip(fields, formats, values):
                 struct.pack_into(order + letter, point, offset, value)
             row += point
         rows.append(bytes(row) + bytes(row_padding))
-    msg = PointCloud2(height=height, width=width, is_bigendian=big_endian, point_step=point_step,
-                      row_step=width * point_step + row_padding, data=b"".join(rows), is_dense=False,
-                      fields=[PointField(name=n, offset=o, datatype=t, count=1) for n, o, t in fields])
+    msg = PointCloud2(
+        height=height,
+        width=width,
+        is_bigendian=big_endian,
+        point_step=point_step,
+        row_step=width * point_step + row_padding,
+        data=b"".join(rows),
+        is_dense=False,
+        fields=[PointField(name=n, offset=o, datatype=t, count=1) for n, o, t in fields],
+    )
     msg.header.frame_id = frame
     msg.header.stamp.secs, msg.header.stamp.nsecs = 12, 250_000_000
     return serialized(msg)
@@ -45,7 +53,7 @@ def cloud_message(points, fields, formats, point_step, height=1, row_padding=0, 
 def triples(body):
     values = array("f")
     values.frombytes(body)
-    return [tuple(values[i:i + 3]) for i in range(0, len(values), 3)]
+    return [tuple(values[i : i + 3]) for i in range(0, len(values), 3)]
 
 
 XYZI = [("x", 0, F32), ("y", 4, F32), ("z", 8, F32), ("intensity", 16, F32)]
@@ -75,8 +83,26 @@ def test_every_kth_point_at_most_max_points():
 
 def test_strides_are_exact_to_15_then_8_per_doubling_keeping_at_least_8_9_of_the_points():
     assert [stride_for(n, 1) for n in range(1, 16)] == list(range(1, 16))
-    assert [stride_for(n, 1) for n in range(16, 34)] == [16, 18, 18, 20, 20, 22, 22, 24, 24, 26, 26, 28, 28, 30, 30,
-                                                         32, 32, 36]
+    assert [stride_for(n, 1) for n in range(16, 34)] == [
+        16,
+        18,
+        18,
+        20,
+        20,
+        22,
+        22,
+        24,
+        24,
+        26,
+        26,
+        28,
+        28,
+        30,
+        30,
+        32,
+        32,
+        36,
+    ]
     total = 300_000
     strides = {stride_for(total, m) for m in range(1, 200_001)}
     assert len(strides) == 111
@@ -145,9 +171,17 @@ def test_empty_clouds_and_bad_ones():
 def test_a_300k_point_cloud_decimated_quickly_without_copying_it_whole():
     n = 300_000
     data = array("f", [v for i in range(n) for v in (i, -i, 0.001 * i, 0.0)]).tobytes()
-    msg = PointCloud2(height=1, width=n, point_step=16, row_step=16 * n, data=data,
-                      fields=[PointField(name=k, offset=o, datatype=F32, count=1)
-                              for k, o in (("x", 0), ("y", 4), ("z", 8), ("intensity", 12))])
+    msg = PointCloud2(
+        height=1,
+        width=n,
+        point_step=16,
+        row_step=16 * n,
+        data=data,
+        fields=[
+            PointField(name=k, offset=o, datatype=F32, count=1)
+            for k, o in (("x", 0), ("y", 4), ("z", 8), ("intensity", 12))
+        ],
+    )
     raw = serialized(msg)
     started = time.perf_counter()
     cloud = read_cloud(raw)

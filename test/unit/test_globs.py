@@ -3,15 +3,18 @@ import pytest
 from rosbridge.globs import Globs, allowed, filter_names, parse_globs
 
 
-@pytest.mark.parametrize("text, expected", [
-    ("[/turtle1/*, /rosout]", ["/turtle1/*", "/rosout"]),
-    ("['*']", ["*"]),
-    ("['/a/*', '/b']", ["/a/*", "/b"]),
-    ('["/a/*", "/b"]', ["/a/*", "/b"]),
-    ("/turtle1/*", ["/turtle1/*"]),
-    ("  [ /a ,, /b , ]  ", ["/a", "/b"]),
-    (["/a/*", "/b"], ["/a/*", "/b"]),
-])
+@pytest.mark.parametrize(
+    "text, expected",
+    [
+        ("[/turtle1/*, /rosout]", ["/turtle1/*", "/rosout"]),
+        ("['*']", ["*"]),
+        ("['/a/*', '/b']", ["/a/*", "/b"]),
+        ('["/a/*", "/b"]', ["/a/*", "/b"]),
+        ("/turtle1/*", ["/turtle1/*"]),
+        ("  [ /a ,, /b , ]  ", ["/a", "/b"]),
+        (["/a/*", "/b"], ["/a/*", "/b"]),
+    ],
+)
 def test_parse_globs_reads_the_launch_arg_format(text, expected):
     assert parse_globs(text) == expected
 

@@ -1,4 +1,5 @@
 """heap.reuse_big_buffers: a big buffer freed and made again reuses the same pages (no fresh page faults)."""
+
 import subprocess
 import sys
 

@@ -1,6 +1,7 @@
 """ARCHITECTURE.md's rules of who may import whom in src/rosbridge, checked against every import statement (read
 with ast, nothing imported): a protocol never imports the transport, the pure parts never import tornado or
 rospy, nothing imports the node."""
+
 import ast
 from pathlib import Path
 
@@ -8,8 +9,18 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2] / "src" / "rosbridge"
 PARTS = ("protocol", "transport", "http", "ros_side", "codec")
-SHARED = ("settings", "errors", "globs", "auth", "origins", "off_loop", "borrowed", "accepting", "heap",
-          "message_types")
+SHARED = (
+    "settings",
+    "errors",
+    "globs",
+    "auth",
+    "origins",
+    "off_loop",
+    "borrowed",
+    "accepting",
+    "heap",
+    "message_types",
+)
 # part -> (rosbridge modules it may import: a part, or part.module; libraries it never imports)
 RULES = {
     "codec": ({"codec", "message_types", "errors"}, {"tornado", "rospy"}),

@@ -1,13 +1,16 @@
 """jpeg.py: reading Image and CompressedImage messages in place, every supported encoding made a JPEG, sizes and
 their bounds, and the adaptive streams' ladder and policy."""
+
 import io
 import struct
 import zlib
 
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import given
+from hypothesis import strategies as st
 from PIL import Image
-from sensor_msgs.msg import CompressedImage, Image as RosImage
+from sensor_msgs.msg import CompressedImage
+from sensor_msgs.msg import Image as RosImage
 
 from rosbridge.http import jpeg
 
@@ -19,8 +22,14 @@ def serialized(msg):
 
 
 def ros_image(width, height, encoding, data, step=None, bigendian=0, stamp=(12, 500_000_000)):
-    msg = RosImage(width=width, height=height, encoding=encoding, is_bigendian=bigendian,
-                   step=step if step is not None else len(data) // height, data=data)
+    msg = RosImage(
+        width=width,
+        height=height,
+        encoding=encoding,
+        is_bigendian=bigendian,
+        step=step if step is not None else len(data) // height,
+        data=data,
+    )
     msg.header.stamp.secs, msg.header.stamp.nsecs = stamp
     msg.header.frame_id = "camera"
     return serialized(msg)
@@ -75,16 +84,19 @@ def test_another_type_is_refused():
 RED, BLUE = (255, 0, 0), (0, 0, 255)
 
 
-@pytest.mark.parametrize("encoding, pixel, expected", [
-    ("rgb8", bytes(RED), RED),
-    ("bgr8", bytes(RED), BLUE),  # bytes 255, 0, 0 are blue in BGR
-    ("8UC3", bytes(RED), BLUE),  # OpenCV's order
-    ("rgba8", bytes((255, 0, 0, 7)), RED),
-    ("bgra8", bytes((255, 0, 0, 7)), BLUE),
-    ("8UC4", bytes((255, 0, 0, 7)), BLUE),
-    ("mono8", bytes((200,)), 200),
-    ("8UC1", bytes((90,)), 90),
-])
+@pytest.mark.parametrize(
+    "encoding, pixel, expected",
+    [
+        ("rgb8", bytes(RED), RED),
+        ("bgr8", bytes(RED), BLUE),  # bytes 255, 0, 0 are blue in BGR
+        ("8UC3", bytes(RED), BLUE),  # OpenCV's order
+        ("rgba8", bytes((255, 0, 0, 7)), RED),
+        ("bgra8", bytes((255, 0, 0, 7)), BLUE),
+        ("8UC4", bytes((255, 0, 0, 7)), BLUE),
+        ("mono8", bytes((200,)), 200),
+        ("8UC1", bytes((90,)), 90),
+    ],
+)
 def test_8_bit_encodings(encoding, pixel, expected):
     image = decoded(picture_of(ros_image(8, 8, encoding, pixel * 64)).jpeg((8, 8), 95))
     assert image.size == (8, 8)
@@ -123,11 +135,14 @@ def test_32fc1_with_the_imagemath_of_pillow_10_3_and_later(monkeypatch):
     """Debian 13's Pillow deprecates ImageMath.eval for lambda_eval(expression(args), **images); where it is
     missing (Debian 12's), a stand-in calling the expression as that one does."""
     from PIL import ImageMath
+
     if not hasattr(ImageMath, "lambda_eval"):
-        def lambda_eval(expression, options={}, **images):
+
+        def lambda_eval(expression, options={}, **images):  # noqa: B006  (never changed: as Pillow 10 has it)
             args = dict(ImageMath.ops, **options, **images)
             args.update({name: ImageMath._Operand(value) for name, value in args.items() if hasattr(value, "im")})
             return expression(args).im
+
         monkeypatch.setattr(ImageMath, "lambda_eval", lambda_eval, raising=False)
         monkeypatch.setattr(ImageMath, "eval", None)  # (not used on that path)
     test_32fc1_depth_is_normalized_and_invalid_points_are_black()
@@ -151,13 +166,16 @@ def test_unsupported_encodings_are_named(encoding):
         picture_of(ros_image(2, 2, encoding, bytes(12))).jpeg((2, 2), 90)
 
 
-@pytest.mark.parametrize("width, height, encoding, data, step, match", [
-    (4, 4, "rgb8", bytes(47), 12, "data holds 47 bytes"),
-    (4, 4, "rgb8", bytes(48), 8, "step 8 is less than width 4"),
-    (0, 0, "rgb8", b"", 0, "empty"),
-    (100_000, 100_000, "mono8", b"", 100_000, "too large"),
-    (7000, 7000, "mono8", bytes(10), 7000, "data holds 10 bytes"),  # (its claim alone decodes nothing)
-])
+@pytest.mark.parametrize(
+    "width, height, encoding, data, step, match",
+    [
+        (4, 4, "rgb8", bytes(47), 12, "data holds 47 bytes"),
+        (4, 4, "rgb8", bytes(48), 8, "step 8 is less than width 4"),
+        (0, 0, "rgb8", b"", 0, "empty"),
+        (100_000, 100_000, "mono8", b"", 100_000, "too large"),
+        (7000, 7000, "mono8", bytes(10), 7000, "data holds 10 bytes"),  # (its claim alone decodes nothing)
+    ],
+)
 def test_inconsistent_images_are_image_errors(width, height, encoding, data, step, match):
     msg = RosImage(width=width, height=height, encoding=encoding, step=step, data=data)
     with pytest.raises(jpeg.ImageError, match=match):
@@ -165,36 +183,43 @@ def test_inconsistent_images_are_image_errors(width, height, encoding, data, ste
 
 
 # ---- sizes, quality, invert --------------------------------------------------------------------------------------
-@pytest.mark.parametrize("width, height, max_side, expected", [
-    (0, 0, 0, (640, 480)),
-    (320, 0, 0, (320, 240)),
-    (0, 120, 0, (160, 120)),
-    (100, 100, 0, (100, 100)),  # both given: as asked (web_video_server)
-    (0, 0, 400, (400, 300)),
-    (1280, 0, 800, (800, 600)),
-    (1, 0, 0, (1, 1)),
-])
+@pytest.mark.parametrize(
+    "width, height, max_side, expected",
+    [
+        (0, 0, 0, (640, 480)),
+        (320, 0, 0, (320, 240)),
+        (0, 120, 0, (160, 120)),
+        (100, 100, 0, (100, 100)),  # both given: as asked (web_video_server)
+        (0, 0, 400, (400, 300)),
+        (1280, 0, 800, (800, 600)),
+        (1, 0, 0, (1, 1)),
+    ],
+)
 def test_output_size(width, height, max_side, expected):
     assert jpeg.output_size((640, 480), width, height, max_side) == expected
 
 
-@pytest.mark.parametrize("source, width, height, max_side, expected", [
-    ((4, 300), 4096, 0, 0, (55, 4096)),  # the aspect alone: 4096x307,200 (1.2 GB of pixels)
-    ((4, 3000), 4096, 0, 0, (5, 4096)),  # 4096x3,072,000 (12.6 GB)
-    ((300, 4), 0, 4096, 0, (4096, 55)),
-    ((4, 300), 4096, 0, 800, (11, 800)),
-    ((640, 480), 4096, 0, 0, (3344, 2508)),  # 4096x3072 is 12.6 Mpx: scaled to 8.4, its aspect kept
-    ((640, 480), 4096, 4096, 0, (2896, 2896)),  # (stretched as asked, then scaled)
-    ((640, 480), 4096, 2048, 0, (4096, 2048)),  # the largest there is
-    ((8000, 6000), 0, 0, 0, (3344, 2508)),  # a source larger than a picture is sent
-    ((1, 100_000), 0, 0, 0, (1, 4096)),
-])
+@pytest.mark.parametrize(
+    "source, width, height, max_side, expected",
+    [
+        ((4, 300), 4096, 0, 0, (55, 4096)),  # the aspect alone: 4096x307,200 (1.2 GB of pixels)
+        ((4, 3000), 4096, 0, 0, (5, 4096)),  # 4096x3,072,000 (12.6 GB)
+        ((300, 4), 0, 4096, 0, (4096, 55)),
+        ((4, 300), 4096, 0, 800, (11, 800)),
+        ((640, 480), 4096, 0, 0, (3344, 2508)),  # 4096x3072 is 12.6 Mpx: scaled to 8.4, its aspect kept
+        ((640, 480), 4096, 4096, 0, (2896, 2896)),  # (stretched as asked, then scaled)
+        ((640, 480), 4096, 2048, 0, (4096, 2048)),  # the largest there is
+        ((8000, 6000), 0, 0, 0, (3344, 2508)),  # a source larger than a picture is sent
+        ((1, 100_000), 0, 0, 0, (1, 4096)),
+    ],
+)
 def test_the_output_is_bounded_whatever_the_request_and_the_source(source, width, height, max_side, expected):
     assert jpeg.output_size(source, width, height, max_side) == expected
 
 
 SOURCE_SIZES = st.integers(1, 100_000).flatmap(  # (of at most MAX_PIXELS: a larger one is refused)
-    lambda width: st.tuples(st.just(width), st.integers(1, min(100_000, jpeg.MAX_PIXELS // width))))
+    lambda width: st.tuples(st.just(width), st.integers(1, min(100_000, jpeg.MAX_PIXELS // width)))
+)
 
 
 @given(SOURCE_SIZES, st.integers(0, jpeg.MAX_SIDE), st.integers(0, jpeg.MAX_SIDE), st.sampled_from([0, 1, 800, 10_000]))
@@ -273,9 +298,18 @@ def test_a_corrupt_compressed_image_is_an_image_error():
         jpeg.Picture(frame).jpeg((4, 4), 90)
 
 
-@pytest.mark.parametrize("fmt, expected", [
-    ("jpeg", "image/jpeg"), ("JPG", "image/jpeg"), ("rgb8; jpeg compressed bgr8", "image/jpeg"), ("png", "image/png"),
-    ("16UC1; compressedDepth png", None), ("tiff", None), ("", None)])
+@pytest.mark.parametrize(
+    "fmt, expected",
+    [
+        ("jpeg", "image/jpeg"),
+        ("JPG", "image/jpeg"),
+        ("rgb8; jpeg compressed bgr8", "image/jpeg"),
+        ("png", "image/png"),
+        ("16UC1; compressedDepth png", None),
+        ("tiff", None),
+        ("", None),
+    ],
+)
 def test_which_compressed_images_go_out_as_they_are(fmt, expected):
     assert jpeg.compressed_content_type(fmt) == expected
 

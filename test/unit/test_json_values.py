@@ -1,20 +1,21 @@
 """ROS <-> JSON conversion (rosbridge.codec.json_values), field type by field type, on real message classes and on a
 message generated at run time that holds every field type ROS 1 has."""
+
 import io
 import json
 import math
 
 import genpy
 import genpy.dynamic
-import pytest
 import geometry_msgs.msg
+import pytest
 import rosgraph_msgs.msg
 import sensor_msgs.msg
 import std_msgs.msg
 import std_srvs.srv
+
 import turtlesim.msg
 import turtlesim.srv
-
 from rosbridge.codec.json_values import ConversionError, dumps, from_json, request_from_args, to_json
 
 ALL_TYPES_FIELDS = """\
@@ -60,7 +61,8 @@ geometry_msgs/Point[2] point_pair
 def _generate_all_types():
     separator = "=" * 80 + "\n"
     definition = ALL_TYPES_FIELDS + "".join(
-        f"{separator}MSG: {cls._type}\n{cls._full_text}\n" for cls in (std_msgs.msg.Header, geometry_msgs.msg.Point))
+        f"{separator}MSG: {cls._type}\n{cls._full_text}\n" for cls in (std_msgs.msg.Header, geometry_msgs.msg.Point)
+    )
     return genpy.dynamic.generate_dynamic("test_convert/AllTypes", definition)["test_convert/AllTypes"]
 
 
@@ -86,36 +88,93 @@ def round_trip(msg, now=None):
 
 # --- ROS -> JSON ------------------------------------------------------------------------------------------
 
+
 def test_default_all_types_message_to_json():
     assert to_json(deserialized(AllTypes())) == {
-        "b": False, "i8": 0, "u8": 0, "i16": 0, "u16": 0, "i32": 0, "u32": 0, "i64": 0, "u64": 0, "by": 0,
-        "ch": 0, "f32": 0.0, "f64": 0.0, "s": "", "t": {"secs": 0, "nsecs": 0}, "d": {"secs": 0, "nsecs": 0},
-        "bools": [], "i8s": [], "u16s": [0, 0, 0], "i16s": [], "u32s": [], "i32s": [], "u64s": [], "i64s": [],
-        "f32s": [], "f64s": [0.0, 0.0], "strings": [], "times": [],
-        "durations": [{"secs": 0, "nsecs": 0}, {"secs": 0, "nsecs": 0}], "bytes": "", "chars": "AAAAAA==",
-        "fixed_bytes": "AAA=", "signed_bytes": [],
-        "header": {"seq": 0, "stamp": {"secs": 0, "nsecs": 0}, "frame_id": ""}, "points": [],
-        "point_pair": [{"x": 0.0, "y": 0.0, "z": 0.0}, {"x": 0.0, "y": 0.0, "z": 0.0}]}
+        "b": False,
+        "i8": 0,
+        "u8": 0,
+        "i16": 0,
+        "u16": 0,
+        "i32": 0,
+        "u32": 0,
+        "i64": 0,
+        "u64": 0,
+        "by": 0,
+        "ch": 0,
+        "f32": 0.0,
+        "f64": 0.0,
+        "s": "",
+        "t": {"secs": 0, "nsecs": 0},
+        "d": {"secs": 0, "nsecs": 0},
+        "bools": [],
+        "i8s": [],
+        "u16s": [0, 0, 0],
+        "i16s": [],
+        "u32s": [],
+        "i32s": [],
+        "u64s": [],
+        "i64s": [],
+        "f32s": [],
+        "f64s": [0.0, 0.0],
+        "strings": [],
+        "times": [],
+        "durations": [{"secs": 0, "nsecs": 0}, {"secs": 0, "nsecs": 0}],
+        "bytes": "",
+        "chars": "AAAAAA==",
+        "fixed_bytes": "AAA=",
+        "signed_bytes": [],
+        "header": {"seq": 0, "stamp": {"secs": 0, "nsecs": 0}, "frame_id": ""},
+        "points": [],
+        "point_pair": [{"x": 0.0, "y": 0.0, "z": 0.0}, {"x": 0.0, "y": 0.0, "z": 0.0}],
+    }
 
 
 def test_values_to_json():
-    msg = deserialized(AllTypes(
-        b=True, i8=-128, u8=255, i16=-32768, u16=65535, i32=-2**31, u32=2**32 - 1, i64=-2**63, u64=2**64 - 1,
-        by=-1, ch=200, f32=0.5, f64=-1e300, s="héllo ☃ 😀", t=genpy.Time(1700000000, 5),
-        d=genpy.Duration(-3, 500), bools=[True, False], i8s=[-1, 2], u16s=[1, 2, 65535], u64s=[2**64 - 1],
-        i64s=[-2**63], f32s=[1.5, -2.25], f64s=[1e-300, 3.0], strings=["a", "ü"],
-        times=[genpy.Time(1, 2)], bytes=b"\x00\xffhi", chars=b"abcd", fixed_bytes=b"\x01\x02",
-        signed_bytes=[-128, 127], points=[geometry_msgs.msg.Point(1, 2, 3)]))
+    msg = deserialized(
+        AllTypes(
+            b=True,
+            i8=-128,
+            u8=255,
+            i16=-32768,
+            u16=65535,
+            i32=-(2**31),
+            u32=2**32 - 1,
+            i64=-(2**63),
+            u64=2**64 - 1,
+            by=-1,
+            ch=200,
+            f32=0.5,
+            f64=-1e300,
+            s="héllo ☃ 😀",
+            t=genpy.Time(1700000000, 5),
+            d=genpy.Duration(-3, 500),
+            bools=[True, False],
+            i8s=[-1, 2],
+            u16s=[1, 2, 65535],
+            u64s=[2**64 - 1],
+            i64s=[-(2**63)],
+            f32s=[1.5, -2.25],
+            f64s=[1e-300, 3.0],
+            strings=["a", "ü"],
+            times=[genpy.Time(1, 2)],
+            bytes=b"\x00\xffhi",
+            chars=b"abcd",
+            fixed_bytes=b"\x01\x02",
+            signed_bytes=[-128, 127],
+            points=[geometry_msgs.msg.Point(1, 2, 3)],
+        )
+    )
     value = to_json(msg)
     assert value["b"] is True
     assert (value["i8"], value["u8"], value["i16"], value["u16"]) == (-128, 255, -32768, 65535)
-    assert (value["i32"], value["u32"], value["i64"], value["u64"]) == (-2**31, 2**32 - 1, -2**63, 2**64 - 1)
+    assert (value["i32"], value["u32"], value["i64"], value["u64"]) == (-(2**31), 2**32 - 1, -(2**63), 2**64 - 1)
     assert (value["by"], value["ch"], value["f32"], value["f64"]) == (-1, 200, 0.5, -1e300)
     assert value["s"] == "héllo ☃ 😀"
     assert value["t"] == {"secs": 1700000000, "nsecs": 5}
     assert value["d"] == {"secs": -3, "nsecs": 500}
     assert value["bools"] == [True, False] and value["i8s"] == [-1, 2] and value["u16s"] == [1, 2, 65535]
-    assert value["u64s"] == [2**64 - 1] and value["i64s"] == [-2**63]
+    assert value["u64s"] == [2**64 - 1] and value["i64s"] == [-(2**63)]
     assert value["f32s"] == [1.5, -2.25] and value["f64s"] == [1e-300, 3.0] and value["strings"] == ["a", "ü"]
     assert value["times"] == [{"secs": 1, "nsecs": 2}]
     assert value["bytes"] == "AP9oaQ==" and value["chars"] == "YWJjZA==" and value["fixed_bytes"] == "AQI="
@@ -150,20 +209,36 @@ def test_twist_pose_and_image():
     twist = geometry_msgs.msg.Twist(geometry_msgs.msg.Vector3(1.0, 0, 0), geometry_msgs.msg.Vector3(0, 0, -0.5))
     assert to_json(twist) == {"linear": {"x": 1.0, "y": 0, "z": 0}, "angular": {"x": 0, "y": 0, "z": -0.5}}
     pose = deserialized(turtlesim.msg.Pose(x=5.544444561004639, y=1.0, theta=-1.5, linear_velocity=2.0))
-    assert to_json(pose) == {"x": 5.544444561004639, "y": 1.0, "theta": -1.5, "linear_velocity": 2.0,
-                             "angular_velocity": 0.0}
+    assert to_json(pose) == {
+        "x": 5.544444561004639,
+        "y": 1.0,
+        "theta": -1.5,
+        "linear_velocity": 2.0,
+        "angular_velocity": 0.0,
+    }
     image = sensor_msgs.msg.Image(height=1, width=2, encoding="rgb8", step=6, data=bytes(range(6)))
     image.header.stamp = genpy.Time(10, 20)
     image.header.frame_id = "cam"
     assert to_json(deserialized(image)) == {
-        "header": {"seq": 0, "stamp": {"secs": 10, "nsecs": 20}, "frame_id": "cam"}, "height": 1, "width": 2,
-        "encoding": "rgb8", "is_bigendian": 0, "step": 6, "data": "AAECAwQF"}
+        "header": {"seq": 0, "stamp": {"secs": 10, "nsecs": 20}, "frame_id": "cam"},
+        "height": 1,
+        "width": 2,
+        "encoding": "rgb8",
+        "is_bigendian": 0,
+        "step": 6,
+        "data": "AAECAwQF",
+    }
 
 
 def test_visualization_markers():
     visualization_msgs = pytest.importorskip("visualization_msgs.msg")
-    marker = visualization_msgs.Marker(ns="n", id=3, type=visualization_msgs.Marker.SPHERE,
-                                       points=[geometry_msgs.msg.Point(1, 2, 3)], lifetime=genpy.Duration(2))
+    marker = visualization_msgs.Marker(
+        ns="n",
+        id=3,
+        type=visualization_msgs.Marker.SPHERE,
+        points=[geometry_msgs.msg.Point(1, 2, 3)],
+        lifetime=genpy.Duration(2),
+    )
     array = visualization_msgs.MarkerArray(markers=[marker, marker])
     value = to_json(deserialized(array))
     assert len(value["markers"]) == 2 and value["markers"][1]["points"] == [{"x": 1.0, "y": 2.0, "z": 3.0}]
@@ -172,6 +247,7 @@ def test_visualization_markers():
 
 
 # --- JSON -> ROS ------------------------------------------------------------------------------------------
+
 
 def test_missing_fields_take_defaults():
     msg = from_json(AllTypes, {})
@@ -189,11 +265,28 @@ def test_defaults_are_fresh_objects():
 
 
 def test_values_from_json():
-    msg = from_json(AllTypes, {
-        "b": True, "i8": -128, "u64": 2**64 - 1, "f32": 1, "f64": 2.0, "s": "ü😀", "t": {"secs": 3},
-        "d": {"secs": -1, "nsecs": 5}, "u16s": [1, 2, 3], "f64s": [1, None], "bools": [False, True],
-        "bytes": "AP9oaQ==", "chars": [97, 98, 99, 100], "fixed_bytes": "AQI=", "times": [{"nsecs": 7}, 1.5],
-        "points": [{"x": 1}, {}], "header": {"frame_id": "map"}})
+    msg = from_json(
+        AllTypes,
+        {
+            "b": True,
+            "i8": -128,
+            "u64": 2**64 - 1,
+            "f32": 1,
+            "f64": 2.0,
+            "s": "ü😀",
+            "t": {"secs": 3},
+            "d": {"secs": -1, "nsecs": 5},
+            "u16s": [1, 2, 3],
+            "f64s": [1, None],
+            "bools": [False, True],
+            "bytes": "AP9oaQ==",
+            "chars": [97, 98, 99, 100],
+            "fixed_bytes": "AQI=",
+            "times": [{"nsecs": 7}, 1.5],
+            "points": [{"x": 1}, {}],
+            "header": {"frame_id": "map"},
+        },
+    )
     assert msg.b is True and msg.i8 == -128 and msg.u64 == 2**64 - 1
     assert msg.f32 == 1.0 and type(msg.f32) is float and msg.f64 == 2.0 and msg.s == "ü😀"
     assert msg.t == genpy.Time(3, 0) and msg.d == genpy.Duration(-1, 5)
@@ -219,10 +312,21 @@ def test_nanoseconds_carry_into_seconds():
     assert from_json(AllTypes, {"t": {"secs": 1, "nsecs": 2500000000}}).t == genpy.Time(3, 500000000)
 
 
-@pytest.mark.parametrize("field,bounds", [
-    ("i8", (-2**7, 2**7 - 1)), ("u8", (0, 2**8 - 1)), ("i16", (-2**15, 2**15 - 1)), ("u16", (0, 2**16 - 1)),
-    ("i32", (-2**31, 2**31 - 1)), ("u32", (0, 2**32 - 1)), ("i64", (-2**63, 2**63 - 1)), ("u64", (0, 2**64 - 1)),
-    ("by", (-2**7, 2**7 - 1)), ("ch", (0, 2**8 - 1))])
+@pytest.mark.parametrize(
+    "field,bounds",
+    [
+        ("i8", (-(2**7), 2**7 - 1)),
+        ("u8", (0, 2**8 - 1)),
+        ("i16", (-(2**15), 2**15 - 1)),
+        ("u16", (0, 2**16 - 1)),
+        ("i32", (-(2**31), 2**31 - 1)),
+        ("u32", (0, 2**32 - 1)),
+        ("i64", (-(2**63), 2**63 - 1)),
+        ("u64", (0, 2**64 - 1)),
+        ("by", (-(2**7), 2**7 - 1)),
+        ("ch", (0, 2**8 - 1)),
+    ],
+)
 def test_integer_bounds(field, bounds):
     low, high = bounds
     for value in (low, high):
@@ -254,42 +358,49 @@ def test_header_stamp_filled_with_now_when_missing():
     assert from_json(AllTypes, {}, now).t == genpy.Time(0, 0)
 
 
-@pytest.mark.parametrize("cls,value,error", [
-    (geometry_msgs.msg.Twist, {"linear": {"x": "abc"}}, "linear.x: expected a number, got str 'abc'"),
-    (geometry_msgs.msg.Twist, {"foo": 1}, "unknown field 'foo' in geometry_msgs/Twist"),
-    (geometry_msgs.msg.Twist, {"angular": {"w": 1}}, "angular: unknown field 'w' in geometry_msgs/Vector3"),
-    (geometry_msgs.msg.Twist, {"linear": [1, 2, 3]}, "linear: expected an object (geometry_msgs/Vector3), got list"),
-    (geometry_msgs.msg.Twist, [1], "expected an object (geometry_msgs/Twist), got list [1]"),
-    (geometry_msgs.msg.Twist, None, "expected an object (geometry_msgs/Twist), got null"),
-    (geometry_msgs.msg.Twist, {"linear": {"x": True}}, "linear.x: expected a number, got bool True"),
-    (turtlesim.msg.Pose, {"theta": "1.0"}, "theta: expected a number, got str '1.0'"),
-    (AllTypes, {"i32": True}, "i32: expected an integer (int32), got bool True"),
-    (AllTypes, {"i32": 2.5}, "i32: expected an integer (int32), got float 2.5"),
-    (AllTypes, {"i32": "3"}, "i32: expected an integer (int32), got str '3'"),
-    (AllTypes, {"u8": None}, "u8: expected an integer (uint8), got null"),
-    (AllTypes, {"b": 1}, "b: expected true or false, got int 1"),
-    (AllTypes, {"s": 5}, "s: expected a string, got int 5"),
-    (AllTypes, {"s": "\ud800"}, "s: string is not valid Unicode"),
-    (AllTypes, {"t": "now"}, "t: expected {\"secs\": ..., \"nsecs\": ...} or a number of seconds"),
-    (AllTypes, {"t": -1}, "t: expected {\"secs\": ..., \"nsecs\": ...} or a number of seconds"),
-    (AllTypes, {"t": {"sec": 1}}, "t: unknown field 'sec' in time"),
-    (AllTypes, {"t": {"secs": 1.5}}, "t.secs: expected an integer (uint32), got float 1.5"),
-    (AllTypes, {"d": {"nsecs": 2**31}}, "d.nsecs: 2147483648 is out of range for int32"),
-    (AllTypes, {"t": {"secs": 2**32 - 1, "nsecs": 10**9}}, "t: time 4294967296.000000000 s is out of range"),
-    (AllTypes, {"u16s": [1, 2]}, "u16s: expected exactly 3 elements, got 2"),
-    (AllTypes, {"i32s": [1, 2, "x"]}, "i32s[2]: expected an integer (int32), got str 'x'"),
-    (AllTypes, {"i32s": {"0": 1}}, "i32s: expected an array, got dict"),
-    (AllTypes, {"bytes": "not base64!"}, "bytes: expected base64 text or a list of ints 0..255, got a string"),
-    (AllTypes, {"bytes": "é"}, "bytes: expected base64 text or a list of ints 0..255, got a string"),
-    (AllTypes, {"bytes": [0, 1, 2, 256]}, "bytes[3]: expected an integer 0..255, got int 256"),
-    (AllTypes, {"bytes": [True]}, "bytes[0]: expected an integer 0..255, got bool True"),
-    (AllTypes, {"bytes": 5}, "bytes: expected base64 text or a list of ints 0..255, got int 5"),
-    (AllTypes, {"chars": "YWJj"}, "chars: expected exactly 4 bytes, got 3"),
-    (AllTypes, {"points": [{}, {"z": "up"}]}, "points[1].z: expected a number, got str 'up'"),
-    (AllTypes, {"point_pair": [{}]}, "point_pair: expected exactly 2 elements, got 1"),
-    (AllTypes, {"header": {"stamp": {"secs": -1}}}, "header.stamp.secs: -1 is out of range for uint32"),
-    (sensor_msgs.msg.Image, {"data": [1, -1]}, "data[1]: expected an integer 0..255, got int -1"),
-])
+@pytest.mark.parametrize(
+    "cls,value,error",
+    [
+        (geometry_msgs.msg.Twist, {"linear": {"x": "abc"}}, "linear.x: expected a number, got str 'abc'"),
+        (geometry_msgs.msg.Twist, {"foo": 1}, "unknown field 'foo' in geometry_msgs/Twist"),
+        (geometry_msgs.msg.Twist, {"angular": {"w": 1}}, "angular: unknown field 'w' in geometry_msgs/Vector3"),
+        (
+            geometry_msgs.msg.Twist,
+            {"linear": [1, 2, 3]},
+            "linear: expected an object (geometry_msgs/Vector3), got list",
+        ),
+        (geometry_msgs.msg.Twist, [1], "expected an object (geometry_msgs/Twist), got list [1]"),
+        (geometry_msgs.msg.Twist, None, "expected an object (geometry_msgs/Twist), got null"),
+        (geometry_msgs.msg.Twist, {"linear": {"x": True}}, "linear.x: expected a number, got bool True"),
+        (turtlesim.msg.Pose, {"theta": "1.0"}, "theta: expected a number, got str '1.0'"),
+        (AllTypes, {"i32": True}, "i32: expected an integer (int32), got bool True"),
+        (AllTypes, {"i32": 2.5}, "i32: expected an integer (int32), got float 2.5"),
+        (AllTypes, {"i32": "3"}, "i32: expected an integer (int32), got str '3'"),
+        (AllTypes, {"u8": None}, "u8: expected an integer (uint8), got null"),
+        (AllTypes, {"b": 1}, "b: expected true or false, got int 1"),
+        (AllTypes, {"s": 5}, "s: expected a string, got int 5"),
+        (AllTypes, {"s": "\ud800"}, "s: string is not valid Unicode"),
+        (AllTypes, {"t": "now"}, 't: expected {"secs": ..., "nsecs": ...} or a number of seconds'),
+        (AllTypes, {"t": -1}, 't: expected {"secs": ..., "nsecs": ...} or a number of seconds'),
+        (AllTypes, {"t": {"sec": 1}}, "t: unknown field 'sec' in time"),
+        (AllTypes, {"t": {"secs": 1.5}}, "t.secs: expected an integer (uint32), got float 1.5"),
+        (AllTypes, {"d": {"nsecs": 2**31}}, "d.nsecs: 2147483648 is out of range for int32"),
+        (AllTypes, {"t": {"secs": 2**32 - 1, "nsecs": 10**9}}, "t: time 4294967296.000000000 s is out of range"),
+        (AllTypes, {"u16s": [1, 2]}, "u16s: expected exactly 3 elements, got 2"),
+        (AllTypes, {"i32s": [1, 2, "x"]}, "i32s[2]: expected an integer (int32), got str 'x'"),
+        (AllTypes, {"i32s": {"0": 1}}, "i32s: expected an array, got dict"),
+        (AllTypes, {"bytes": "not base64!"}, "bytes: expected base64 text or a list of ints 0..255, got a string"),
+        (AllTypes, {"bytes": "é"}, "bytes: expected base64 text or a list of ints 0..255, got a string"),
+        (AllTypes, {"bytes": [0, 1, 2, 256]}, "bytes[3]: expected an integer 0..255, got int 256"),
+        (AllTypes, {"bytes": [True]}, "bytes[0]: expected an integer 0..255, got bool True"),
+        (AllTypes, {"bytes": 5}, "bytes: expected base64 text or a list of ints 0..255, got int 5"),
+        (AllTypes, {"chars": "YWJj"}, "chars: expected exactly 4 bytes, got 3"),
+        (AllTypes, {"points": [{}, {"z": "up"}]}, "points[1].z: expected a number, got str 'up'"),
+        (AllTypes, {"point_pair": [{}]}, "point_pair: expected exactly 2 elements, got 1"),
+        (AllTypes, {"header": {"stamp": {"secs": -1}}}, "header.stamp.secs: -1 is out of range for uint32"),
+        (sensor_msgs.msg.Image, {"data": [1, -1]}, "data[1]: expected an integer 0..255, got int -1"),
+    ],
+)
 def test_bad_values_are_refused_naming_the_field(cls, value, error):
     with pytest.raises(ConversionError) as raised:
         from_json(cls, value)
@@ -320,11 +431,30 @@ def test_dumps_is_compact_strict_and_keeps_unicode():
 
 # --- round trips ------------------------------------------------------------------------------------------
 
+
 def test_all_types_round_trip():
-    msg = deserialized(AllTypes(
-        b=True, i8=-5, u64=2**64 - 1, f32=0.1, f64=-2.5, s="ü", t=genpy.Time(5, 6), d=genpy.Duration(-7, 8),
-        bools=[True], i8s=[-128], u16s=[1, 2, 3], f32s=[0.25], strings=["x", ""], times=[genpy.Time(1, 1)],
-        bytes=bytes(range(256)), chars=b"wxyz", signed_bytes=[-1], points=[geometry_msgs.msg.Point(1, 2, 3)]))
+    msg = deserialized(
+        AllTypes(
+            b=True,
+            i8=-5,
+            u64=2**64 - 1,
+            f32=0.1,
+            f64=-2.5,
+            s="ü",
+            t=genpy.Time(5, 6),
+            d=genpy.Duration(-7, 8),
+            bools=[True],
+            i8s=[-128],
+            u16s=[1, 2, 3],
+            f32s=[0.25],
+            strings=["x", ""],
+            times=[genpy.Time(1, 1)],
+            bytes=bytes(range(256)),
+            chars=b"wxyz",
+            signed_bytes=[-1],
+            points=[geometry_msgs.msg.Point(1, 2, 3)],
+        )
+    )
     assert serialized(round_trip(msg)) == serialized(msg)
 
 

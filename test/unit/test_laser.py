@@ -1,4 +1,5 @@
 """The demo laser's ranges: walls and other turtles, in LaserScan's ray order."""
+
 import math
 import random
 import statistics

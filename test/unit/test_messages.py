@@ -1,5 +1,6 @@
 """The generated messages and services are the ones of ROS turtlesim: same names, fields and md5sums,
 so that nodes and tools written for ROS turtlesim talk to ours."""
+
 import pytest
 
 import turtlesim.msg

@@ -1,11 +1,13 @@
 """Work off the event loop: the service calls' threads (off_loop.CallThreads, used by ros_side.ServiceCalls)."""
+
 import queue
 import threading
 import time
 
-from fakes import Loop
 from rosbridge.off_loop import CallThreads
 from rosbridge.ros_side.services import ServiceCalls
+
+from fakes import Loop
 
 
 class Rosapi:
@@ -60,11 +62,13 @@ def test_calls_at_once_each_get_a_thread_and_the_caller_starts_none(monkeypatch)
     def recorded_start(thread):
         starters.append(threading.current_thread())
         start(thread)
+
     monkeypatch.setattr(threading.Thread, "start", recorded_start)
 
     def call():
         started.put(1)
         release.wait()
+
     for _ in range(10):
         pool.run(call)
     for _ in range(10):
@@ -85,6 +89,7 @@ def test_a_thread_the_os_refuses_once_does_not_stop_the_calls(monkeypatch):
             refusals.append(thread)
             raise RuntimeError("can't start new thread")
         start(thread)
+
     monkeypatch.setattr(threading.Thread, "start", refused_once)
     for i in range(3):
         pool.run(lambda i=i: ran.put(i))

@@ -1,9 +1,18 @@
 """The Outbox: what waits for one websocket client, whole messages, small before big, each topic fresh while the
 socket is backed up, bounded."""
+
 import tracemalloc
 
+from rosbridge.protocol.outbox import (
+    FRESH_HORIZON,
+    OWN_QUEUE_BYTES,
+    SMALL_MESSAGE,
+    TOPIC_BACKLOG_BYTES,
+    Outbox,
+    QueuePool,
+)
+
 from fakes import Clock
-from rosbridge.protocol.outbox import FRESH_HORIZON, OWN_QUEUE_BYTES, SMALL_MESSAGE, TOPIC_BACKLOG_BYTES, Outbox, QueuePool
 
 
 def outbox(max_frames=1000, max_bytes=64_000_000):

@@ -1,9 +1,11 @@
 """The page's picture of turtlesim's world (web/world-constants.js) is sim.py's: the same size, first turtle,
 background and pen, so the live world on the page is drawn to turtlesim's scale and colours."""
+
 import json
 
-from harness import REPO
 from turtlesim import sim
+
+from harness import REPO
 
 
 def page_world():

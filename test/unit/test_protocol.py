@@ -1,5 +1,6 @@
 """rosbridge.protocol.session without ROS or sockets: a Session fed frames, with a backend that records what the
 protocol asks of the ROS side, and a clock and timers the test moves by hand."""
+
 import hashlib
 import inspect
 import io
@@ -9,11 +10,12 @@ import tracemalloc
 import pytest
 from std_msgs.msg import Int32, String
 
-from fakes import OffLoop
-from rosbridge.protocol import session as protocol
-from rosbridge.protocol.encoded import SplicedFrame, TopicMessage, Utf8Text
 from rosbridge.contract import Backend
 from rosbridge.globs import Globs
+from rosbridge.protocol import session as protocol
+from rosbridge.protocol.encoded import SplicedFrame, TopicMessage, Utf8Text
+
+from fakes import OffLoop
 
 
 class RecordingBackend(Backend):
@@ -47,6 +49,7 @@ def _recorder(name):
         if name in self.refuse:
             raise protocol.RequestError(self.refuse[name])
         self.calls.append((name, *args))
+
     return record
 
 
@@ -57,6 +60,7 @@ RecordingBackend.__abstractmethods__ = frozenset()
 
 def test_the_ros_backend_implements_the_contract_with_its_signatures():
     from rosbridge.ros_side import RosBackend
+
     for name in Backend.__abstractmethods__:
         contract = inspect.signature(getattr(Backend, name)).parameters
         assert list(inspect.signature(getattr(RosBackend, name)).parameters) == list(contract), name
@@ -64,6 +68,7 @@ def test_the_ros_backend_implements_the_contract_with_its_signatures():
 
 def test_the_session_implements_what_the_ros_side_may_call_on_a_client():
     from rosbridge.contract import Client
+
     for name in [n for n in vars(Client) if not n.startswith("_")]:
         contract = inspect.signature(getattr(Client, name)).parameters
         assert list(inspect.signature(getattr(protocol.Session, name)).parameters) == list(contract), name
@@ -76,9 +81,17 @@ class Harness:
         self.timers = []
         self.closed_with = None
         self.backend = RecordingBackend()
-        self.session = protocol.Session(self.backend, protocol.Config(**config), lambda: self.now, self._call_later,
-                                        lambda: None, self._close, off_loop=off_loop, cancel_later=cancel_later,
-                                        unfinished=unfinished)
+        self.session = protocol.Session(
+            self.backend,
+            protocol.Config(**config),
+            lambda: self.now,
+            self._call_later,
+            lambda: None,
+            self._close,
+            off_loop=off_loop,
+            cancel_later=cancel_later,
+            unfinished=unfinished,
+        )
 
     def _call_later(self, delay, fn):
         timer = (self.now + delay, fn)
@@ -146,8 +159,7 @@ def test_ops_reach_the_backend_with_defaults(h):
     h.send({"op": "service_response", "service": "/p", "id": "r", "result": True, "values": {}})
     h.send({"op": "unadvertise", "topic": "/a"})
     names = [call[0] for call in h.backend.calls]
-    assert names == ["advertise", "publish", "call_service", "advertise_service", "service_response",
-                     "unadvertise"]
+    assert names == ["advertise", "publish", "call_service", "advertise_service", "service_response", "unadvertise"]
     assert h.backend.calls[0] == ("advertise", "/a", "std_msgs/String", False, 100)
     assert h.backend.calls[1] == ("publish", "/a", {"data": "x"}, True, 100)
     assert h.backend.calls[2][1:5] == ("/s", [1, 2], None, None)
@@ -158,15 +170,23 @@ def test_call_service_reply_is_routed_by_id(h):
     h.send({"op": "call_service", "service": "/s", "id": "call-7"})
     reply = h.backend.calls[0][-1]
     reply(False, "Service /s does not exist")
-    assert h.replies() == [{"op": "service_response", "service": "/s", "values": "Service /s does not exist",
-                            "result": False, "id": "call-7"}]
+    assert h.replies() == [
+        {
+            "op": "service_response",
+            "service": "/s",
+            "values": "Service /s does not exist",
+            "result": False,
+            "id": "call-7",
+        }
+    ]
 
 
 def test_backend_refusal_becomes_a_status_error_with_the_id(h):
     h.backend.refuse["advertise"] = "advertise /a: the topic already has type x/Y"
     h.send({"op": "advertise", "topic": "/a", "type": "std_msgs/String", "id": "adv-1"})
-    assert h.replies() == [{"op": "status", "level": "error", "id": "adv-1",
-                            "msg": "advertise /a: the topic already has type x/Y"}]
+    assert h.replies() == [
+        {"op": "status", "level": "error", "id": "adv-1", "msg": "advertise /a: the topic already has type x/Y"}
+    ]
 
 
 def test_globs_refuse_names_outside_them():
@@ -216,6 +236,7 @@ def test_fragment_size_and_compressions(h):
     h.send({"op": "subscribe", "topic": "/t", "compression": "cbor-raw"})
     h.session.deliver(message(data=1, stamp=12.25))
     import cbor2
+
     frame = h.frames()
     assert len(frame) == 1 and not isinstance(frame[0], Utf8Text)
     assert cbor2.loads(frame[0])["msg"] == {"bytes": b"\x01\x00\x00\x00", "secs": 12, "nsecs": 250000000}
@@ -323,7 +344,7 @@ def test_status_level_filters(h):
 
 def test_fragments_reassemble_in_any_order_and_expire(h):
     text = json.dumps({"op": "advertise", "topic": "/f", "type": "std_msgs/String"})
-    parts = [text[i:i + 7] for i in range(0, len(text), 7)]
+    parts = [text[i : i + 7] for i in range(0, len(text), 7)]
     for num in reversed(range(1, len(parts))):
         h.send({"op": "fragment", "id": 1, "data": parts[num], "num": num, "total": len(parts)})
     assert h.backend.calls == []
@@ -356,6 +377,7 @@ def test_fragments_count_with_every_clients_unfinished_messages_and_a_stalled_cl
     rfc6455.SharedBound): within it they wait; beyond it the part is refused; and a client whose bytes
     came faster takes their room once they have stopped coming, the client told."""
     from rosbridge.transport.rfc6455 import RECENT, SharedBound
+
     now = [1000.0]
     shared = SharedBound(1_000_000, clock=lambda: now[0])
     parked, refused, sending = (Harness(unfinished=shared) for _ in range(3))
@@ -415,13 +437,23 @@ def test_nested_fragments_are_refused(h):
 
 def test_png_op_carries_a_request(h):
     from rosbridge.codec.wrapping import png_frame
+
     h.send({"op": "png", "data": png_frame(json.dumps({"op": "unadvertise", "topic": "/p"}))})
     assert h.backend.calls == [("unadvertise", "/p")]
 
 
 def secret_mac(fields, secret="s3cret"):
-    text = "".join([secret, fields["client"], fields["dest"], fields["rand"], str(int(fields["t"])),
-                    fields["level"], str(int(fields["end"]))])
+    text = "".join(
+        [
+            secret,
+            fields["client"],
+            fields["dest"],
+            fields["rand"],
+            str(int(fields["t"])),
+            fields["level"],
+            str(int(fields["end"])),
+        ]
+    )
     return hashlib.sha512(text.encode()).hexdigest()
 
 
@@ -440,9 +472,20 @@ def test_auth_gate():
     assert h.backend.calls == [("advertise", "/a", "std_msgs/String", False, 100)]
 
 
-@pytest.mark.parametrize("changes", [{"mac": "00"}, {"rand": "other"}, {"t": 1000.0 - 10}, {"end": 999.0},
-                                     {"client": 5}, {"mac": None}, {"mac": "é" * 128},
-                                     {"end": float("inf")}, {"t": float("nan")}])
+@pytest.mark.parametrize(
+    "changes",
+    [
+        {"mac": "00"},
+        {"rand": "other"},
+        {"t": 1000.0 - 10},
+        {"end": 999.0},
+        {"client": 5},
+        {"mac": None},
+        {"mac": "é" * 128},
+        {"end": float("inf")},
+        {"t": float("nan")},
+    ],
+)
 def test_bad_auth_closes(changes):
     h = Harness(authenticate=True, auth_secret="s3cret")
     frame = auth(h.now)
@@ -489,7 +532,9 @@ def test_string_messages_keep_unicode():
 
 def test_a_camera_image_goes_out_with_its_base64_as_a_part_of_its_own():
     from sensor_msgs.msg import Image
+
     from rosbridge.codec.json_values import dumps, to_json
+
     image = Image(height=480, width=640, encoding="rgb8", step=1920, data=bytes(range(256)) * 3600)
     msg = received("/camera", image, 0.0)
     (frame,) = msg.frames("none", None)
@@ -503,7 +548,9 @@ def test_a_camera_image_goes_out_with_its_base64_as_a_part_of_its_own():
 def test_png_bomb_is_refused_before_unpacking():
     import base64
     import io
+
     from PIL import Image
+
     h = Harness(max_message_size=1000)
     buffer = io.BytesIO()
     Image.new("RGB", (100, 100)).save(buffer, format="PNG")  # 30 kB of pixels in a tiny file
@@ -537,8 +584,7 @@ def test_requests_wait_for_the_ros_side_of_an_earlier_one_and_keep_their_order()
     assert [call[0] for call in h.backend.calls] == ["advertise_service", "call_service", "subscribe"]
     assert h.session.holding and not resumed
     h.backend.finish_pending()
-    assert [call[0] for call in h.backend.calls] == ["advertise_service", "call_service", "subscribe",
-                                                     "call_service"]
+    assert [call[0] for call in h.backend.calls] == ["advertise_service", "call_service", "subscribe", "call_service"]
     assert not h.session.holding and resumed == [True]
 
 

@@ -4,22 +4,24 @@ request's id, writes only strict JSON, and keeps working afterwards.
 
 The backend is an in-memory implementation of the backend.Backend contract (no ROS
 here): it accepts any topic/service whose type looks like "pkg/Name" and answers service calls at once."""
+
 import json
 import math
 
 import cbor2
-
 import std_msgs.msg
-from hypothesis import HealthCheck, given, settings, strategies as st
-
-from rosbridge.protocol import encoded as frames
-from rosbridge.protocol import session as protocol
-from rosbridge.contract import Backend
-from rosbridge.globs import Globs
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from test_protocol import received
 
-SETTINGS = settings(max_examples=150, deadline=None,
-                    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+from rosbridge.contract import Backend
+from rosbridge.globs import Globs
+from rosbridge.protocol import encoded as frames
+from rosbridge.protocol import session as protocol
+
+SETTINGS = settings(
+    max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large]
+)
 
 
 class MemoryBackend(Backend):
@@ -92,9 +94,14 @@ class Harness:
         self.now = 1_700_000_000.0
         self.timers = []
         self.close_reasons = []
-        self.session = protocol.Session(self.backend, protocol.Config(**config), lambda: self.now,
-                                        lambda delay, fn: self.timers.append((delay, fn)), lambda: None,
-                                        self.close_reasons.append)
+        self.session = protocol.Session(
+            self.backend,
+            protocol.Config(**config),
+            lambda: self.now,
+            lambda delay, fn: self.timers.append((delay, fn)),
+            lambda: None,
+            self.close_reasons.append,
+        )
 
     def frames(self):
         """Every frame queued since the last call, decoded (strict JSON: NaN/Infinity are refused; binary
@@ -130,8 +137,15 @@ class Harness:
         """A valid call_service round trip still gets its answer."""
         self.session.handle_text('{"op":"call_service","service":"/still_alive","args":{"n":1},"id":"alive"}')
         frames = self.frames()
-        assert frames == [{"op": "service_response", "service": "/still_alive", "values": {"echo": {"n": 1}},
-                           "result": True, "id": "alive"}], frames
+        assert frames == [
+            {
+                "op": "service_response",
+                "service": "/still_alive",
+                "values": {"echo": {"n": 1}},
+                "result": True,
+                "id": "alive",
+            }
+        ], frames
         return True
 
 
@@ -152,12 +166,22 @@ def reported_id(request):
 
 
 # ---- strategies -----------------------------------------------------------------------------------------
-json_scalars = st.one_of(st.none(), st.booleans(), st.integers(), st.integers(min_value=-10**40, max_value=10**40),
-                         st.floats(), st.text(max_size=20))
-json_values = st.recursive(json_scalars, lambda inner: st.one_of(
-    st.lists(inner, max_size=4), st.dictionaries(st.text(max_size=8), inner, max_size=4)), max_leaves=20)
-ids = st.one_of(st.text(max_size=10), st.integers(), st.floats(), st.none(), st.booleans(), st.lists(st.integers(),
-                                                                                                       max_size=2))
+json_scalars = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(),
+    st.integers(min_value=-(10**40), max_value=10**40),
+    st.floats(),
+    st.text(max_size=20),
+)
+json_values = st.recursive(
+    json_scalars,
+    lambda inner: st.one_of(st.lists(inner, max_size=4), st.dictionaries(st.text(max_size=8), inner, max_size=4)),
+    max_leaves=20,
+)
+ids = st.one_of(
+    st.text(max_size=10), st.integers(), st.floats(), st.none(), st.booleans(), st.lists(st.integers(), max_size=2)
+)
 
 
 @st.composite
@@ -166,7 +190,7 @@ def requests_for_known_ops(draw):
     sometimes an unknown field."""
     op = draw(st.sampled_from(sorted(protocol.OPS)))
     request = {"op": op}
-    for name, ((types, _), required) in protocol.OPS[op].items():
+    for name, ((types, _), _required) in protocol.OPS[op].items():
         if draw(st.integers(0, 4)) == 0:
             continue  # missing (required ones too)
         if draw(st.booleans()):
@@ -188,12 +212,18 @@ def right_typed(types, name):
     if name == "level":
         return st.sampled_from(list(protocol.STATUS_LEVELS) + ["debug", ""])
     if name == "data":
-        return st.sampled_from(["", "iVBORw0KGgo=", "{\"op\":\"set_level\",\"level\":\"info\"}", "@@@"])
+        return st.sampled_from(["", "iVBORw0KGgo=", '{"op":"set_level","level":"info"}', "@@@"])
     if name in ("msg", "args"):
         return st.one_of(st.dictionaries(st.text(max_size=6), json_scalars, max_size=3), st.lists(json_scalars))
-    strategies = {str: st.text(max_size=12), bool: st.booleans(), int: st.integers(-10**20, 10**20),
-                  float: st.floats(), dict: st.dictionaries(st.text(max_size=6), json_scalars, max_size=3),
-                  list: st.lists(json_scalars, max_size=3), object: json_values}
+    strategies = {
+        str: st.text(max_size=12),
+        bool: st.booleans(),
+        int: st.integers(-(10**20), 10**20),
+        float: st.floats(),
+        dict: st.dictionaries(st.text(max_size=6), json_scalars, max_size=3),
+        list: st.lists(json_scalars, max_size=3),
+        object: json_values,
+    }
     return st.one_of(*(strategies[t] for t in types))
 
 
@@ -247,10 +277,18 @@ def test_known_ops_with_random_fields_are_done_or_refused_once(request):
 
 
 @SETTINGS
-@given(st.sampled_from(sorted(protocol.OPS)), st.sampled_from(["topic", "service", "msg", "args", "id", "type",
-                                                               "num", "level", "result", "mac"]),
-       st.one_of(st.lists(st.integers(), max_size=2), st.dictionaries(st.text(max_size=3), st.integers(), max_size=2),
-                 st.booleans(), st.floats(allow_nan=False), st.text(max_size=5)), ids)
+@given(
+    st.sampled_from(sorted(protocol.OPS)),
+    st.sampled_from(["topic", "service", "msg", "args", "id", "type", "num", "level", "result", "mac"]),
+    st.one_of(
+        st.lists(st.integers(), max_size=2),
+        st.dictionaries(st.text(max_size=3), st.integers(), max_size=2),
+        st.booleans(),
+        st.floats(allow_nan=False),
+        st.text(max_size=5),
+    ),
+    ids,
+)
 def test_a_wrong_typed_field_is_refused_with_the_id(op, field, value, request_id):
     fields = protocol.OPS[op]
     if field not in fields:
@@ -274,7 +312,7 @@ def test_a_wrong_typed_field_is_refused_with_the_id(op, field, value, request_id
 @given(st.text(max_size=200), st.integers(0, 199))
 def test_random_and_truncated_text_never_raises(text, cut):
     valid = '{"op":"subscribe","topic":"/chatter","type":"std_msgs/String","id":"sub:1"}'
-    for frame in (text, valid[:cut % len(valid)], valid + text):
+    for frame in (text, valid[: cut % len(valid)], valid + text):
         try:
             request = json.loads(frame)
         except ValueError:
@@ -295,7 +333,7 @@ def test_binary_frames_are_refused_and_the_session_goes_on(data):
 
 
 @SETTINGS
-@given(st.sampled_from(["[", "{\"a\":", "{\"op\":[", "[{\"x\":"]), st.integers(10, 200_000))
+@given(st.sampled_from(["[", '{"a":', '{"op":[', '[{"x":']), st.integers(10, 200_000))
 def test_deep_nesting_gets_an_error_not_an_exception(opening, depth):
     text = opening * depth
     harness, frames = check_one_frame(text)
@@ -318,8 +356,10 @@ NUMBER_FIELDS = [
 
 
 @SETTINGS
-@given(st.sampled_from(["NaN", "Infinity", "-Infinity", "1e999", "-1e999", "1" * 5000, "123456789" * 3, "-0.0"]),
-       st.sampled_from(NUMBER_FIELDS))
+@given(
+    st.sampled_from(["NaN", "Infinity", "-Infinity", "1e999", "-1e999", "1" * 5000, "123456789" * 3, "-0.0"]),
+    st.sampled_from(NUMBER_FIELDS),
+)
 def test_huge_and_non_finite_numbers_in_every_number_field(number, request):
     text = text_of(request).replace('"N"', number)
     harness, frames = check_one_frame(text)
@@ -333,8 +373,13 @@ def test_huge_and_non_finite_numbers_in_every_number_field(number, request):
 
 
 @SETTINGS
-@given(st.lists(st.one_of(requests_for_known_ops().map(text_of), json_values.map(text_of), st.text(max_size=40)),
-                min_size=1, max_size=12))
+@given(
+    st.lists(
+        st.one_of(requests_for_known_ops().map(text_of), json_values.map(text_of), st.text(max_size=40)),
+        min_size=1,
+        max_size=12,
+    )
+)
 def test_a_session_survives_any_sequence_of_frames(texts):
     harness = Harness()
     for text in texts:
@@ -372,11 +417,15 @@ def test_before_auth_every_op_but_auth_is_refused(request):
 def test_globs_refuse_every_name_they_do_not_allow(kind, name):
     harness = Harness(globs=Globs(topics=["/allowed/*"], services=["/allowed/*"]))
     if kind == "topics":
-        requests = [{"op": op, "topic": name, "type": "std_msgs/String", "msg": {}, "id": "g"}
-                    for op in ("subscribe", "advertise", "publish")]
+        requests = [
+            {"op": op, "topic": name, "type": "std_msgs/String", "msg": {}, "id": "g"}
+            for op in ("subscribe", "advertise", "publish")
+        ]
     else:
-        requests = [{"op": "call_service", "service": name, "id": "g"},
-                    {"op": "advertise_service", "service": name, "type": "std_srvs/Empty", "id": "g"}]
+        requests = [
+            {"op": "call_service", "service": name, "id": "g"},
+            {"op": "advertise_service", "service": name, "type": "std_srvs/Empty", "id": "g"},
+        ]
     for request in requests:
         request = {k: v for k, v in request.items() if k == "op" or k in protocol.OPS[request["op"]]}
         harness.session.handle_text(text_of(request))

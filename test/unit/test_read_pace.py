@@ -1,4 +1,5 @@
 """read_pace.ReadPace: a publisher is read at each message, or once per window while it keeps sending fast."""
+
 from rosbridge.ros_side.read_pace import COALESCE_AFTER, COALESCE_RATE, COALESCE_WINDOW, ReadPace
 
 

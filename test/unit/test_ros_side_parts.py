@@ -1,7 +1,9 @@
 """The rospy-free parts of the ROS side: who holds what, and the early replay's thread rules."""
-from fakes import Clock
+
 from rosbridge.ros_side.holders import Holders
 from rosbridge.ros_side.publishers import REPLAY_WINDOW, EarlyReplay
+
+from fakes import Clock
 
 
 def test_the_first_holder_makes_and_the_last_one_releases():

@@ -1,5 +1,7 @@
-"""rosbridge.codec.ros_to_json against genpy: for every message type on this machine, random messages serialized by genpy give
-exactly the JSON text the bridge wrote before (genpy deserialization, json_values.to_json, json_values.dumps)."""
+"""rosbridge.codec.ros_to_json against genpy: for every message type on this machine, random messages serialized by
+genpy give exactly the JSON text the bridge wrote before (genpy deserialization, json_values.to_json,
+json_values.dumps)."""
+
 import base64
 import gc
 import math
@@ -12,18 +14,20 @@ import genpy.dynamic
 import pytest
 import rosmsg
 import rospkg
-from hypothesis import given, strategies as st
+from hypothesis import given
+from hypothesis import strategies as st
 from sensor_msgs.msg import ChannelFloat32, CompressedImage
 from std_msgs.msg import Header
-
-from sensor_messages import occupancy_grid_cells
 from test_json_values import AllTypes, serialized
 from test_json_values_properties import EACH_TYPE, messages
-from rosbridge.codec.json_values import dumps, to_json
+
 from rosbridge.codec import BIG_BYTES
 from rosbridge.codec.fields import parse_slot_type
-from rosbridge.message_types import UnknownType, message_class
+from rosbridge.codec.json_values import dumps, to_json
 from rosbridge.codec.ros_to_json import SPLICE_MARK, joined, json_parts, json_text
+from rosbridge.message_types import UnknownType, message_class
+
+from sensor_messages import occupancy_grid_cells
 
 
 def installed_message_classes():
@@ -63,8 +67,16 @@ def test_random_messages_give_the_text_of_genpy_and_convert(cls, data):
 
 
 def test_special_values():
-    msg = AllTypes(f32=math.inf, f64=math.nan, f64s=[-math.inf, 1.5], s='quote " back \\ and \x01 ☃',
-                   strings=["", "😀"], bools=[True, False, True], signed_bytes=[-1, 5], chars=b"\xff\x00ab")
+    msg = AllTypes(
+        f32=math.inf,
+        f64=math.nan,
+        f64s=[-math.inf, 1.5],
+        s='quote " back \\ and \x01 ☃',
+        strings=["", "😀"],
+        bools=[True, False, True],
+        signed_bytes=[-1, 5],
+        chars=b"\xff\x00ab",
+    )
     msg.t.secs, msg.t.nsecs = 7, 2_500_000_000  # on the wire as sent; genpy carries it into secs
     msg.d.secs, msg.d.nsecs = 1, -1
     data = serialized(msg)
@@ -81,8 +93,9 @@ def test_invalid_utf8_is_replaced_as_genpy_does():
 
 
 def test_a_large_image_as_base64():
-    image = message_class("sensor_msgs/Image")(height=480, width=640, encoding="rgb8", step=1920,
-                                               data=bytes(range(256)) * 3600)
+    image = message_class("sensor_msgs/Image")(
+        height=480, width=640, encoding="rgb8", step=1920, data=bytes(range(256)) * 3600
+    )
     data = serialized(image)
     assert json_text(type(image))(data) == genpy_json_text(type(image), data)
 
@@ -91,15 +104,24 @@ def _spliced_type():
     """Big byte arrays before, inside and after an array of nested messages."""
     separator = "=" * 80 + "\n"
     definition = "uint8[] first\nsensor_msgs/CompressedImage[] images\nstring between\nuint8[] last\n" + "".join(
-        f"{separator}MSG: {cls._type}\n{cls._full_text}\n" for cls in (CompressedImage, Header))
+        f"{separator}MSG: {cls._type}\n{cls._full_text}\n" for cls in (CompressedImage, Header)
+    )
     return genpy.dynamic.generate_dynamic("test_wire/Spliced", definition)["test_wire/Spliced"]
 
 
 def test_big_byte_arrays_are_left_out_of_the_text_in_order():
     cls = _spliced_type()
     blobs = [bytes([i]) * (60_000 + i) for i in range(4)]  # each over 64 KB in base64
-    msg = cls(first=blobs[0], images=[CompressedImage(format="jpeg", data=blobs[1]), CompressedImage(data=b"ab"),
-                                      CompressedImage(data=blobs[2])], between="x", last=blobs[3])
+    msg = cls(
+        first=blobs[0],
+        images=[
+            CompressedImage(format="jpeg", data=blobs[1]),
+            CompressedImage(data=b"ab"),
+            CompressedImage(data=blobs[2]),
+        ],
+        between="x",
+        last=blobs[3],
+    )
     data = serialized(msg)
     text, spliced = json_parts(cls)(data)
     assert text.count(SPLICE_MARK) == 4 and len(text) < 2000
@@ -141,19 +163,53 @@ float32[3] small_f32s
 sensor_msgs/ChannelFloat32[] channels
 std_msgs/Int8MultiArray grid
 """
-_CODES = {"int8": "b", "bool": "?", "int16": "h", "uint16": "H", "int32": "i", "uint32": "I", "int64": "q",
-          "uint64": "Q", "float32": "f", "float64": "d", "uint8": "B"}
+_CODES = {
+    "int8": "b",
+    "bool": "?",
+    "int16": "h",
+    "uint16": "H",
+    "int32": "i",
+    "uint32": "I",
+    "int64": "q",
+    "uint64": "Q",
+    "float32": "f",
+    "float64": "d",
+    "uint8": "B",
+}
 # floats whose text is special: NaN and +-Inf (null), -0.0, the extremes, a subnormal
-SPECIAL_FLOATS = [math.nan, math.inf, -math.inf, -0.0, 0.0, 5e-324, -1.7976931348623157e308, 1e16, 1e-5, 0.1,
-                  123456789.0, -2.5]
-SPECIAL_FLOAT32S = [math.nan, math.inf, -math.inf, -0.0, 1e-45, 3.4028234663852886e38, -1.1754943508222875e-38,
-                    16777216.0, 0.1, 1e-5]
+SPECIAL_FLOATS = [
+    math.nan,
+    math.inf,
+    -math.inf,
+    -0.0,
+    0.0,
+    5e-324,
+    -1.7976931348623157e308,
+    1e16,
+    1e-5,
+    0.1,
+    123456789.0,
+    -2.5,
+]
+SPECIAL_FLOAT32S = [
+    math.nan,
+    math.inf,
+    -math.inf,
+    -0.0,
+    1e-45,
+    3.4028234663852886e38,
+    -1.1754943508222875e-38,
+    16777216.0,
+    0.1,
+    1e-5,
+]
 
 
 def _big_arrays_type():
     separator = "=" * 80 + "\n"
-    nested = [ChannelFloat32] + [message_class(f"std_msgs/{name}")
-                                 for name in ("Int8MultiArray", "MultiArrayLayout", "MultiArrayDimension")]
+    nested = [ChannelFloat32] + [
+        message_class(f"std_msgs/{name}") for name in ("Int8MultiArray", "MultiArrayLayout", "MultiArrayDimension")
+    ]
     definition = BIG_ARRAYS_FIELDS + "".join(f"{separator}MSG: {cls._type}\n{cls._full_text}\n" for cls in nested)
     return genpy.dynamic.generate_dynamic("test_wire/BigArrays", definition)["test_wire/BigArrays"]
 
@@ -173,7 +229,7 @@ def random_values(base, count, rng):
             values[rng.randrange(count)] = value
     if base == "int8" and count:  # a map's cells: long runs of -1, 0 and 100
         start = rng.randrange(count)
-        values[start:start + 5000] = [rng.choice([-1, 0, 100])] * len(values[start:start + 5000])
+        values[start : start + 5000] = [rng.choice([-1, 0, 100])] * len(values[start : start + 5000])
     return values
 
 
@@ -185,8 +241,10 @@ def big_arrays_message(count, seed=0):
         if base in _CODES:
             values = random_values(base, size or count, rng)
             fields[name] = bytes(values) if base == "uint8" else values
-    channels = [ChannelFloat32(name=f"c{i}", values=random_values("float32", n, rng))
-                for i, n in enumerate([count, 0, 3, count // 2])]
+    channels = [
+        ChannelFloat32(name=f"c{i}", values=random_values("float32", n, rng))
+        for i, n in enumerate([count, 0, 3, count // 2])
+    ]
     grid = message_class("std_msgs/Int8MultiArray")(data=random_values("int8", count * 3, rng))
     grid.layout.dim = [message_class("std_msgs/MultiArrayDimension")(label="rows", size=count, stride=3)]
     return BigArrays(channels=channels, grid=grid, **fields)
@@ -290,11 +348,17 @@ def test_a_map_costs_about_its_text_in_memory_and_the_tenth_as_much_as_the_first
 
 def test_a_traceback_through_a_generated_reader_shows_its_source_lines():
     import traceback
+
     from geometry_msgs.msg import Twist
+
     from rosbridge.codec.ros_to_json import json_parts
+
     with pytest.raises(struct.error) as raised:
         json_parts(Twist)(bytes(10))  # 48 bytes of doubles expected
-    generated = [frame for frame in traceback.extract_tb(raised.value.__traceback__)
-                 if frame.filename.startswith("<rosbridge generated")]
+    generated = [
+        frame
+        for frame in traceback.extract_tb(raised.value.__traceback__)
+        if frame.filename.startswith("<rosbridge generated")
+    ]
     assert generated and all(frame.line for frame in generated)
     assert "geometry_msgs/Twist" in generated[0].filename

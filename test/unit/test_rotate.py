@@ -1,10 +1,10 @@
 """The demo's rotate_absolute action (turtle_actions): the angle left, the turning speed, ROS 2's delta."""
+
 import math
 
 import pytest
 
-from turtlesim.rotate import (MAX_SPEED, MIN_SPEED, TOLERANCE, goal_error, normalized, remaining, turn_speed,
-                              turned)
+from turtlesim.rotate import MAX_SPEED, MIN_SPEED, TOLERANCE, goal_error, normalized, remaining, turn_speed, turned
 from turtlesim.sim import DT
 
 

@@ -1,10 +1,12 @@
 """The bridge's settings table is the one source: the launch file, the README and the node's parsing agree."""
+
 import xml.etree.ElementTree as ElementTree
 
 import pytest
 
-from harness import REPO
 from rosbridge import settings
+
+from harness import REPO
 
 
 def test_the_readme_table_is_the_settings_table():

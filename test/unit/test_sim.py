@@ -1,8 +1,8 @@
 """The simulation core against the numbers of spec/turtlesim.md (sections 1-4)."""
+
 import pytest
 
-from turtlesim.sim import (DEFAULT_BACKGROUND, DEFAULT_PEN, DT, HEIGHT, WIDTH, World, TurtlesimError,
-                           float32)
+from turtlesim.sim import DEFAULT_BACKGROUND, DEFAULT_PEN, DT, HEIGHT, WIDTH, TurtlesimError, World, float32
 
 PEN = DEFAULT_PEN
 BACKGROUND = DEFAULT_BACKGROUND
@@ -142,10 +142,13 @@ def test_teleport_absolute_theta_is_wrapped_at_the_tick(at_1_1_0):
     assert shown(teleport(at_1_1_0, "teleport_absolute", 5.0, 5.0, float32(4.0)).theta) == "-2.283185"
 
 
-@pytest.mark.parametrize("x, y, warning, expected", [
-    (20.0, 20.0, "[x=20.000000, y=0.000000]", (WIDTH, HEIGHT)),
-    (-1.0, -1.0, "[x=-1.000000, y=12.088889]", (0.0, 0.0)),
-])
+@pytest.mark.parametrize(
+    "x, y, warning, expected",
+    [
+        (20.0, 20.0, "[x=20.000000, y=0.000000]", (WIDTH, HEIGHT)),
+        (-1.0, -1.0, "[x=-1.000000, y=12.088889]", (0.0, 0.0)),
+    ],
+)
 def test_teleport_absolute_outside_is_clamped(at_1_1_0, x, y, warning, expected):
     pose = teleport(at_1_1_0, "teleport_absolute", x, y, 0.0)
     assert at_1_1_0.warnings() == [f"Oh no! I hit the wall! (Clamping from {warning})"]
@@ -185,9 +188,15 @@ def test_killing_an_unknown_turtle_fails_and_logs_the_reference_text(sim):
     assert sim.logs[-1] == ("error", "Tried to kill turtle [nobody], which does not exist")
 
 
-@pytest.mark.parametrize("call, args", [("command", (1.0, 0.0, 0.0)), ("set_pen", (1, 2, 3, 4, 0)),
-                                        ("teleport_absolute", (1.0, 1.0, 0.0)),
-                                        ("teleport_relative", (1.0, 0.0))])
+@pytest.mark.parametrize(
+    "call, args",
+    [
+        ("command", (1.0, 0.0, 0.0)),
+        ("set_pen", (1, 2, 3, 4, 0)),
+        ("teleport_absolute", (1.0, 1.0, 0.0)),
+        ("teleport_relative", (1.0, 0.0)),
+    ],
+)
 def test_requests_for_a_killed_turtle_fail_clearly(sim, call, args):
     sim.world.kill("turtle1")
     with pytest.raises(TurtlesimError, match=r"no turtle named \[turtle1\]"):
@@ -259,8 +268,26 @@ def test_a_width_0_pen_ends_its_line_in_the_pixel_the_sensor_reads(sim):
 
 # Pixels Qt 5.15 paints for QPainter.drawLine(new * 45, old * 45) with QPen(QColor) (width 1) on an ARGB32 image
 QT_THIN_LINES = [
-    ((2.0, 2.0), (2.3, 1.9), [(90, 90), (91, 89), (92, 89), (93, 88), (94, 88), (95, 88), (96, 87), (97, 87),
-                              (98, 87), (99, 86), (100, 86), (101, 86), (102, 85), (103, 85)]),
+    (
+        (2.0, 2.0),
+        (2.3, 1.9),
+        [
+            (90, 90),
+            (91, 89),
+            (92, 89),
+            (93, 88),
+            (94, 88),
+            (95, 88),
+            (96, 87),
+            (97, 87),
+            (98, 87),
+            (99, 86),
+            (100, 86),
+            (101, 86),
+            (102, 85),
+            (103, 85),
+        ],
+    ),
     ((3.0, 3.0), (3.1, 3.4), [(135 + n // 4, 135 + n) for n in range(19)]),
     ((6.0, 6.0), (6.0, 6.0), [(270, 270)]),
 ]
@@ -276,13 +303,17 @@ def test_thin_lines_are_the_pixels_qt_paints(old, new, pixels):
 def test_thin_lines_match_qt_itself():
     """Against the reference's drawing library (Debian's PyQt5), on lines in every direction."""
     import random
+
     qt_gui = pytest.importorskip("PyQt5.QtGui")  # (painting on a QImage needs no QApplication)
     from PyQt5.QtCore import QPointF
+
     shuffle = random.Random(7)
     for _ in range(40):
         old = (shuffle.uniform(0, WIDTH), shuffle.uniform(0, HEIGHT))
-        new = (min(max(old[0] + shuffle.uniform(-2, 2), 0), WIDTH),
-               min(max(old[1] + shuffle.uniform(-2, 2) * shuffle.choice([0, 0.02, 1]), 0), HEIGHT))
+        new = (
+            min(max(old[0] + shuffle.uniform(-2, 2), 0), WIDTH),
+            min(max(old[1] + shuffle.uniform(-2, 2) * shuffle.choice([0, 0.02, 1]), 0), HEIGHT),
+        )
         image = qt_gui.QImage(500, 500, qt_gui.QImage.Format_ARGB32)
         image.fill(qt_gui.qRgb(*BACKGROUND))
         painter = qt_gui.QPainter(image)
@@ -337,10 +368,15 @@ def test_version_changes_only_when_the_picture_may_change(sim):
     assert sim.world.version > before
 
 
-@pytest.mark.parametrize("call, args", [
-    ("spawn", (float("nan"), 1.0, 0.0)), ("command", ("turtle1", float("inf"), 0.0, 0.0)),
-    ("teleport_absolute", ("turtle1", 1.0, float("-inf"), 0.0)),
-    ("teleport_relative", ("turtle1", float("nan"), 0.0))])
+@pytest.mark.parametrize(
+    "call, args",
+    [
+        ("spawn", (float("nan"), 1.0, 0.0)),
+        ("command", ("turtle1", float("inf"), 0.0, 0.0)),
+        ("teleport_absolute", ("turtle1", 1.0, float("-inf"), 0.0)),
+        ("teleport_relative", ("turtle1", float("nan"), 0.0)),
+    ],
+)
 def test_non_finite_numbers_are_refused_and_change_nothing(sim, call, args):
     before = sim.world.views()
     with pytest.raises(TurtlesimError, match="must be a finite number"):

@@ -1,4 +1,5 @@
 """The window's picture: the trail with the turtles drawn on a copy of it, their heads where they head."""
+
 import pytest
 from PIL import Image
 
@@ -20,11 +21,14 @@ def test_compose_draws_on_a_copy_and_leaves_the_trail_alone():
     assert not is_turtle(frame.getpixel((round(5.0 * METER) + 40, round(5.0 * METER))))
 
 
-@pytest.mark.parametrize("degrees, head, tail_side", [
-    (0, (HEAD_DISTANCE, 0), (-HEAD_DISTANCE - 6, 0)),  # heading +x: head to the right
-    (90, (0, -HEAD_DISTANCE), (0, HEAD_DISTANCE + 6)),  # heading +y (up on the screen)
-    (180, (-HEAD_DISTANCE, 0), (HEAD_DISTANCE + 6, 0)),
-])
+@pytest.mark.parametrize(
+    "degrees, head, tail_side",
+    [
+        (0, (HEAD_DISTANCE, 0), (-HEAD_DISTANCE - 6, 0)),  # heading +x: head to the right
+        (90, (0, -HEAD_DISTANCE), (0, HEAD_DISTANCE + 6)),  # heading +y (up on the screen)
+        (180, (-HEAD_DISTANCE, 0), (HEAD_DISTANCE + 6, 0)),
+    ],
+)
 def test_the_head_is_where_the_turtle_heads(degrees, head, tail_side):
     sprite = turtle_sprite(degrees)
     at = lambda offset: sprite.getpixel((SPRITE_HALF + offset[0], SPRITE_HALF + offset[1]))

@@ -1,13 +1,15 @@
 """transport/slow_link.py: whether a client's link is slow (LinkMeter), whether a message goes to it deflated,
 and one deflated payload made for every client that gets a frame compressed."""
+
 import zlib
 
 import pytest
 
-from fakes import OffLoop
 from rosbridge.protocol import encoded as frames
 from rosbridge.transport import slow_link
 from rosbridge.transport.slow_link import DEFLATE_MIN_BYTES, SLOW_LINK_BYTES_PER_SECOND, LinkMeter, sends_deflated
+
+from fakes import OffLoop
 
 
 # ---- LinkMeter: is a client's link slow enough that its big messages go deflated? ----------------------------
@@ -61,13 +63,18 @@ def test_only_big_messages_go_deflated_to_a_slow_link_and_every_one_with_use_com
 
 # ---- one deflated payload for every client that sends a frame compressed (slow_link.deflated_payload) ----------
 
-@pytest.mark.parametrize("frame", [
-    frames.Utf8Text(b'{"op":"publish","msg":"' + b"ab" * 50_000 + b'"}'),
-    frames.SplicedFrame([b'{"op":"publish","msg":{"data":"', b"QUJD" * 30_000, b'"}}'], text=True)],
-    ids=["text", "spliced"])
+
+@pytest.mark.parametrize(
+    "frame",
+    [
+        frames.Utf8Text(b'{"op":"publish","msg":"' + b"ab" * 50_000 + b'"}'),
+        frames.SplicedFrame([b'{"op":"publish","msg":{"data":"', b"QUJD" * 30_000, b'"}}'], text=True),
+    ],
+    ids=["text", "spliced"],
+)
 def test_a_big_frame_is_deflated_once_for_every_client_and_kept_with_it(frame):
     off_loop, got = OffLoop(), []
-    for client in range(3):
+    for _client in range(3):
         assert slow_link.deflated_payload(frame, 15, off_loop, got.append) is None
     assert len(off_loop.jobs) == 1
     off_loop.run_all()
@@ -82,7 +89,7 @@ def test_a_big_frame_is_deflated_once_for_every_client_and_kept_with_it(frame):
 def test_a_failed_deflate_is_told_and_tried_again_next_time():
     frame, off_loop, got = frames.Utf8Text(b"x" * 100_000), OffLoop(), []
     slow_link.deflated_payload(frame, 15, off_loop, got.append)
-    (fn, then), = off_loop.jobs
+    ((fn, then),) = off_loop.jobs
     off_loop.jobs.clear()
     then(None)  # (what off_loop.EncodingThread gives when fn raised)
     assert got == [None]

@@ -2,15 +2,16 @@
 when a viewer wants them, one encoding job at a time with the newest frame winning, jobs bounded in pixels and
 topics taking turns, a frame's variants bounded in bytes; the pictures being sent to the viewers bounded in bytes
 (jpeg.Sending); the requests' parameters and which topic a request streams from."""
+
 import io
 
 import pytest
 from sensor_msgs.msg import Image as RosImage
 
-from fakes import Loop
-from rosbridge.http import jpeg
-from rosbridge.http import streams
+from rosbridge.http import jpeg, streams
 from rosbridge.protocol.encoded import TopicMessage
+
+from fakes import Loop
 
 
 class FakeEncoder:
@@ -204,7 +205,7 @@ def test_a_frame_that_cannot_be_made_is_told_to_the_viewer(topic):
     made = encoder(topic).jobs  # (the fake encoder makes anything: read what the real one does)
     picture, keys, done = made.pop()
     done(streams._encode(picture, keys))
-    (_, error), = viewer.got
+    ((_, error),) = viewer.got
     assert isinstance(error, jpeg.UnsupportedEncoding)
 
 
@@ -278,45 +279,73 @@ def test_the_viewers_whose_picture_stalled_oldest_first():
 # ---- requests ---------------------------------------------------------------------------------------------------
 def args(query):
     import urllib.parse
+
     parsed = urllib.parse.parse_qs(query, keep_blank_values=True)
     return {name: [value.encode() for value in values] for name, values in parsed.items()}
 
 
 def test_a_request_with_web_video_servers_defaults():
     request = streams.StreamRequest(args("topic=/cam"))
-    assert (request.topic, request.type, request.width, request.height, request.quality, request.invert,
-            request.adaptive, request.transport) == ("/cam", "mjpeg", 0, 0, None, False, False, "raw")
+    assert (
+        request.topic,
+        request.type,
+        request.width,
+        request.height,
+        request.quality,
+        request.invert,
+        request.adaptive,
+        request.transport,
+    ) == ("/cam", "mjpeg", 0, 0, None, False, False, "raw")
     request = streams.StreamRequest(args("topic=/cam&width=-1&height=200&quality=30&invert&adaptive=1"))
-    assert (request.width, request.height, request.quality, request.invert, request.adaptive) == \
-        (0, 200, 30, True, True)
+    assert (request.width, request.height, request.quality, request.invert, request.adaptive) == (
+        0,
+        200,
+        30,
+        True,
+        True,
+    )
 
 
-@pytest.mark.parametrize("query, text", [
-    ("", "topic is required"), ("topic=/c&type=vp9", "not supported"), ("topic=/c&quality=x", "quality must be"),
-    ("topic=/c&width=4097", "width must be an integer from 0 to 4096"), ("topic=/c&adaptive=2", "adaptive must"),
-])
+@pytest.mark.parametrize(
+    "query, text",
+    [
+        ("", "topic is required"),
+        ("topic=/c&type=vp9", "not supported"),
+        ("topic=/c&quality=x", "quality must be"),
+        ("topic=/c&width=4097", "width must be an integer from 0 to 4096"),
+        ("topic=/c&adaptive=2", "adaptive must"),
+    ],
+)
 def test_bad_parameters(query, text):
     with pytest.raises(streams.BadRequest, match=text) as refused:
         streams.StreamRequest(args(query))
     assert refused.value.status == 400
 
 
-TYPES = {"/cam": jpeg.IMAGE, "/cam/compressed": jpeg.COMPRESSED, "/jpeg_only": jpeg.COMPRESSED,
-         "/text": "std_msgs/String", "/unknown": ""}
+TYPES = {
+    "/cam": jpeg.IMAGE,
+    "/cam/compressed": jpeg.COMPRESSED,
+    "/jpeg_only": jpeg.COMPRESSED,
+    "/text": "std_msgs/String",
+    "/unknown": "",
+}
 
 
-@pytest.mark.parametrize("query, topic, expected", [
-    ("type=mjpeg", "/cam", ("/cam", jpeg.IMAGE, None)),
-    ("type=ros_compressed", "/cam", ("/cam/compressed", jpeg.COMPRESSED, "any")),
-    ("type=ros_compressed&adaptive=1", "/cam", ("/cam/compressed", jpeg.COMPRESSED, None)),
-    ("default_transport=compressed", "/cam", ("/cam/compressed", jpeg.COMPRESSED, None)),
-    ("type=mjpeg", "/jpeg_only", ("/jpeg_only", jpeg.COMPRESSED, "jpeg")),
-    ("type=mjpeg&width=10", "/jpeg_only", ("/jpeg_only", jpeg.COMPRESSED, None)),
-    ("type=mjpeg&quality=10", "/jpeg_only", ("/jpeg_only", jpeg.COMPRESSED, None)),
-    ("type=ros_compressed", "/jpeg_only", ("/jpeg_only", jpeg.COMPRESSED, "any")),
-    ("type=ros_compressed", "/nobody", None),
-    ("type=mjpeg", "/unknown", None),
-])
+@pytest.mark.parametrize(
+    "query, topic, expected",
+    [
+        ("type=mjpeg", "/cam", ("/cam", jpeg.IMAGE, None)),
+        ("type=ros_compressed", "/cam", ("/cam/compressed", jpeg.COMPRESSED, "any")),
+        ("type=ros_compressed&adaptive=1", "/cam", ("/cam/compressed", jpeg.COMPRESSED, None)),
+        ("default_transport=compressed", "/cam", ("/cam/compressed", jpeg.COMPRESSED, None)),
+        ("type=mjpeg", "/jpeg_only", ("/jpeg_only", jpeg.COMPRESSED, "jpeg")),
+        ("type=mjpeg&width=10", "/jpeg_only", ("/jpeg_only", jpeg.COMPRESSED, None)),
+        ("type=mjpeg&quality=10", "/jpeg_only", ("/jpeg_only", jpeg.COMPRESSED, None)),
+        ("type=ros_compressed", "/jpeg_only", ("/jpeg_only", jpeg.COMPRESSED, "any")),
+        ("type=ros_compressed", "/nobody", None),
+        ("type=mjpeg", "/unknown", None),
+    ],
+)
 def test_which_topic_a_request_streams_from(query, topic, expected):
     source = streams.choose_source(streams.StreamRequest(args(f"topic={topic}&{query}")), topic, TYPES)
     assert (source.topic, source.type, source.pass_mode) == expected if expected else source is None

@@ -1,4 +1,5 @@
 """rosbridge.ros_side.tcpros: the framing and the connection headers, against what rospy and rosgraph do."""
+
 import io
 import random
 
@@ -23,7 +24,7 @@ def test_frames_split_anywhere_come_out_whole_and_in_order(seed):
     reader, got, offset = tcpros.FrameReader(), [], 0
     while offset < len(stream):
         step = rnd.choice((1, 2, 3, 5, 64, 4096, 100_000))
-        got += reader.feed(stream[offset:offset + step])
+        got += reader.feed(stream[offset : offset + step])
         offset += step
     assert got == messages
     assert reader.into() is None
@@ -37,13 +38,13 @@ def test_a_big_message_is_read_in_place_and_small_ones_around_it_as_usual():
     assert reader.feed(stream[3:20]) == [b"before"]
     space = reader.into()
     assert len(space) == len(big) - 6  # the 6 bytes of it that came with "before" are in place already
-    rest = stream[20:20 + len(space)]
+    rest = stream[20 : 20 + len(space)]
     space[:1000] = rest[:1000]
     assert reader.received(1000) == []
-    reader.into()[:len(rest) - 1000] = rest[1000:]
+    reader.into()[: len(rest) - 1000] = rest[1000:]
     assert reader.received(len(rest) - 1000) == [big]
     assert reader.into() is None
-    assert reader.feed(stream[20 + len(rest):]) == [b"after"]
+    assert reader.feed(stream[20 + len(rest) :]) == [b"after"]
 
 
 def test_a_frame_longer_than_the_limit_is_refused_before_its_bytes_come():
@@ -72,10 +73,11 @@ def test_frame_is_what_a_rospy_subscriber_reads():
 
 def test_a_numbered_frame_carries_the_seq_in_the_header_wrapping_at_32_bits():
     from std_msgs.msg import Header
+
     buff = io.BytesIO()
     Header(seq=77, frame_id="f").serialize(buff)
     data = buff.getvalue()
-    for seq, expected in ((5, 5), (2 ** 32 + 3, 3)):
+    for seq, expected in ((5, 5), (2**32 + 3, 3)):
         framed = tcpros.frame(data, seq)
         assert framed[:4] == len(data).to_bytes(4, "little")
         header = Header().deserialize(framed[4:])
@@ -104,14 +106,28 @@ def subscriber(**fields):
 
 def test_the_reply_to_a_matching_subscriber_describes_the_topic():
     reply = tcpros.publisher_reply(subscriber(), "/cmd_vel", Twist, True, "/rosbridge")
-    assert reply == {"callerid": "/rosbridge", "md5sum": Twist._md5sum, "type": "geometry_msgs/Twist",
-                     "topic": "/cmd_vel", "message_definition": Twist._full_text, "latching": "1"}
+    assert reply == {
+        "callerid": "/rosbridge",
+        "md5sum": Twist._md5sum,
+        "type": "geometry_msgs/Twist",
+        "topic": "/cmd_vel",
+        "message_definition": Twist._full_text,
+        "latching": "1",
+    }
     assert tcpros.publisher_reply(subscriber(md5sum="*", type="*"), "/cmd_vel", Twist, False, "/b")["latching"] == "0"
 
 
-@pytest.mark.parametrize("fields", [{"md5sum": "0" * 32}, {"md5sum": "0" * 32, "type": "std_msgs/String"},
-                                    {"md5sum": "0" * 32, "type": None}, {"topic": None}, {"md5sum": None},
-                                    {"callerid": None}])
+@pytest.mark.parametrize(
+    "fields",
+    [
+        {"md5sum": "0" * 32},
+        {"md5sum": "0" * 32, "type": "std_msgs/String"},
+        {"md5sum": "0" * 32, "type": None},
+        {"topic": None},
+        {"md5sum": None},
+        {"callerid": None},
+    ],
+)
 def test_refusals_are_rospys(fields, monkeypatch):
     """The same error text a rospy publisher gives (rostopic and roscpp show it to the user)."""
     ours = tcpros.publisher_reply(subscriber(**fields), "/cmd_vel", Twist, False, "/rosbridge")

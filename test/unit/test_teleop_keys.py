@@ -1,4 +1,5 @@
 """The teleop key map and terminal mode (spec/turtlesim.md section 5)."""
+
 import termios
 
 import pytest
@@ -6,8 +7,9 @@ import pytest
 from turtlesim.teleop import BANNER, QUIT, decode, decode_keys, raw_mode
 
 
-@pytest.mark.parametrize("byte, expected", [
-    (0x41, (1, 0)), (0x42, (-1, 0)), (0x43, (0, -1)), (0x44, (0, 1)), (0x71, QUIT)])
+@pytest.mark.parametrize(
+    "byte, expected", [(0x41, (1, 0)), (0x42, (-1, 0)), (0x43, (0, -1)), (0x44, (0, 1)), (0x71, QUIT)]
+)
 def test_the_four_letters_move_and_q_quits(byte, expected):
     assert decode(byte) == expected
 
@@ -28,8 +30,15 @@ def test_keys_read_together_each_count_in_order_up_to_quit():
 
 
 def test_raw_mode_keeps_signals_and_reads_single_bytes():
-    cooked = [termios.ICRNL, termios.OPOST, termios.CS8, termios.ICANON | termios.ECHO | termios.ISIG,
-              termios.B38400, termios.B38400, [b"\x00"] * termios.NCCS]
+    cooked = [
+        termios.ICRNL,
+        termios.OPOST,
+        termios.CS8,
+        termios.ICANON | termios.ECHO | termios.ISIG,
+        termios.B38400,
+        termios.B38400,
+        [b"\x00"] * termios.NCCS,
+    ]
     raw = raw_mode(cooked)
     assert raw[3] == termios.ISIG
     assert raw[:3] == cooked[:3]
@@ -39,5 +48,8 @@ def test_raw_mode_keeps_signals_and_reads_single_bytes():
 
 
 def test_banner():
-    assert BANNER.splitlines() == ["Reading from keyboard", "---------------------------",
-                                   "Use arrow keys to move the turtle. 'q' to quit."]
+    assert BANNER.splitlines() == [
+        "Reading from keyboard",
+        "---------------------------",
+        "Use arrow keys to move the turtle. 'q' to quit.",
+    ]

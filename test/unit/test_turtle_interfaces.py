@@ -1,5 +1,6 @@
 """turtlesim_node's table of each turtle's topics and services (node.TurtleInterfaces), which the publishing thread
 publishes through while service threads spawn and kill turtles."""
+
 import threading
 from types import SimpleNamespace
 

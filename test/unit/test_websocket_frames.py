@@ -1,6 +1,7 @@
 """rosbridge.transport.rfc6455 without sockets: a client's bytes in any pieces, every frame kind, every way of
 breaking RFC 6455, permessage-deflate both ways (and a big frame deflated once for every client that sends it
 compressed); and the budget's turns over a reader fed a flood."""
+
 import base64
 import os
 import random
@@ -9,7 +10,8 @@ import tracemalloc
 import zlib
 
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from rosbridge.transport import rfc6455 as ws
 from rosbridge.transport.budget import FRAMES_PER_TURN, ClientBudget
@@ -42,17 +44,34 @@ def test_handshake_answer_is_rfc_6455s_example():
     assert ws.accept_key("dGhlIHNhbXBsZSBub25jZQ==") == "s3pPLMBiTxaQ9kYGzzhZRbK+xOo="
 
 
-@pytest.mark.parametrize("headers, status", [
-    ({"Connection": "Upgrade", "Sec-WebSocket-Version": "13", "Sec-WebSocket-Key": "dGhlIHNhbXBsZSBub25jZQ=="},
-     None),
-    ({"Connection": "keep-alive, Upgrade", "Sec-WebSocket-Version": "13",
-      "Sec-WebSocket-Key": "dGhlIHNhbXBsZSBub25jZQ=="}, None),
-    ({"Connection": "keep-alive", "Sec-WebSocket-Version": "13", "Sec-WebSocket-Key": "dGhlIHNhbXBsZSBub25jZQ=="},
-     400),
-    ({"Connection": "Upgrade", "Sec-WebSocket-Version": "8", "Sec-WebSocket-Key": "dGhlIHNhbXBsZSBub25jZQ=="}, 426),
-    ({"Connection": "Upgrade", "Sec-WebSocket-Version": "13", "Sec-WebSocket-Key": "short"}, 400),
-    ({"Connection": "Upgrade", "Sec-WebSocket-Version": "13"}, 400),
-])
+@pytest.mark.parametrize(
+    "headers, status",
+    [
+        (
+            {"Connection": "Upgrade", "Sec-WebSocket-Version": "13", "Sec-WebSocket-Key": "dGhlIHNhbXBsZSBub25jZQ=="},
+            None,
+        ),
+        (
+            {
+                "Connection": "keep-alive, Upgrade",
+                "Sec-WebSocket-Version": "13",
+                "Sec-WebSocket-Key": "dGhlIHNhbXBsZSBub25jZQ==",
+            },
+            None,
+        ),
+        (
+            {
+                "Connection": "keep-alive",
+                "Sec-WebSocket-Version": "13",
+                "Sec-WebSocket-Key": "dGhlIHNhbXBsZSBub25jZQ==",
+            },
+            400,
+        ),
+        ({"Connection": "Upgrade", "Sec-WebSocket-Version": "8", "Sec-WebSocket-Key": "dGhlIHNhbXBsZSBub25jZQ=="}, 426),
+        ({"Connection": "Upgrade", "Sec-WebSocket-Version": "13", "Sec-WebSocket-Key": "short"}, 400),
+        ({"Connection": "Upgrade", "Sec-WebSocket-Version": "13"}, 400),
+    ],
+)
 def test_handshake_errors(headers, status):
     error = ws.handshake_error(headers)
     assert (error[0] if error else None) == status
@@ -60,40 +79,71 @@ def test_handshake_errors(headers, status):
 
 def test_frames_in_any_pieces_come_out_whole_and_in_order():
     big = os.urandom(200_000)
-    data = b"".join([client_frame(b'{"op":"a"}'), client_frame(big, ws.BINARY), client_frame(b"one ", fin=False),
-                     client_frame(b"are you there", ws.PING), client_frame(b"two ", ws.CONTINUATION, fin=False),
-                     client_frame("trois é".encode(), ws.CONTINUATION), client_frame(b"", ws.PONG),
-                     client_frame(struct.pack("!H", 1000) + b"bye", ws.CLOSE)])
+    data = b"".join(
+        [
+            client_frame(b'{"op":"a"}'),
+            client_frame(big, ws.BINARY),
+            client_frame(b"one ", fin=False),
+            client_frame(b"are you there", ws.PING),
+            client_frame(b"two ", ws.CONTINUATION, fin=False),
+            client_frame("trois é".encode(), ws.CONTINUATION),
+            client_frame(b"", ws.PONG),
+            client_frame(struct.pack("!H", 1000) + b"bye", ws.CLOSE),
+        ]
+    )
     for size in (1, 2, 3, 7, 1000, 65536, len(data)):
         reader = ws.FrameReader(1 << 20)
         got = []
         for at in range(0, len(data), size):
-            reader.receive(data[at:at + size])
+            reader.receive(data[at : at + size])
             got += events(reader)
         assert [(kind, payload) for kind, payload, _ in got] == [
-            (ws.TEXT, '{"op":"a"}'), (ws.BINARY, big), (ws.PART, None), (ws.PING, b"are you there"),
-            (ws.PART, None), (ws.TEXT, "one two trois é"), (ws.PONG, b""), (ws.CLOSE, (1000, "bye"))]
+            (ws.TEXT, '{"op":"a"}'),
+            (ws.BINARY, big),
+            (ws.PART, None),
+            (ws.PING, b"are you there"),
+            (ws.PART, None),
+            (ws.TEXT, "one two trois é"),
+            (ws.PONG, b""),
+            (ws.CLOSE, (1000, "bye")),
+        ]
         assert [size for _, _, size in got] == [10, 200_000, 4, 13, 4, 8, 0, 5]
         assert reader.buffered == 0
 
 
-@pytest.mark.parametrize("frame, code", [
-    (client_frame(b"x", masked=False), ws.PROTOCOL_ERROR),
-    (client_frame(b"x", rsv1=True), ws.PROTOCOL_ERROR),  # no extension negotiated
-    (client_frame(b"x", opcode=0x3), ws.PROTOCOL_ERROR),
-    (client_frame(b"x", opcode=0xB), ws.PROTOCOL_ERROR),
-    (client_frame(b"x" * 126, ws.PING), ws.PROTOCOL_ERROR),
-    (client_frame(b"x", ws.PING, fin=False), ws.PROTOCOL_ERROR),
-    (client_frame(b"x", ws.CONTINUATION), ws.PROTOCOL_ERROR),
-    (client_frame(b"a", fin=False) + client_frame(b"b"), ws.PROTOCOL_ERROR),
-    (client_frame(b"\xff\xfe"), ws.INVALID_DATA),
-    (client_frame(b"\x03", ws.CLOSE), ws.PROTOCOL_ERROR),
-    (client_frame(struct.pack("!H", 999), ws.CLOSE), ws.PROTOCOL_ERROR),
-    (client_frame(struct.pack("!H", 1005), ws.CLOSE), ws.PROTOCOL_ERROR),
-    (client_frame(struct.pack("!H", 1000) + b"\xff", ws.CLOSE), ws.INVALID_DATA),
-], ids=["unmasked", "rsv1 without an extension", "opcode 3", "opcode 11", "long ping", "fragmented ping",
-        "lone continuation", "a new message inside one", "bad UTF-8", "1-byte close", "close code 999",
-        "close code 1005", "close reason bad UTF-8"])  # (named: the frames' masks are random, and pytest-xdist's
+@pytest.mark.parametrize(
+    "frame, code",
+    [
+        (client_frame(b"x", masked=False), ws.PROTOCOL_ERROR),
+        (client_frame(b"x", rsv1=True), ws.PROTOCOL_ERROR),  # no extension negotiated
+        (client_frame(b"x", opcode=0x3), ws.PROTOCOL_ERROR),
+        (client_frame(b"x", opcode=0xB), ws.PROTOCOL_ERROR),
+        (client_frame(b"x" * 126, ws.PING), ws.PROTOCOL_ERROR),
+        (client_frame(b"x", ws.PING, fin=False), ws.PROTOCOL_ERROR),
+        (client_frame(b"x", ws.CONTINUATION), ws.PROTOCOL_ERROR),
+        (client_frame(b"a", fin=False) + client_frame(b"b"), ws.PROTOCOL_ERROR),
+        (client_frame(b"\xff\xfe"), ws.INVALID_DATA),
+        (client_frame(b"\x03", ws.CLOSE), ws.PROTOCOL_ERROR),
+        (client_frame(struct.pack("!H", 999), ws.CLOSE), ws.PROTOCOL_ERROR),
+        (client_frame(struct.pack("!H", 1005), ws.CLOSE), ws.PROTOCOL_ERROR),
+        (client_frame(struct.pack("!H", 1000) + b"\xff", ws.CLOSE), ws.INVALID_DATA),
+    ],
+    ids=[
+        "unmasked",
+        "rsv1 without an extension",
+        "opcode 3",
+        "opcode 11",
+        "long ping",
+        "fragmented ping",
+        "lone continuation",
+        "a new message inside one",
+        "bad UTF-8",
+        "1-byte close",
+        "close code 999",
+        "close code 1005",
+        "close reason bad UTF-8",
+    ],
+)  # (named: the frames' masks are random, and pytest-xdist's
 # workers must collect the same test ids)
 def test_what_breaks_the_protocol_is_refused_with_its_close_code(frame, code):
     reader = ws.FrameReader(1000)
@@ -125,13 +175,16 @@ def test_an_empty_close_has_no_status():
 @given(st.binary(max_size=300), st.binary(min_size=4, max_size=4))
 def test_the_pure_and_the_fast_unmasking_agree(data, key):
     from rosbridge.borrowed import websocket_mask
+
     assert ws.xor_mask(key, memoryview(data)) == websocket_mask(key, memoryview(data))
     assert ws.xor_mask(key, ws.xor_mask(key, data)) == data
 
 
 @settings(max_examples=100, deadline=None)
-@given(st.lists(st.tuples(st.sampled_from(["text", "binary", "ping"]), st.binary(max_size=300)), max_size=20),
-       st.lists(st.integers(1, 50), min_size=1, max_size=10))
+@given(
+    st.lists(st.tuples(st.sampled_from(["text", "binary", "ping"]), st.binary(max_size=300)), max_size=20),
+    st.lists(st.integers(1, 50), min_size=1, max_size=10),
+)
 def test_any_sequence_of_frames_in_any_cuts_reads_back(messages, cuts):
     frames, expected = [], []
     for kind, payload in messages:
@@ -148,7 +201,7 @@ def test_any_sequence_of_frames_in_any_cuts_reads_back(messages, cuts):
     data, reader, got, at, index = b"".join(frames), ws.FrameReader(1 << 16), [], 0, 0
     while at < len(data):
         size = cuts[index % len(cuts)]
-        reader.receive(data[at:at + size])
+        reader.receive(data[at : at + size])
         got += [(kind, payload) for kind, payload, _ in events(reader)]
         at, index = at + size, index + 1
     assert got == expected
@@ -158,20 +211,23 @@ def test_any_sequence_of_frames_in_any_cuts_reads_back(messages, cuts):
 BOTH = "permessage-deflate; server_no_context_takeover; client_no_context_takeover"
 
 
-@pytest.mark.parametrize("offer, answer, bits", [
-    ("permessage-deflate; client_max_window_bits", BOTH, 15),  # Chromium's and Tornado's offer
-    ("permessage-deflate", BOTH, 15),  # (client_no_context_takeover added: RFC 7692 7.1.1.2)
-    ("x-webkit-deflate-frame, permessage-deflate; client_no_context_takeover", BOTH, 15),
-    ("permessage-deflate; server_max_window_bits=10", BOTH + "; server_max_window_bits=10", 10),
-    ("permessage-deflate; client_max_window_bits=8", BOTH, 15),  # (we inflate any window)
-    ("permessage-deflate; server_max_window_bits=8, permessage-deflate", BOTH, 15),  # the second offer taken
-    ("permessage-deflate; server_max_window_bits=8", None, None),  # zlib cannot write that window
-    ("permessage-deflate; server_max_window_bits", None, None),  # it needs a value
-    ("permessage-deflate; client_max_window_bits=7", None, None),
-    ("permessage-deflate; server_no_context_takeover; server_no_context_takeover", None, None),
-    ("permessage-deflate; mystery", None, None),
-    ("", None, None),
-])
+@pytest.mark.parametrize(
+    "offer, answer, bits",
+    [
+        ("permessage-deflate; client_max_window_bits", BOTH, 15),  # Chromium's and Tornado's offer
+        ("permessage-deflate", BOTH, 15),  # (client_no_context_takeover added: RFC 7692 7.1.1.2)
+        ("x-webkit-deflate-frame, permessage-deflate; client_no_context_takeover", BOTH, 15),
+        ("permessage-deflate; server_max_window_bits=10", BOTH + "; server_max_window_bits=10", 10),
+        ("permessage-deflate; client_max_window_bits=8", BOTH, 15),  # (we inflate any window)
+        ("permessage-deflate; server_max_window_bits=8, permessage-deflate", BOTH, 15),  # the second offer taken
+        ("permessage-deflate; server_max_window_bits=8", None, None),  # zlib cannot write that window
+        ("permessage-deflate; server_max_window_bits", None, None),  # it needs a value
+        ("permessage-deflate; client_max_window_bits=7", None, None),
+        ("permessage-deflate; server_no_context_takeover; server_no_context_takeover", None, None),
+        ("permessage-deflate; mystery", None, None),
+        ("", None, None),
+    ],
+)
 def test_deflate_negotiation(offer, answer, bits):
     assert ws.negotiate_deflate(offer) == (answer, bits)
 
@@ -189,11 +245,19 @@ def test_deflated_messages_are_unpacked_and_weighed_as_unpacked():
     text = b'{"op":"publish","topic":"/a","msg":{"data":"' + b"a" * 50_000 + b'"}}'
     reader = ws.FrameReader(1 << 20, deflate=True)
     first, second = client_deflated(text), client_deflated(text)
-    reader.receive(client_frame(first, rsv1=True) + client_frame(second[:5], fin=False, rsv1=True)
-                   + client_frame(second[5:], ws.CONTINUATION) + client_frame(b"plain"))
+    reader.receive(
+        client_frame(first, rsv1=True)
+        + client_frame(second[:5], fin=False, rsv1=True)
+        + client_frame(second[5:], ws.CONTINUATION)
+        + client_frame(b"plain")
+    )
     got = events(reader)
     assert [(kind, payload) for kind, payload, _ in got] == [
-        (ws.TEXT, text.decode()), (ws.PART, None), (ws.TEXT, text.decode()), (ws.TEXT, "plain")]
+        (ws.TEXT, text.decode()),
+        (ws.PART, None),
+        (ws.TEXT, text.decode()),
+        (ws.TEXT, "plain"),
+    ]
     # (each event weighs what it unpacked, or the compressed bytes it took if more)
     assert got[0][2] == len(text) and len(text) <= got[1][2] + got[2][2] <= len(text) + len(second) + 4
 
@@ -202,8 +266,10 @@ def test_a_client_that_keeps_its_context_after_agreeing_not_to_is_still_understo
     """Tornado 6.2's client drops the answer's client_no_context_takeover (its header parser loses parameters
     without a value) and points back into its earlier messages."""
     compressor = zlib.compressobj(9, zlib.DEFLATED, -15)
-    texts = [b'{"op":"publish","topic":"/a","msg":{"data":"' + os.urandom(n).hex().encode() + b'"}}'
-             for n in (3000, 40_000, 10)]
+    texts = [
+        b'{"op":"publish","topic":"/a","msg":{"data":"' + os.urandom(n).hex().encode() + b'"}}'
+        for n in (3000, 40_000, 10)
+    ]
     texts.append(texts[0])  # its window is 32 kB: this one points back past the 80 kB of the second
     reader = ws.FrameReader(1 << 20, deflate=True)
     for text in texts:
@@ -230,8 +296,11 @@ def test_readers_keep_no_inflater_between_messages():
 
 
 @settings(max_examples=60, deadline=None)
-@given(st.booleans(), st.lists(st.tuples(st.booleans(), st.booleans(), st.binary(max_size=2000)), max_size=12),
-       st.lists(st.integers(1, 700), min_size=1, max_size=10))
+@given(
+    st.booleans(),
+    st.lists(st.tuples(st.booleans(), st.booleans(), st.binary(max_size=2000)), max_size=12),
+    st.lists(st.integers(1, 700), min_size=1, max_size=10),
+)
 def test_any_deflated_messages_in_any_cuts_read_back(keeps_context, messages, cuts):
     """Messages compressed or not (ws leaves the small ones as they are), each on its own or with the client's
     context kept; some repeat the one before, so that a kept context is pointed back into."""
@@ -248,7 +317,7 @@ def test_any_deflated_messages_in_any_cuts_read_back(keeps_context, messages, cu
     data, reader, got, at, index = b"".join(frames), ws.FrameReader(1 << 20, deflate=True), [], 0, 0
     while at < len(data):
         size = cuts[index % len(cuts)]
-        reader.receive(data[at:at + size])
+        reader.receive(data[at : at + size])
         got += [payload for _, payload, _ in events(reader)]
         at, index = at + size, index + 1
     assert got == expected
@@ -277,9 +346,16 @@ def test_a_small_deflated_message_is_unpacked_a_slice_at_a_time_and_refused_once
     assert peak < 2_500_000, peak  # (1 MB unpacked, and the message's copy of it, at most)
 
 
-@pytest.mark.parametrize("parts", [(b"",), (b"x",), (os.urandom(1000),), (b'{"op":"publish"}' * 1000,),
-                                   (b'{"op":"publish","msg":{"data":"', base64.b64encode(os.urandom(300_000)),
-                                    b'"}}')])
+@pytest.mark.parametrize(
+    "parts",
+    [
+        (b"",),
+        (b"x",),
+        (os.urandom(1000),),
+        (b'{"op":"publish"}' * 1000,),
+        (b'{"op":"publish","msg":{"data":"', base64.b64encode(os.urandom(300_000)), b'"}}'),
+    ],
+)
 def test_what_the_server_deflates_a_fresh_inflater_unpacks(parts):
     whole = b"".join(parts)
     for max_bits in (9, 12, 15):
@@ -317,7 +393,7 @@ def test_a_flood_is_taken_in_turns_and_nothing_more_is_read_meanwhile():
     while at < len(flood) or reader.buffered:
         event = reader.next_event()
         if event is None:
-            reader.receive(flood[at:at + read_size])
+            reader.receive(flood[at : at + read_size])
             at += read_size
             most_held = max(most_held, reader.buffered)
             continue
@@ -358,9 +434,12 @@ def test_what_follows_a_final_block_within_its_message_is_passed_over():
     final = zlib.compressobj(9, zlib.DEFLATED, -15)
     ended = final.compress(b'{"op":"a"}') + final.flush(zlib.Z_FINISH)
     reader = ws.FrameReader(1 << 22, deflate=True)
-    reader.receive(client_frame(ended, fin=False, rsv1=True) + client_frame(os.urandom(300_000), ws.CONTINUATION,
-                                                                            fin=False)
-                   + client_frame(b"more", ws.CONTINUATION) + client_frame(client_deflated(b'{"op":"b"}'), rsv1=True))
+    reader.receive(
+        client_frame(ended, fin=False, rsv1=True)
+        + client_frame(os.urandom(300_000), ws.CONTINUATION, fin=False)
+        + client_frame(b"more", ws.CONTINUATION)
+        + client_frame(client_deflated(b'{"op":"b"}'), rsv1=True)
+    )
     assert [payload for kind, payload, _ in events(reader) if kind != ws.PART] == ['{"op":"a"}', '{"op":"b"}']
 
 
@@ -402,8 +481,10 @@ def test_unfinished_messages_of_every_client_share_one_bound():
     shared = ws.SharedBound(900_000)
     part = client_frame(bytes(300_000), fin=False)
     holding, frame_begun, refused = (ws.FrameReader(1 << 22, shared=shared) for _ in range(3))
-    assert unfinished(holding, part + client_frame(bytes(300_000), ws.CONTINUATION, fin=False)) == [
-        (ws.PART, None, 300_000)] * 2
+    assert (
+        unfinished(holding, part + client_frame(bytes(300_000), ws.CONTINUATION, fin=False))
+        == [(ws.PART, None, 300_000)] * 2
+    )
     assert shared.held == 600_000 - ws.OWN_BYTES
     big = client_frame(bytes(2_000_000), ws.BINARY)
     assert unfinished(frame_begun, big[:400_000]) == []
@@ -429,16 +510,17 @@ def test_a_reader_stalled_in_its_message_makes_way_for_one_whose_bytes_keep_comi
     clock = [100.0]
     shared = ws.SharedBound(2_000_000, clock=lambda: clock[0])
     evicted = []
-    stalled, trickling, sending, late = (ws.FrameReader(1 << 23, shared=shared, clock=lambda: clock[0],
-                                                       evicted=lambda name=name: evicted.append(name))
-                                         for name in ("stalled", "trickling", "sending", "late"))
+    stalled, trickling, sending, late = (
+        ws.FrameReader(1 << 23, shared=shared, clock=lambda: clock[0], evicted=lambda name=name: evicted.append(name))
+        for name in ("stalled", "trickling", "sending", "late")
+    )
     big = client_frame(bytes(3_000_000))
     assert unfinished(stalled, big[:1_000_000]) == [] and unfinished(trickling, big[:900_000]) == []
     clock[0] += 2 * ws.RECENT
     assert unfinished(trickling, big[900_000:900_010]) == []  # (a few bytes now and then)
-    assert unfinished(sending, big[:ws.OWN_BYTES + 50_000]) == []  # (room left: nobody makes way)
+    assert unfinished(sending, big[: ws.OWN_BYTES + 50_000]) == []  # (room left: nobody makes way)
     assert evicted == [] and shared.held == 1_000_000 + 900_010 + 50_000 - 2 * ws.OWN_BYTES
-    assert unfinished(sending, big[ws.OWN_BYTES + 50_000:1_000_000]) == []
+    assert unfinished(sending, big[ws.OWN_BYTES + 50_000 : 1_000_000]) == []
     assert evicted == ["stalled"] and stalled.buffered == 0  # (the slowest, and enough)
     assert shared.held == 900_010 + 1_000_000 - 2 * ws.OWN_BYTES
     assert unfinished(sending, big[1_000_000:2_000_000]) == []

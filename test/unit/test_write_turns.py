@@ -1,6 +1,8 @@
 """write_turns.WriteTurns: woken clients write together, at the end of a delivery or in the loop's next turn."""
-from fakes import Loop
+
 from rosbridge.transport.write_turns import WriteTurns
+
+from fakes import Loop
 
 
 def test_outside_a_delivery_the_woken_write_in_the_next_turn_once_for_all():

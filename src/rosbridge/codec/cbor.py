@@ -7,6 +7,7 @@ are byte strings (Uint8Array in roslibjs), the other numeric arrays typed arrays
 (int8 72, uint16 69, int16 77, uint32 70, int32 78, uint64 71, int64 79, float32 85, float64 86: JavaScript typed
 arrays, the 64-bit ones read into plain arrays of numbers), bool[] and string[] plain arrays. The reference tags
 only variable-size arrays; here fixed-size ones are tagged too (roslibjs reads both the same)."""
+
 import functools
 import os
 import struct
@@ -19,8 +20,15 @@ from rosbridge.codec.json_values import encoder_factory, json_leaf_encoder
 # RFC 8746 tags of the little-endian typed arrays, with the matching struct codes. uint8 arrays go as plain
 # CBOR byte strings instead, as the reference sends them.
 TYPED_ARRAY_TAGS = {
-    "int8": (72, "b"), "uint16": (69, "H"), "int16": (77, "h"), "uint32": (70, "I"), "int32": (78, "i"),
-    "uint64": (71, "Q"), "int64": (79, "q"), "float32": (85, "f"), "float64": (86, "d"),
+    "int8": (72, "b"),
+    "uint16": (69, "H"),
+    "int16": (77, "h"),
+    "uint32": (70, "I"),
+    "int32": (78, "i"),
+    "uint64": (71, "Q"),
+    "int64": (79, "q"),
+    "float32": (85, "f"),
+    "float64": (86, "d"),
 }
 _UINT, _BYTES = 0x00, 0x40  # CBOR's major types 0 (an unsigned integer) and 2 (a byte string), in a head's top bits
 
@@ -31,6 +39,7 @@ def _typed_array(tag, code):
 
 class _Spliced:
     """A big byte string (an image's data), which cbor_parts leaves out of cbor2's output."""
+
     __slots__ = ("data",)
 
     def __init__(self, data):

@@ -1,6 +1,7 @@
 """Running the Python source the converters generate per message type. Each piece gets a file name of its own,
 and its lines go into linecache, so that a traceback through a generated reader or packer shows the line that
 failed instead of nothing."""
+
 import itertools
 import linecache
 

@@ -6,15 +6,17 @@ common road itself: every field present or with a constant default, numbers of t
 base64 for uint8[], times as {"secs", "nsecs"}. Anything else (a float 2.0 for an int, null for NaN, a list of
 ints for uint8[], a missing header stamp, any error) goes the long way through json_values.from_json, so the result
 and every error message stay exactly convert's; the tests compare the two on random and junk input."""
+
 import base64
 import io
 import struct
 from collections.abc import Callable
 
+from rosbridge.codec.fields import DEFAULTS
+from rosbridge.codec.fields import STRUCT_CODES as _CODES
+from rosbridge.codec.fields import TIME_PART_CODES as _TIME_CODES
 from rosbridge.codec.generated import define
-from rosbridge.codec.fields import DEFAULTS, STRUCT_CODES as _CODES, TIME_PART_CODES as _TIME_CODES
-from rosbridge.codec.json_values import (from_json,
-                               parse_slot_type)
+from rosbridge.codec.json_values import from_json, parse_slot_type
 from rosbridge.message_types import message_class
 
 # The JSON values each kind of field takes on the common road (bool is not an int here, as in convert).
@@ -65,9 +67,19 @@ def _bytes(value):
 _SECS_NSECS = frozenset(("secs", "nsecs"))
 _U32 = struct.Struct("<I").pack
 _GLOBALS = {
-    "_check": _check, "_time": _time, "_times": _times, "_numbers": _numbers, "_string": _string,
-    "_strings": _strings, "_bytes": _bytes, "_U32": _U32, "_INT": frozenset((int,)), "_BOOL": frozenset((bool,)),
-    "_NUMBER": frozenset((int, float)), "_MISSING": object(), "_join": b"".join,
+    "_check": _check,
+    "_time": _time,
+    "_times": _times,
+    "_numbers": _numbers,
+    "_string": _string,
+    "_strings": _strings,
+    "_bytes": _bytes,
+    "_U32": _U32,
+    "_INT": frozenset((int,)),
+    "_BOOL": frozenset((bool,)),
+    "_NUMBER": frozenset((int, float)),
+    "_MISSING": object(),
+    "_join": b"".join,
 }
 
 
@@ -96,8 +108,9 @@ class _Generator:
 
         def flush():
             if codes:
-                lines.append(f"out.append({self.constant(struct.Struct('<' + ''.join(codes)).pack)}"
-                             f"({', '.join(values)}))")
+                lines.append(
+                    f"out.append({self.constant(struct.Struct('<' + ''.join(codes)).pack)}({', '.join(values)}))"
+                )
                 codes.clear()
                 values.clear()
 

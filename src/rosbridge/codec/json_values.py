@@ -19,6 +19,7 @@ JSON -> ROS (`from_json`), strict wherever a silent guess could move a robot the
 - with `now` given, a std_msgs/Header whose stamp is missing (also a header missing altogether) gets now().
 Every refusal is a ConversionError whose message starts with the path of the field, e.g. `linear.x: ...`.
 """
+
 import base64
 import binascii
 import json
@@ -30,8 +31,8 @@ from collections.abc import Callable
 
 import genpy
 
-from rosbridge.codec.generated import define
 from rosbridge.codec.fields import BUILTIN_TYPES, DEFAULTS, FLOAT_TYPES, INT_RANGES, TIME_TYPES, parse_slot_type
+from rosbridge.codec.generated import define
 from rosbridge.errors import ClientError
 from rosbridge.message_types import message_class
 
@@ -91,6 +92,7 @@ _ASCII_JSON_ENCODER = json.JSONEncoder(separators=(",", ":"), allow_nan=False).e
 
 # ---------------------------------------------------------------------------------------------------------
 # ROS -> Python values
+
 
 def _record_encoder(fields):
     """A function msg -> dict for the (name, converter) fields; converter None means the value as it is.
@@ -171,6 +173,7 @@ def to_json(msg):
 # ---------------------------------------------------------------------------------------------------------
 # Python values (parsed JSON) -> ROS
 
+
 def _int_decoder(base):
     low, high = INT_RANGES[base]
 
@@ -250,8 +253,9 @@ def _time_decoder(base):
         elif (kind is int or kind is float) and math.isfinite(value) and low <= value <= high:
             result = tval.from_sec(value)
         else:
-            raise ConversionError(f'expected {{"secs": ..., "nsecs": ...}} or a number of seconds in {base} '
-                                  f"range, got {_describe(value)}")
+            raise ConversionError(
+                f'expected {{"secs": ..., "nsecs": ...}} or a number of seconds in {base} range, got {_describe(value)}'
+            )
         if not low <= result.secs <= high:  # genpy carries whole seconds out of nsecs
             raise ConversionError(f"{base} {result.secs}.{result.nsecs:09d} s is out of range")
         return result
@@ -265,8 +269,9 @@ def _bytes_decoder(size):
             try:
                 value = base64.b64decode(value, validate=True)
             except (binascii.Error, ValueError):
-                raise ConversionError("expected base64 text or a list of ints 0..255, got a string that is "
-                                      "not valid base64") from None
+                raise ConversionError(
+                    "expected base64 text or a list of ints 0..255, got a string that is not valid base64"
+                ) from None
         elif type(value) is list:
             for index, item in enumerate(value):
                 if type(item) is not int or not 0 <= item <= 255:
@@ -290,7 +295,7 @@ def _array_decoder(decode_item, size):
         result = []
         index = 0
         try:
-            for index, item in enumerate(value):
+            for index, item in enumerate(value):  # noqa: B007  (the failing index is told below)
                 result.append(decode_item(item, now))
         except ConversionError as error:
             raise error.within(index) from None
@@ -390,8 +395,9 @@ def request_from_args(request_class, args, now=None):
     elif type(args) is list:
         names = request_class.__slots__
         if len(args) != len(names):
-            raise ConversionError(f"expected {len(names)} positional args ({', '.join(names) or 'none'}), "
-                                  f"got {len(args)}")
+            raise ConversionError(
+                f"expected {len(names)} positional args ({', '.join(names) or 'none'}), got {len(args)}"
+            )
         args = dict(zip(names, args))
     elif type(args) is not dict:
         raise ConversionError(f"expected an object or a list, got {_describe(args)}", ("args",))

@@ -12,6 +12,7 @@ cbor.TYPED_ARRAY_TAGS, which roslibjs reads into JavaScript typed arrays) whose 
 they are in the message, and uint8[]/char[] a byte string of them. A big one (BIG_BYTES or more) is a view of the
 message's bytes, which cbor.cbor_parts writes by reference: a 16 MB map or a 5 MB point cloud is not copied at all
 on its way to the socket."""
+
 import struct
 from collections.abc import Callable
 
@@ -43,12 +44,18 @@ def _times(values):
 
 
 def _decode(b, p, n):
-    return b[p:p + n].decode("utf-8", "rosmsg")
+    return b[p : p + n].decode("utf-8", "rosmsg")
 
 
 _GLOBALS = {
-    "_U32": struct.Struct("<I").unpack_from, "_unpack_from": struct.unpack_from, "_decode": _decode,
-    "_bytes_of": _bytes_of, "_typed_array": _typed_array, "_times": _times, "_canon": _canon, "_NS": _NS,
+    "_U32": struct.Struct("<I").unpack_from,
+    "_unpack_from": struct.unpack_from,
+    "_decode": _decode,
+    "_bytes_of": _bytes_of,
+    "_typed_array": _typed_array,
+    "_times": _times,
+    "_canon": _canon,
+    "_NS": _NS,
 }
 
 
@@ -113,12 +120,14 @@ class _Generator(Generator):
         elif base == "bool":
             reader.statement(f"{value} = list(_unpack_from('<%d?' % {count}, b, p)); p += {count}")
         elif base in TIME_PART_CODES:
-            reader.statement(f"{value} = _times(_unpack_from('<%d{TIME_PART_CODES[base]}' % (2 * {count}), b, p)); "
-                             f"p += 8 * {count}")
+            reader.statement(
+                f"{value} = _times(_unpack_from('<%d{TIME_PART_CODES[base]}' % (2 * {count}), b, p)); p += 8 * {count}"
+            )
         elif base == "string":
             reader.statement(f"{value} = []")
-            reader.statement(f"for _ in range({count}):\n"
-                             f"        (m,) = _U32(b, p); p += 4; {value}.append(_decode(b, p, m)); p += m")
+            reader.statement(
+                f"for _ in range({count}):\n        (m,) = _U32(b, p); p += 4; {value}.append(_decode(b, p, m)); p += m"
+            )
         else:
             item = self.reader(message_class(base))
             reader.statement(f"{value} = []")
@@ -138,5 +147,6 @@ def cbor_value(cls):
 
         def convert(data):
             return read(data, 0)[0]
+
         _cache[cls] = convert
     return convert

@@ -3,8 +3,8 @@ and no Python dict in between.
 
 The bytes come from the bridge's own TCPROS links (rosbridge.ros_side.links).
 `json_text(cls)` gives a function bytes -> text for one message type, generated from its fields once and cached
-(as genpy generates its deserializers). The text is exactly `json_values.dumps(json_values.to_json(msg))` for the message
-genpy would deserialize from those bytes; the tests compare the two for every message type on the machine.
+(as genpy generates its deserializers). The text is exactly `json_values.dumps(json_values.to_json(msg))` for the
+message genpy would deserialize from those bytes; the tests compare the two for every message type on the machine.
 `json_parts(cls)` gives the same text with each big base64 string (an image's data) left out, so that the frame
 can carry those bytes as they are instead of copying them into one text.
 Consecutive fixed-size fields, nested messages' included, are read with one struct call and written with one
@@ -15,6 +15,7 @@ int8[] and bool[] by bytes.translate over chunks of the bytes (_ByteTable), the 
 memoryview cast to their type, a chunk at a time; no tuple of all the values is ever made. An array whose text is
 BIG_BYTES or longer is left out of the text as ASCII bytes, one SPLICE_MARK per chunk, as the big base64 strings
 are, so that the frame carries those bytes by reference instead of copying them into one text."""
+
 import base64
 import itertools
 import json
@@ -24,9 +25,11 @@ from collections.abc import Callable
 
 from genpy.rostime import _canon
 
-from rosbridge.codec.generated import define
-from rosbridge.codec.fields import BUILTIN_TYPES, STRUCT_CODES as _CODES, TIME_PART_CODES as _TIME_CODES, parse_slot_type
 from rosbridge.codec import BIG_BYTES
+from rosbridge.codec.fields import BUILTIN_TYPES, parse_slot_type
+from rosbridge.codec.fields import STRUCT_CODES as _CODES
+from rosbridge.codec.fields import TIME_PART_CODES as _TIME_CODES
+from rosbridge.codec.generated import define
 from rosbridge.message_types import message_class
 
 _FLOATS = ("float32", "float64")
@@ -105,8 +108,9 @@ class _ByteTable:
         end = p + n
         check_length(b, end)
         view = memoryview(b)
-        pieces = [self._chunk(view[start:min(start + _BYTES_CHUNK, end)].tobytes())
-                  for start in range(p, end, _BYTES_CHUNK)]
+        pieces = [
+            self._chunk(view[start : min(start + _BYTES_CHUNK, end)].tobytes()) for start in range(p, end, _BYTES_CHUNK)
+        ]
         pieces[-1] = pieces[-1][:-1]  # (its last comma)
         return _array_text(pieces, s)
 
@@ -121,7 +125,7 @@ class _ByteTable:
         text = bytearray(slot * count)
         for k, plane in enumerate(planes):
             text[k::slot] = plane
-        text[slot - 1::slot] = self.commas if count == _BYTES_CHUNK else self.commas[:count]
+        text[slot - 1 :: slot] = self.commas if count == _BYTES_CHUNK else self.commas[:count]
         return bytes(text.translate(None, b"\0") if any(padding) else text)
 
 
@@ -141,7 +145,7 @@ class _Numbers:
         end = p + n * self.size
         check_length(b, end)
         view = memoryview(b)[p:end].cast(self.code)
-        texts = [self._chunk(view[start:start + _NUMBERS_CHUNK]) for start in range(0, n, _NUMBERS_CHUNK)]
+        texts = [self._chunk(view[start : start + _NUMBERS_CHUNK]) for start in range(0, n, _NUMBERS_CHUNK)]
         if sum(map(len, texts)) + len(texts) < BIG_BYTES:
             return ",".join(texts)
         last = texts.pop()
@@ -155,9 +159,11 @@ class _Numbers:
 
 
 # the arrays written by _ByteTable and _Numbers (uint8[] is base64; time[] and duration[], rare, from a tuple)
-_ARRAYS = {"int8": _ByteTable([str(value - 256 if value > 127 else value) for value in range(256)]),
-           "bool": _ByteTable(["false"] + ["true"] * 255),  # any byte but 0 is true, as struct's '?' and genpy's bool()
-           **{base: _Numbers(code) for base, code in _CODES.items() if base not in ("bool", "int8", "uint8")}}
+_ARRAYS = {
+    "int8": _ByteTable([str(value - 256 if value > 127 else value) for value in range(256)]),
+    "bool": _ByteTable(["false"] + ["true"] * 255),  # any byte but 0 is true, as struct's '?' and genpy's bool()
+    **{base: _Numbers(code) for base, code in _CODES.items() if base not in ("bool", "int8", "uint8")},
+}
 
 
 def _times(values):
@@ -166,9 +172,18 @@ def _times(values):
 
 
 _GLOBALS = {
-    "_U32": struct.Struct("<I").unpack_from, "_b64text": _base64_text, "_str": json.encoder.encode_basestring,
-    "_unpack_from": struct.unpack_from, "_finite": _finite, "_floats": _floats, "_ints": _ints, "_bools": _bools,
-    "_times": _times, "_canon": _canon, "_BOOL": ("false", "true"), "_NS": _NS,
+    "_U32": struct.Struct("<I").unpack_from,
+    "_b64text": _base64_text,
+    "_str": json.encoder.encode_basestring,
+    "_unpack_from": struct.unpack_from,
+    "_finite": _finite,
+    "_floats": _floats,
+    "_ints": _ints,
+    "_bools": _bools,
+    "_times": _times,
+    "_canon": _canon,
+    "_BOOL": ("false", "true"),
+    "_NS": _NS,
     **{f"_{base}_array": array for base, array in _ARRAYS.items()},
 }
 
@@ -283,8 +298,7 @@ class _Generator(Generator):
     def _builtin(reader, base, top):
         if base == "string":
             text = reader.var()
-            reader.statement(f"(n,) = _U32(b, p); p += 4; {text} = _str(b[p:p + n].decode('utf-8', 'rosmsg')); "
-                             "p += n")
+            reader.statement(f"(n,) = _U32(b, p); p += 4; {text} = _str(b[p:p + n].decode('utf-8', 'rosmsg')); p += n")
             reader.value(text)
         elif base in _TIME_CODES:
             secs, nsecs = reader.fixed(_TIME_CODES[base] * 2)
@@ -323,8 +337,15 @@ class _Generator(Generator):
                 unpack = f"_unpack_from('<%d{code}' % ({per_item} * n), b, p)"
             else:
                 unpack = f"{self.constant(struct.Struct('<' + code * per_item * size).unpack_from)}(b, p)"
-            join = "_floats" if base in _FLOATS else "_times" if base in _TIME_CODES else \
-                "_bools" if base == "bool" else "_ints"
+            join = (
+                "_floats"
+                if base in _FLOATS
+                else "_times"
+                if base in _TIME_CODES
+                else "_bools"
+                if base == "bool"
+                else "_ints"
+            )
             small = f"{join}({unpack})"  # (a few values: from a tuple)
             if base not in _ARRAYS or size is not None and size <= _SMALL:
                 reader.statement(f"{text} = {small}; p += {width} * {count}")
@@ -334,9 +355,11 @@ class _Generator(Generator):
                 reader.statement(f"{text} = _{base}_array(b, p, {size}, s); p += {width * size}")
         elif base == "string":
             reader.statement(f"{text} = []")
-            reader.statement(f"for _ in range({count}):\n"
-                             f"        (m,) = _U32(b, p); p += 4; {text}.append(_str(b[p:p + m].decode('utf-8', "
-                             f"'rosmsg'))); p += m")
+            reader.statement(
+                f"for _ in range({count}):\n"
+                f"        (m,) = _U32(b, p); p += 4; {text}.append(_str(b[p:p + m].decode('utf-8', "
+                f"'rosmsg'))); p += m"
+            )
             reader.statement(f"{text} = ','.join({text})")
         else:
             item = self.reader(message_class(base))
@@ -362,6 +385,7 @@ def json_parts(cls):
         def convert(data):
             spliced = []
             return read(data, 0, spliced)[0], spliced
+
         _cache[cls] = convert
     return convert
 

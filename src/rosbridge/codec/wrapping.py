@@ -1,5 +1,6 @@
 """A message's JSON text wrapped for the wire, both ways: packed into a PNG image (`png` ops, `compression:
 png`), and cut into `fragment` ops for a client's fragment_size."""
+
 import base64
 import io
 import json
@@ -58,5 +59,7 @@ def fragments(text, size, id):
     if size < 1:
         raise ValueError(f"fragment size must be at least 1, got {size}")
     total = max(1, math.ceil(len(text) / size))
-    return [{"op": "fragment", "id": id, "data": text[num * size:(num + 1) * size], "num": num, "total": total}
-            for num in range(total)]
+    return [
+        {"op": "fragment", "id": id, "data": text[num * size : (num + 1) * size], "num": num, "total": total}
+        for num in range(total)
+    ]

@@ -4,6 +4,7 @@ rosbag, no rospy, no tornado; bag_recorder.py does the recording).
 Sizes follow rosbag's format 2.0 as rosbag.Bag writes it (uncompressed, unencrypted, its default chunks), so that
 an empty message costs what it takes on disk: its record's header and its entry in its chunk's index, 58 bytes.
 They are upper bounds: a bag's chunks are counted as if each held every connection."""
+
 import array
 import collections
 import itertools
@@ -29,8 +30,12 @@ def connection_bytes(topic, cls):
     index."""
     topic_bytes = len(topic.encode())
     header = _field("op", 1) + _field("topic", topic_bytes) + _field("conn", 4)
-    description = (_field("topic", topic_bytes) + _field("type", len(cls._type.encode())) + _field("md5sum", 32)
-                   + _field("message_definition", len(cls._full_text.encode())))
+    description = (
+        _field("topic", topic_bytes)
+        + _field("type", len(cls._type.encode()))
+        + _field("md5sum", 32)
+        + _field("message_definition", len(cls._full_text.encode()))
+    )
     return 4 + header + 4 + description
 
 
@@ -39,8 +44,13 @@ def bag_bytes(messages, payload, connections):
     (connection_bytes of each)."""
     in_chunks = payload + 46 * messages + sum(connections)  # (a chunk ends once these pass the threshold)
     chunks = in_chunks // (CHUNK_THRESHOLD + 1) + 1
-    return (FILE_HEADER + payload + MESSAGE * messages + 2 * sum(connections)
-            + chunks * (CHUNK + CHUNK_CONNECTION * len(connections)))
+    return (
+        FILE_HEADER
+        + payload
+        + MESSAGE * messages
+        + 2 * sum(connections)
+        + chunks * (CHUNK + CHUNK_CONNECTION * len(connections))
+    )
 
 
 class BagSize:
@@ -118,6 +128,7 @@ class _Segment:
     on another thread while the box goes on): stamps, kinds (indexes of (topic, cls)), and each entry's end in
     data, the entries' bytes one after the other (bytes once it is full). Entries before `start` have left the
     box."""
+
     __slots__ = ("stamps", "kinds", "ends", "data", "start")
 
     def __init__(self):
@@ -136,7 +147,7 @@ class _Segment:
     def entries(self, start, stop, kinds):
         for index in range(start, stop):
             topic, cls = kinds[self.kinds[index]]
-            yield self.stamps[index], topic, cls, bytes(self.data[self.begin(index):self.ends[index]])
+            yield self.stamps[index], topic, cls, bytes(self.data[self.begin(index) : self.ends[index]])
 
 
 class BlackBox:
@@ -210,5 +221,6 @@ class BlackBox:
 
     def bag_bytes(self):
         """What a bag of the entries takes on disk (an upper bound)."""
-        return bag_bytes(self._length, self._payload,
-                         [connection_bytes(topic, cls) for topic, cls in self._classes.items()])
+        return bag_bytes(
+            self._length, self._payload, [connection_bytes(topic, cls) for topic, cls in self._classes.items()]
+        )

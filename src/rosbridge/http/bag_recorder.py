@@ -10,6 +10,7 @@ reserves what it will take before it is written (a save all of it, before it is 
 message), so bags written at once never add up past max_bytes, and a recording stops there, saying so. One black
 box save is written at a time (another is refused, Busy: each would keep the box as it was, and wait). Only plain
 files are bags: a symlink in the folder is neither listed, served nor deleted (it could lead out of the folder)."""
+
 import concurrent.futures
 import os
 import re
@@ -21,9 +22,9 @@ import genpy
 import rosbag
 
 from rosbridge import globs
-from rosbridge.http.bag_bounds import MESSAGE, BagSize, BlackBox, FolderSpace
 from rosbridge.borrowed import forget_read_index
 from rosbridge.errors import ClientError
+from rosbridge.http.bag_bounds import MESSAGE, BagSize, BlackBox, FolderSpace
 
 BAG_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,100}\.bag")
 WRITER_QUEUE_BYTES = 64 << 20  # messages waiting for the disk, as they will take it; beyond, dropped (and counted)
@@ -64,6 +65,7 @@ class Writer:
             except Exception as failure:  # a full disk, a folder gone: the recording says so
                 error = f"{type(failure).__name__}: {failure}"
             self._loop.add_callback(self._finished, size, then, error)
+
         self._pool.submit(job).add_done_callback(done)
         return True
 
@@ -86,6 +88,7 @@ def write_message(bag, topic, message, when):
 
 class _Subscriber:
     """A backend.Client that takes the messages of some topics (the ROS side calls it on the loop)."""
+
     is_closed = False
 
     def __init__(self, backend, topics, on_message):
@@ -156,10 +159,21 @@ class Recorder:
         bags = self.bags()
         box = None
         if self._box_topics is not None:
-            box = {"topics": self._box_topics.topics, "seconds": self.blackbox_seconds, "messages": len(self._box),
-                   "bytes": self._box.bytes, "max_bytes": self.blackbox_bytes}
-        return {"recording": self.recording, "last": self.last, "blackbox": box, "bags": bags,
-                "used_bytes": self._space.used, "max_bytes": self.max_bytes}
+            box = {
+                "topics": self._box_topics.topics,
+                "seconds": self.blackbox_seconds,
+                "messages": len(self._box),
+                "bytes": self._box.bytes,
+                "max_bytes": self.blackbox_bytes,
+            }
+        return {
+            "recording": self.recording,
+            "last": self.last,
+            "blackbox": box,
+            "bags": bags,
+            "used_bytes": self._space.used,
+            "max_bytes": self.max_bytes,
+        }
 
     def path(self, name):
         """The path of bag `name`, a plain file of the folder, or ClientError."""
@@ -216,8 +230,14 @@ class Recorder:
         except ClientError:
             self._space.release(name)
             raise
-        self.recording = {"name": name, "topics": topics, "started": time.time(), "messages": 0,
-                          "bytes": size.total, "dropped": 0}
+        self.recording = {
+            "name": name,
+            "topics": topics,
+            "started": time.time(),
+            "messages": 0,
+            "bytes": size.total,
+            "dropped": 0,
+        }
         self._size, self._recording_topics = size, subscriber
         path = self.folder / name
         self._writer.submit(lambda: self._open(path), then=self._check)
@@ -302,6 +322,7 @@ class Recorder:
             self._written(name)
             if then is not None:
                 then(error)
+
         self._saving = name
         self._writer.submit(write, then=written)
         return name
@@ -312,8 +333,11 @@ class Recorder:
         self.keep_blackbox([])
 
     def _topic_list(self, topics):
-        if not isinstance(topics, list) or not topics or \
-                not all(isinstance(t, str) and t.startswith("/") for t in topics):
+        if (
+            not isinstance(topics, list)
+            or not topics
+            or not all(isinstance(t, str) and t.startswith("/") for t in topics)
+        ):
             raise ClientError("topics: a non-empty list of topic names (starting with /)")
         for topic in topics:
             if self._topic_globs is not None and not globs.allowed(topic, self._topic_globs):

@@ -11,14 +11,15 @@
 
 A POST must carry JSON (Content-Type application/json): a page of another site cannot send that, nor DELETE,
 without asking first (CORS), which the bridge never allows. Errors come back as {"error": text} with a 4xx."""
+
 import json
 
 import tornado.concurrent
 import tornado.web
 
-from rosbridge.http.bag_recorder import Busy, bag_path
 from rosbridge.errors import ClientError
 from rosbridge.http.access import EndpointHandler, refusal
+from rosbridge.http.bag_recorder import Busy, bag_path
 
 MAX_BODY = 64 * 1024  # the largest request body of any endpoint: the server refuses larger ones (413)
 
@@ -111,6 +112,8 @@ class BagFile(_BagHandler, tornado.web.StaticFileHandler):
 def bag_routes(bridge, recorder):
     """recorder None: the recorder is off, and its addresses say so."""
     options = {"bridge": bridge, "recorder": recorder}
-    return [(r"/bags", BagsState, options),
-            (r"/bags/(record|stop|blackbox|blackbox/save)", BagAction, options),
-            (r"/bags/([^/]+\.bag)", BagFile, options)]
+    return [
+        (r"/bags", BagsState, options),
+        (r"/bags/(record|stop|blackbox|blackbox/save)", BagAction, options),
+        (r"/bags/([^/]+\.bag)", BagFile, options),
+    ]

@@ -5,6 +5,7 @@ strided slices (C speed: a 300k-point cloud to 20k points is a few ms); NaN poin
 them). k is rounded up to one of 8 values per doubling (stride_for), so that the many max_points a client may ask
 come to few distinct answers, which Answers keeps within a bound in bytes. The /cloud endpoint (cloud_routes.py)
 serves the result."""
+
 import collections
 import struct
 import sys
@@ -28,6 +29,7 @@ class Field:
 
 class Cloud:
     """What decimate needs of a PointCloud2; data: its point bytes (a bytes-like object, not copied)."""
+
     __slots__ = ("stamp", "frame_id", "height", "width", "fields", "is_bigendian", "point_step", "row_step", "data")
 
     def __init__(self, height, width, fields, is_bigendian, point_step, row_step, data, stamp=0.0, frame_id=""):
@@ -55,7 +57,7 @@ class _Reader:
         if self.at + length > len(self.view):
             raise CloudError("the message is truncated")
         self.at += length
-        return self.view[self.at - length:self.at]
+        return self.view[self.at - length : self.at]
 
     def header_and_size(self):
         """(stamp, frame_id, height, width): what comes before the fields."""
@@ -118,22 +120,25 @@ def decimate(cloud, max_points):
     row_bytes = width * step
     row_step = cloud.row_step or row_bytes
     if row_step < row_bytes or len(cloud.data) < row_step * (height - 1) + row_bytes:
-        raise CloudError(f"the cloud's data ({len(cloud.data)} bytes) is shorter than its {height}x{width} points "
-                         f"of {step} bytes (row_step {row_step})")
+        raise CloudError(
+            f"the cloud's data ({len(cloud.data)} bytes) is shorter than its {height}x{width} points "
+            f"of {step} bytes (row_step {row_step})"
+        )
     data = cloud.data
     if height > 1 and row_step != row_bytes:  # rows with padding: their points put end to end first
         data = _unpadded(data, height, row_bytes, row_step)
     stride = stride_for(total, max_points)
     kept = len(range(0, total, stride))
     third = third_field(cloud)
-    columns = [_column(data, by_name["x"], step, stride, kept, cloud.is_bigendian),
-               _column(data, by_name["y"], step, stride, kept, cloud.is_bigendian),
-               _column(data, by_name[third], step, stride, kept, cloud.is_bigendian) if third != "none"
-               else bytes(4 * kept)]
+    columns = [
+        _column(data, by_name["x"], step, stride, kept, cloud.is_bigendian),
+        _column(data, by_name["y"], step, stride, kept, cloud.is_bigendian),
+        _column(data, by_name[third], step, stride, kept, cloud.is_bigendian) if third != "none" else bytes(4 * kept),
+    ]
     out = bytearray(12 * kept)
     for i, column in enumerate(columns):
         for b in range(4):
-            out[4 * i + b::12] = column[b::4]
+            out[4 * i + b :: 12] = column[b::4]
     return bytes(out), kept, total, third
 
 
@@ -143,7 +148,7 @@ def _unpadded(data, height, row_bytes, row_step):
     one by one took 140 ms, 40 ms of it in one call that holds the GIL)."""
     view = memoryview(data).cast("B")
     if height <= row_bytes:
-        return b"".join(view[r * row_step:r * row_step + row_bytes] for r in range(height))
+        return b"".join(view[r * row_step : r * row_step + row_bytes] for r in range(height))
     out = bytearray(height * row_bytes)
     for b in range(row_bytes):
         out[b::row_bytes] = view[b::row_step][:height]
@@ -161,7 +166,7 @@ def _column(data, field, step, stride, kept, big_endian):
     every = step * stride
     raw = bytearray(size * kept)
     for b in range(size):  # byte b of each kept value
-        raw[b::size] = view[field.offset + b::every][:kept]
+        raw[b::size] = view[field.offset + b :: every][:kept]
     values = array(letter)
     values.frombytes(bytes(raw))
     if big_endian != (sys.byteorder == "big"):

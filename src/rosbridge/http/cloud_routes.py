@@ -25,6 +25,7 @@ Decimating is done off the loop (up to 0.4 s of CPU for a cloud of 300k padded r
 cloud.stride_for) wait for it and share it, the others wait for their own; a topic's next job is queued behind
 the other topics' jobs, so requests flooding one topic delay another by one job at most. What was made of each
 topic's newest cloud is kept, CACHE_BYTES in all (cloud.Answers)."""
+
 import asyncio
 import collections
 import functools
@@ -38,11 +39,11 @@ import tornado.ioloop
 import tornado.web
 
 from rosbridge import globs as globs_module
-from rosbridge.http.cloud import Answers, CloudError, decimate, point_count, read_cloud, stride_for
 from rosbridge.errors import ClientError
 from rosbridge.http.access import EndpointHandler, query_text, refusal
-from rosbridge.off_loop import EncodingThread
+from rosbridge.http.cloud import Answers, CloudError, decimate, point_count, read_cloud, stride_for
 from rosbridge.http.streams import WAIT_POLL, BadRequest, TopicTypes
+from rosbridge.off_loop import EncodingThread
 
 CLOUD = "sensor_msgs/PointCloud2"
 DEFAULT_POINTS, MAX_POINTS = 20000, 200000
@@ -115,8 +116,9 @@ class CloudTopic:
                 del self.wanted[key]
                 continue
             self.job = key
-            self.clouds.decimator.run(functools.partial(made_of, message, key[0], max_points),
-                                      functools.partial(self._made, key))
+            self.clouds.decimator.run(
+                functools.partial(made_of, message, key[0], max_points), functools.partial(self._made, key)
+            )
 
     def _made(self, key, made):
         """On the loop: `made`, what made_of returned (None: a bug, logged)."""
@@ -126,8 +128,11 @@ class CloudTopic:
         if made is None:
             made = tornado.web.HTTPError(500, "decimating %s failed (a bug, logged)", self.topic)
         elif seq == self.seq and not self.is_closed:
-            size = ANSWER_BYTES + (len(str(made)) if isinstance(made, CloudError) else
-                                   len(made[1]) + sum(len(k) + len(v) for k, v in made[0].items()))
+            size = ANSWER_BYTES + (
+                len(str(made))
+                if isinstance(made, CloudError)
+                else len(made[1]) + sum(len(k) + len(v) for k, v in made[0].items())
+            )
             self.clouds.answers.put(self.topic, stride, made, size)
         for future in futures:
             _settle(future, made)
@@ -162,9 +167,14 @@ def made_of(message, seq, max_points):
         body, kept, total, third = decimate(cloud, max_points)
     except CloudError as error:
         return error
-    return {"X-Seq": str(seq), "X-Points": str(kept), "X-Points-Total": str(total), "X-Third": third,
-            "X-Frame-Id": urllib.parse.quote(cloud.frame_id),
-            "X-Timestamp": f"{cloud.stamp or message.stamp:.6f}"}, body
+    return {
+        "X-Seq": str(seq),
+        "X-Points": str(kept),
+        "X-Points-Total": str(total),
+        "X-Third": third,
+        "X-Frame-Id": urllib.parse.quote(cloud.frame_id),
+        "X-Timestamp": f"{cloud.stamp or message.stamp:.6f}",
+    }, body
 
 
 def _wake_all(futures):
@@ -223,10 +233,15 @@ class Clouds:
         if found is None:
             if len(self.topics) >= MAX_TOPICS:
                 watched = ", ".join(sorted(self.topics))
-                self.bridge.log_refusal("cloud max topics", f"Refused the point cloud {topic}: {MAX_TOPICS} "
-                                        f"topics watched already ({watched})")
-                raise BadRequest(503, f"too many point cloud topics watched at once (at most {MAX_TOPICS}: "
-                                      f"{watched}); each is let go {LINGER:g} s after its last request")
+                self.bridge.log_refusal(
+                    "cloud max topics",
+                    f"Refused the point cloud {topic}: {MAX_TOPICS} topics watched already ({watched})",
+                )
+                raise BadRequest(
+                    503,
+                    f"too many point cloud topics watched at once (at most {MAX_TOPICS}: "
+                    f"{watched}); each is let go {LINGER:g} s after its last request",
+                )
             found = CloudTopic(self, topic)
             try:
                 self.backend.subscribe(found, topic, CLOUD)
@@ -275,7 +290,7 @@ class CloudHandler(EndpointHandler):
         if not topic:
             raise ValueError(f"topic must be a ROS topic name, e.g. ?topic=/points (got {name!r})")
         numbers = []
-        for key, default, low, high in (("max_points", DEFAULT_POINTS, 1, MAX_POINTS), ("after", 0, 0, 2 ** 62)):
+        for key, default, low, high in (("max_points", DEFAULT_POINTS, 1, MAX_POINTS), ("after", 0, 0, 2**62)):
             text = query_text(args, key)
             try:
                 value = default if text in (None, "") else int(text)

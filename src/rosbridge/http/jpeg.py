@@ -13,6 +13,7 @@
 
 Decoding and encoding (Picture) is CPU work: streams.py runs it on its encoder thread and says how frames get
 there. Everything else here is cheap and runs on the event loop."""
+
 import io
 import math
 import struct
@@ -26,8 +27,13 @@ IMAGE_TYPES = (IMAGE, COMPRESSED)
 # sensor_msgs/Image encodings made RGB or grey as they are: encoding -> (Pillow mode, its raw mode, bytes a pixel).
 # 8UC3 and 8UC4 are OpenCV's BGR order, as cv_bridge reads them.
 _DIRECT = {
-    "rgb8": ("RGB", "RGB", 3), "bgr8": ("RGB", "BGR", 3), "rgba8": ("RGB", "RGBX", 4),
-    "bgra8": ("RGB", "BGRX", 4), "mono8": ("L", "L", 1), "8UC1": ("L", "L", 1), "8UC3": ("RGB", "BGR", 3),
+    "rgb8": ("RGB", "RGB", 3),
+    "bgr8": ("RGB", "BGR", 3),
+    "rgba8": ("RGB", "RGBX", 4),
+    "bgra8": ("RGB", "BGRX", 4),
+    "mono8": ("L", "L", 1),
+    "8UC1": ("L", "L", 1),
+    "8UC3": ("RGB", "BGR", 3),
     "8UC4": ("RGB", "BGRX", 4),
 }
 # One channel of more than 8 bits, made grey: mono16 scaled from its full range (as cv_bridge and web_video_server
@@ -54,6 +60,7 @@ class UnsupportedEncoding(ImageError):
 class RawImage:
     """A sensor_msgs/Image read in place. stamp: its header stamp in seconds (0.0 when unset); pixels: a
     memoryview of its data."""
+
     __slots__ = ("stamp", "width", "height", "encoding", "bigendian", "step", "pixels")
 
     def __init__(self, stamp, width, height, encoding, bigendian, step, pixels):
@@ -68,6 +75,7 @@ class RawImage:
 class CompressedFrame:
     """A sensor_msgs/CompressedImage read in place: stamp as RawImage's, format (e.g. "jpeg", or image_transport's
     "bgr8; jpeg compressed bgr8"), data: a memoryview of the picture file."""
+
     __slots__ = ("stamp", "format", "data", "_size")
 
     def __init__(self, stamp, format, data):
@@ -87,6 +95,7 @@ class CompressedFrame:
 
 class _Reader:
     """Reads ROS serialization (little-endian) from a memoryview, refusing truncated messages."""
+
     __slots__ = ("view", "at")
 
     def __init__(self, data):
@@ -104,7 +113,7 @@ class _Reader:
         (length,) = self.take("<I")
         if self.at + length > len(self.view):
             raise ImageError("the message is truncated")
-        part = self.view[self.at:self.at + length]
+        part = self.view[self.at : self.at + length]
         self.at += length
         return part
 
@@ -190,13 +199,12 @@ def decode_raw(frame):
         raise ImageError(f"step {step} is less than width {width} x {depth} bytes ({encoding})")
     if len(frame.pixels) < step * height:
         raise ImageError(f"data holds {len(frame.pixels)} bytes, less than step x height = {step * height}")
-    pixels = frame.pixels[:step * height].tobytes()  # (Pillow's decoders take bytes, not a view; unpacked: a copy)
+    pixels = frame.pixels[: step * height].tobytes()  # (Pillow's decoders take bytes, not a view; unpacked: a copy)
     if direct:
         mode, raw_mode, _ = direct
         return Image.frombytes(mode, (width, height), pixels, "raw", raw_mode, step, 1)
     if encoding == "32FC1":
-        image = Image.frombytes("F", (width, height), pixels, "raw", "F;32BF" if frame.bigendian else "F;32F",
-                                step, 1)
+        image = Image.frombytes("F", (width, height), pixels, "raw", "F;32BF" if frame.bigendian else "F;32F", step, 1)
         image = _finite_or_zero(image)
         _, top = image.getextrema()
     else:
@@ -240,6 +248,7 @@ def decode_compressed(frame, at_least=None):
 class Picture:
     """One frame, decoded once for every JPEG made of it. Not thread-safe: one thread at a time (streams.py's
     encoder) may use it."""
+
     __slots__ = ("frame", "_image", "_decoded_for", "_resized")
 
     def __init__(self, frame):
@@ -257,8 +266,10 @@ class Picture:
             if self._image is None:
                 self._image = decode_raw(frame)
             return self._image
-        if self._image is None or (self._decoded_for is not None and (
-                at_least is None or at_least[0] > self._decoded_for[0] or at_least[1] > self._decoded_for[1])):
+        if self._image is None or (
+            self._decoded_for is not None
+            and (at_least is None or at_least[0] > self._decoded_for[0] or at_least[1] > self._decoded_for[1])
+        ):
             self._image = self._resized = None  # (the old one freed before the new one is made)
             self._image = decode_compressed(frame, at_least)
             self._decoded_for = at_least
@@ -269,8 +280,10 @@ class Picture:
         averaging (a box filter: OpenCV's INTER_AREA, and a third cheaper than bilinear here), enlarged
         bilinearly."""
         if max(size) > MAX_SIDE or size[0] * size[1] > MAX_OUTPUT_PIXELS:
-            raise ImageError(f"{size[0]}x{size[1]} is larger than a picture is sent ({MAX_SIDE} px a side, "
-                             f"{MAX_OUTPUT_PIXELS} px in all)")
+            raise ImageError(
+                f"{size[0]}x{size[1]} is larger than a picture is sent ({MAX_SIDE} px a side, "
+                f"{MAX_OUTPUT_PIXELS} px in all)"
+            )
         image = self.image(size)
         if image.size == size:
             return image
@@ -330,6 +343,7 @@ class Adaptation:
       each time (at most MAX_HOLD), so that a link just too narrow for it is not probed every two seconds; a level
       kept for SETTLED seconds is tried again after UP_AFTER.
     Reports of frames encoded at another level than the current one (sent before the last step) are ignored."""
+
     DOWN_SHARE = 0.8
     UP_SHARE = 0.35
     UP_AFTER = 2.0
@@ -382,6 +396,7 @@ class Adaptation:
 
 class FrameInterval:
     """A topic's interval between frames (seconds), smoothed over the last few arrivals; None until two came."""
+
     SMOOTHING = 0.2
     SHORTEST, LONGEST = 1 / 240, 10.0
 

@@ -33,6 +33,7 @@ Threads (everything runs on the event loop but the encoding):
   whatever sizes they ask, take at most the encoder's one core;
 - master look-ups (a topic's type, the image topics) are the backend's /rosapi/topics call, on one of its
   service-call threads; the reply comes back on the loop (TopicTypes shares one look-up between requests)."""
+
 import functools
 import html
 import json
@@ -46,9 +47,8 @@ import tornado.iostream
 import tornado.web
 
 from rosbridge import globs as globs_module
-from rosbridge.http import access
-from rosbridge.http import jpeg
 from rosbridge.errors import ClientError, log_bug
+from rosbridge.http import access, jpeg
 from rosbridge.off_loop import EncodingThread
 from rosbridge.origins import SECURITY_HEADERS
 from rosbridge.transport.unsent import limit_unsent
@@ -85,6 +85,7 @@ class StreamRequest:
     """What a /stream, /snapshot or /stream_viewer request asks (web_video_server's query parameters, plus
     adaptive). quality is None when not given; width and height 0 when not given (or -1, web_video_server's
     "as the source")."""
+
     __slots__ = ("topic", "type", "width", "height", "quality", "invert", "adaptive", "transport")
 
     def __init__(self, args):
@@ -93,10 +94,14 @@ class StreamRequest:
             raise BadRequest(400, "topic is required, e.g. ?topic=/camera/image_raw")
         self.type = _text(args, "type") or "mjpeg"
         if self.type not in STREAM_TYPES:
-            video = " (web_video_server's video codecs are not offered by this bridge)" \
-                if self.type in ("vp8", "vp9", "h264", "png") else ""
-            raise BadRequest(400, f"stream type {self.type!r} is not supported{video}: use type=mjpeg "
-                                  f"(or ros_compressed)")
+            video = (
+                " (web_video_server's video codecs are not offered by this bridge)"
+                if self.type in ("vp8", "vp9", "h264", "png")
+                else ""
+            )
+            raise BadRequest(
+                400, f"stream type {self.type!r} is not supported{video}: use type=mjpeg (or ros_compressed)"
+            )
         self.width = _integer(args, "width", 0, jpeg.MAX_SIDE)
         self.height = _integer(args, "height", 0, jpeg.MAX_SIDE)
         self.quality = _integer(args, "quality", 1, 100, default=None)
@@ -146,6 +151,7 @@ def _flag(args, name, absent, bare):
 class Source:
     """The topic a viewer's frames come from: its name and type, and pass: "any" to send a CompressedImage's JPEG or
     PNG as it is (type=ros_compressed), "jpeg" to send its JPEG as it is (nothing resized), None to make JPEGs."""
+
     __slots__ = ("topic", "type", "pass_mode")
 
     def __init__(self, topic, type_name, pass_mode=None):
@@ -176,6 +182,7 @@ def choose_source(request, topic, types):
 class TopicTypes:
     """The allowed topics' types, from the backend's /rosapi/topics (filtered by topics_glob), asked at most once
     per TYPES_MAX_AGE; the requests that come while a look-up runs share it. It is the look-ups' backend.Client."""
+
     is_closed = False
 
     def __init__(self, backend):
@@ -226,6 +233,7 @@ class Frame:
     """One message of a topic, and what was made of it for its viewers (on the loop): variants, key -> (content
     type, bytes) or the jpeg.ImageError that making it raised, oldest first, at most MAX_VARIANT_BYTES of them
     (trim)."""
+
     __slots__ = ("seq", "type", "message", "variants", "picture", "_read")
 
     def __init__(self, seq, type_name, message):
@@ -273,10 +281,12 @@ class Encoder:
 
     def submit(self, picture, keys, done):
         """done(results) runs on the loop: key -> ("image/jpeg", bytes) or jpeg.ImageError."""
+
         def finished(results):
             if results is None:  # a bug (logged): the viewers are told, and the topic's next job can start
                 results = {key: jpeg.ImageError("the frame could not be encoded") for key in keys}
             done(results)
+
         self._thread.run(functools.partial(_encode, picture, keys), finished)
 
 
@@ -452,8 +462,7 @@ class Viewer:
             self.adaptation = jpeg.Adaptation(len(self.ladder))
         self._level = 0  # the level of the last key asked
         self._poll = None
-        self._expiry = None if until is None else streams.loop.call_later(max(0.0, until - time.time()),
-                                                                           self._expired)
+        self._expiry = None if until is None else streams.loop.call_later(max(0.0, until - time.time()), self._expired)
         streams.viewers.add(self)
 
     def _expired(self):
@@ -557,8 +566,9 @@ class StreamViewer(Viewer):
         try:
             limit_unsent(stream.socket)
             stream.set_nodelay(True)
-            stream.write(_head(f"multipart/x-mixed-replace;boundary={BOUNDARY}", extra_headers)
-                         + f"--{BOUNDARY}\r\n".encode())
+            stream.write(
+                _head(f"multipart/x-mixed-replace;boundary={BOUNDARY}", extra_headers) + f"--{BOUNDARY}\r\n".encode()
+            )
         except tornado.iostream.StreamClosedError:
             self.end()
             return
@@ -600,8 +610,9 @@ class StreamViewer(Viewer):
         if self.ended or self._writing is not None:
             return
         if isinstance(made, jpeg.ImageError):
-            self.streams.bridge.log_refusal(("stream frame", self.topic.topic),
-                                            f"camera stream of {self.topic.topic}: {made}")
+            self.streams.bridge.log_refusal(
+                ("stream frame", self.topic.topic), f"camera stream of {self.topic.topic}: {made}"
+            )
             self.fail(415, f"{self.topic.topic}: {made}")
             return
         content_type, data = made
@@ -609,8 +620,9 @@ class StreamViewer(Viewer):
             self.streams.wait_for_room(self, len(data))
             return
         self.sent_seq = frame.seq
-        head = (f"Content-Type: {content_type}\r\nContent-Length: {len(data)}\r\n"
-                f"X-Timestamp: {frame.stamp:.6f}\r\n\r\n").encode()
+        head = (
+            f"Content-Type: {content_type}\r\nContent-Length: {len(data)}\r\nX-Timestamp: {frame.stamp:.6f}\r\n\r\n"
+        ).encode()
         stream = self._stream
         try:
             stream.write(head)
@@ -642,8 +654,11 @@ class StreamViewer(Viewer):
             return
         self._leave()
         body = f"{text}\n".encode()
-        part = (f"Content-Type: text/plain; charset=UTF-8\r\nContent-Length: {len(body)}\r\n\r\n".encode() + body
-                + f"\r\n--{BOUNDARY}--\r\n".encode())
+        part = (
+            f"Content-Type: text/plain; charset=UTF-8\r\nContent-Length: {len(body)}\r\n\r\n".encode()
+            + body
+            + f"\r\n--{BOUNDARY}--\r\n".encode()
+        )
         if self._writing is None:  # (counted as a picture is: dropped if it does not leave)
             self.streams.sending.start(self, part, time.monotonic())
         try:
@@ -680,8 +695,11 @@ class SnapshotViewer(Viewer):
             return
         content_type, data = made
         if not self.streams.make_room(self, data):
-            self.fail(503, f"the pictures being sent to camera viewers are at the bridge's bound "
-                           f"({MAX_SENDING_BYTES >> 20} MB): try again")
+            self.fail(
+                503,
+                f"the pictures being sent to camera viewers are at the bridge's bound "
+                f"({MAX_SENDING_BYTES >> 20} MB): try again",
+            )
             return
         self.sent_seq = frame.seq
         self._stop_timer()
@@ -713,8 +731,11 @@ class SnapshotViewer(Viewer):
             self._timer = self.streams.loop.call_later(SNAPSHOT_GRACE, self._timed_out)
             self.topic.want(self)
             return
-        what = f"no frame from {self.topic_name} within {SNAPSHOT_TIMEOUT:g} s" if self.topic is not None else \
-            f"nobody publishes {self.topic_name} (waited {SNAPSHOT_TIMEOUT:g} s)"
+        what = (
+            f"no frame from {self.topic_name} within {SNAPSHOT_TIMEOUT:g} s"
+            if self.topic is not None
+            else f"nobody publishes {self.topic_name} (waited {SNAPSHOT_TIMEOUT:g} s)"
+        )
         self.fail(504, what)
 
     def _stop_timer(self):
@@ -738,9 +759,15 @@ class SnapshotViewer(Viewer):
 def _head(content_type, headers):
     """The head of a 200 answer written on a detached connection (closed after it): never cached, the page's security
     headers, and `headers`, (name, value) pairs."""
-    lines = ["HTTP/1.1 200 OK", "Connection: close", "Server: rosbridge_websocket", f"Cache-Control: {NO_CACHE}",
-             "Pragma: no-cache", f"Content-Type: {content_type}",
-             *(f"{name}: {value}" for name, value in (*SECURITY_HEADERS.items(), *headers))]
+    lines = [
+        "HTTP/1.1 200 OK",
+        "Connection: close",
+        "Server: rosbridge_websocket",
+        f"Cache-Control: {NO_CACHE}",
+        "Pragma: no-cache",
+        f"Content-Type: {content_type}",
+        *(f"{name}: {value}" for name, value in (*SECURITY_HEADERS.items(), *headers)),
+    ]
     return ("\r\n".join(lines) + "\r\n\r\n").encode()
 
 
@@ -781,14 +808,20 @@ class Streams:
         now = time.monotonic()
         crowd = self.sending.crowding(data, now)
         if crowd is None:
-            self.bridge.log_refusal("stream room", f"a camera picture of {len(data)} bytes waits or is refused: "
-                                    f"{self.sending.used} bytes are being sent to camera viewers (at most "
-                                    f"{MAX_SENDING_BYTES})")
+            self.bridge.log_refusal(
+                "stream room",
+                f"a camera picture of {len(data)} bytes waits or is refused: "
+                f"{self.sending.used} bytes are being sent to camera viewers (at most "
+                f"{MAX_SENDING_BYTES})",
+            )
             return False
         if crowd:
-            self.bridge.log_refusal("stream crowded", f"dropped {len(crowd)} camera viewer(s) whose picture had not "
-                                    f"left for {CROWDED_STALL:g} s: the pictures being sent reached {MAX_SENDING_BYTES}"
-                                    " bytes")
+            self.bridge.log_refusal(
+                "stream crowded",
+                f"dropped {len(crowd)} camera viewer(s) whose picture had not "
+                f"left for {CROWDED_STALL:g} s: the pictures being sent reached {MAX_SENDING_BYTES}"
+                " bytes",
+            )
         for stalled in crowd:
             stalled.end()
         self.sending.start(viewer, data, now)
@@ -861,13 +894,15 @@ class Streams:
         limit = self.bridge.settings.max_clients
         if len(self.viewers) + self.pending < limit:
             return True
-        self.bridge.log_refusal("stream max_clients", f"a camera stream refused: {len(self.viewers)} viewers "
-                                f"(max_clients {limit})")
+        self.bridge.log_refusal(
+            "stream max_clients", f"a camera stream refused: {len(self.viewers)} viewers (max_clients {limit})"
+        )
         return False
 
     # ---- topics
     def find_source(self, request, topic, callback):
         """callback(Source or None (not published yet), None) or callback(None, BadRequest), on the loop."""
+
         def answered(types, error):
             if error is not None:
                 callback(None, BadRequest(503, f"cannot ask the ROS master about {topic}: {error}"))
@@ -878,6 +913,7 @@ class Streams:
                 callback(None, refused)
                 return
             callback(source, None)
+
         self.types.get(answered)
 
     def topic_of(self, source):
@@ -941,8 +977,11 @@ class _Handler(access.EndpointHandler):
         future = tornado.concurrent.Future()
         self.streams.pending += 1
         try:
-            self.streams.find_source(request, topic, lambda source, error: future.set_exception(error)
-                                     if error is not None else future.set_result(source))
+            self.streams.find_source(
+                request,
+                topic,
+                lambda source, error: future.set_exception(error) if error is not None else future.set_result(source),
+            )
             return await future
         finally:
             self.streams.pending -= 1
@@ -957,8 +996,14 @@ class StreamHandler(_Handler):
         if found is None:
             return
         request, topic, source = found
-        viewer = StreamViewer(self.streams, request, topic, self.streams.auth_end(self.request), self.detach(),
-                              self.allowed_origin_headers())
+        viewer = StreamViewer(
+            self.streams,
+            request,
+            topic,
+            self.streams.auth_end(self.request),
+            self.detach(),
+            self.allowed_origin_headers(),
+        )
         viewer.find(source)
 
 
@@ -998,8 +1043,10 @@ class StreamViewerPage(_Handler):
         query = html.escape(self.request.query, quote=True)
         title = html.escape(topic)
         self.set_header("Content-Type", "text/html; charset=UTF-8")
-        self.finish(f"<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>{title}</title></head><body>"
-                    f"<h1>{title}</h1><img src=\"stream?{query}\" alt=\"{title}\"></body></html>")
+        self.finish(
+            f'<!DOCTYPE html><html><head><meta charset="utf-8"><title>{title}</title></head><body>'
+            f'<h1>{title}</h1><img src="stream?{query}" alt="{title}"></body></html>'
+        )
 
 
 class StreamListHandler(_Handler):
@@ -1028,22 +1075,33 @@ class StreamListHandler(_Handler):
             self.set_header("Content-Type", "application/json")
             self.finish(json.dumps({"topics": [{"topic": topic, "type": kind} for topic, kind in images]}))
             return
-        auth = "".join(f"&{name}={urllib.parse.quote(_text(self.request.query_arguments, name) or '')}"
-                       for name in access.AUTH_FIELDS if self.streams.bridge.config.authenticate)
+        auth = "".join(
+            f"&{name}={urllib.parse.quote(_text(self.request.query_arguments, name) or '')}"
+            for name in access.AUTH_FIELDS
+            if self.streams.bridge.config.authenticate
+        )
         items = []
         for topic, kind in images:
             query = html.escape(f"topic={urllib.parse.quote(topic)}{auth}", quote=True)
             name = html.escape(topic)
-            items.append(f"<li><a href=\"stream_viewer?{query}\">{name}</a> ({html.escape(kind)}) "
-                         f"(<a href=\"stream?{query}\">Stream</a>) (<a href=\"snapshot?{query}\">Snapshot</a>)</li>")
+            items.append(
+                f'<li><a href="stream_viewer?{query}">{name}</a> ({html.escape(kind)}) '
+                f'(<a href="stream?{query}">Stream</a>) (<a href="snapshot?{query}">Snapshot</a>)</li>'
+            )
         self.set_header("Content-Type", "text/html; charset=UTF-8")
-        self.finish("<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>ROS Image Topic List</title></head>"
-                    "<body><h1>Available ROS Image Topics:</h1><ul>" + "".join(items) + "</ul></body></html>")
+        self.finish(
+            '<!DOCTYPE html><html><head><meta charset="utf-8"><title>ROS Image Topic List</title></head>'
+            "<body><h1>Available ROS Image Topics:</h1><ul>" + "".join(items) + "</ul></body></html>"
+        )
 
 
 def stream_routes(bridge):
     """The stream endpoints' routes (server.routes puts them before the page's files)."""
     streams = Streams(bridge)
     options = {"streams": streams}
-    return [(r"/stream", StreamHandler, options), (r"/snapshot", SnapshotHandler, options),
-            (r"/stream_viewer", StreamViewerPage, options), (r"/streams", StreamListHandler, options)]
+    return [
+        (r"/stream", StreamHandler, options),
+        (r"/snapshot", SnapshotHandler, options),
+        (r"/stream_viewer", StreamViewerPage, options),
+        (r"/streams", StreamListHandler, options),
+    ]

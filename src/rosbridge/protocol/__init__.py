@@ -4,6 +4,7 @@ what the transport and the node use; the details are the modules beside it:
 - reassembly.py: fragment and png ops in; subscription.py: merging and throttling a client's subscriptions;
 - encoded.py: what goes out, each message encoded once for every client; outbox.py: a client's Outbox (small
   before big, each topic fresh while its socket is backed up, bounded)."""
+
 from rosbridge.protocol.session import AUTH_TIMEOUT, Config, Session
 
 __all__ = ["AUTH_TIMEOUT", "Config", "Session"]

@@ -1,6 +1,7 @@
 """What the bridge sends: frames ready for the socket, each encoded once for every client it goes to (and deflated
 once per window size for every client it goes to compressed: transport/slow_link.deflated_payload keeps those on
 the frame)."""
+
 import itertools
 
 from rosbridge.codec import cbor, wrapping
@@ -13,6 +14,7 @@ COMPRESSIONS = ("none", "png", "cbor", "cbor-raw")
 
 class Utf8Text(bytes):
     """A text frame already encoded to UTF-8, so that it is encoded once for all the clients it goes to."""
+
     deflated = None  # (no __slots__: a frame may keep its deflated payloads, see transport/slow_link.deflated_payload)
 
 
@@ -20,6 +22,7 @@ class SplicedFrame:
     """A frame whose payload is `parts` (bytes) one after another, written to the socket by reference: the big
     parts (an image's data, or its base64) are never copied into a frame of their own. text: UTF-8 text, else
     binary."""
+
     __slots__ = ("parts", "text", "_size", "deflated")
 
     def __init__(self, parts, text):
@@ -72,6 +75,7 @@ class TopicMessage:
     """One ROS message from a topic, as rospy received it (msg_class: its genpy class; data: its serialized bytes),
     encoded lazily and at most once per encoding for all its subscribers. stamp: its receipt time in seconds (sent
     with cbor-raw). A big one (`big`) is encoded off the loop: frames_later."""
+
     __slots__ = ("topic", "msg_class", "data", "stamp", "_json", "_frames", "_waiting")
 
     def __init__(self, topic, msg_class, data, stamp):

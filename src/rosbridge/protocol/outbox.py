@@ -1,5 +1,6 @@
 """What waits for a client's socket: its Outbox (protocol.Session's), whole messages, small before big, each topic
 kept fresh while the socket is backed up, bounded per client and for all clients together (QueuePool)."""
+
 import collections
 
 SMALL_MESSAGE = 1 << 16  # bytes: a message smaller than this goes before the big ones that have not started yet
@@ -11,6 +12,7 @@ FRESH_HORIZON = 0.5  # ...and for how long (s): older messages of a topic that h
 
 class _Unit:
     """One message's frames (its fragments, or its one frame) waiting for the socket."""
+
     __slots__ = ("key", "frames", "size", "queued_at", "big")
 
     def __init__(self, key, frames, size, queued_at, big):
@@ -107,8 +109,9 @@ class Outbox:
                 self._bound(None)
 
     def _freshen(self, key, waiting, now):
-        while len(waiting) > 1 and (self._key_bytes[key] > TOPIC_BACKLOG_BYTES
-                                    or now - waiting[0].queued_at > FRESH_HORIZON):
+        while len(waiting) > 1 and (
+            self._key_bytes[key] > TOPIC_BACKLOG_BYTES or now - waiting[0].queued_at > FRESH_HORIZON
+        ):
             self._remove(waiting.popleft())
             self.skipped[key] += 1
 

@@ -1,4 +1,5 @@
 """Incoming messages that arrive in pieces: `fragment` ops put back together, and `png` ops unpacked. Pure."""
+
 import base64
 import io
 
@@ -18,6 +19,7 @@ class Fragments:
     of every client together): a part that would go beyond it is refused, its message dropped; and when another
     client's message needs the room and came faster, all of them are dropped (evict) and evicted(count) says
     how many."""
+
     MAX_SETS = 100
 
     def __init__(self, max_bytes, timeout, shared=None, evicted=None):
@@ -44,8 +46,10 @@ class Fragments:
             raise RequestError(f"fragment {frag_id!r}: reassembled message over max_message_size ({limit} bytes)")
         if self._shared is not None and not self._shared.hold(self, self.bytes + growth):
             self._drop(frag_id)
-            raise RequestError(f"fragment {frag_id!r}: dropped, the unfinished messages of all clients are at their "
-                               f"bound ({self._shared.limit} bytes): try again later")
+            raise RequestError(
+                f"fragment {frag_id!r}: dropped, the unfinished messages of all clients are at their "
+                f"bound ({self._shared.limit} bytes): try again later"
+            )
         self.bytes += growth
         entry[1][num] = data
         if len(entry[1]) < total:

@@ -3,7 +3,9 @@ state (subscriptions, authentication, status level) and call the ROS side throug
 contract. Pure: no rospy, no tornado; the server gives it a clock, a timer and a wake-up.
 
 The jobs around it have rooms of their own: reassembly.py (fragment and png ops), subscription.py (merging and
-throttling), protocol/outbox.py (the outbox: whole messages, small first, fresh on a slow link), protocol/encoded.py (encoding what goes out), auth.py (rosauth)."""
+throttling), outbox.py (the outbox: whole messages, small first, fresh on a slow link), encoded.py (encoding what
+goes out), and ../auth.py (rosauth)."""
+
 import collections
 import functools
 import json
@@ -25,8 +27,9 @@ STATUS_LEVELS = ("info", "warning", "error", "none")
 LATER_REFUSALS = {"subscribe": "topic", "advertise": "topic", "publish": "topic", "advertise_service": "service"}
 # ops whose ROS side may still be under way (off the loop) when they return: the client's next requests wait for
 # it, so that e.g. a call of a service it just advertised finds the service
-ORDERED_OPS = frozenset(("advertise", "unadvertise", "subscribe", "unsubscribe", "advertise_service",
-                         "unadvertise_service"))
+ORDERED_OPS = frozenset(
+    ("advertise", "unadvertise", "subscribe", "unsubscribe", "advertise_service", "unadvertise_service")
+)
 LARGEST_INT = 2**63 - 1  # the widest integer ROS has (int64/uint64 aside); any count or time fits
 AUTH_TIMEOUT = 10.0  # s: with authenticate, a client that has not authenticated by then is closed
 
@@ -34,8 +37,15 @@ AUTH_TIMEOUT = 10.0  # s: with authenticate, a client that has not authenticated
 class Config:
     """The settings the protocol needs, taken from the server's Settings (settings.py says what each means);
     keyword arguments override single ones (the unit tests')."""
-    FROM_SETTINGS = ("max_message_size", "fragment_timeout", "max_queue", "authenticate", "auth_time_delta",
-                     "max_topics_per_client")
+
+    FROM_SETTINGS = (
+        "max_message_size",
+        "fragment_timeout",
+        "max_queue",
+        "authenticate",
+        "auth_time_delta",
+        "max_topics_per_client",
+    )
 
     def __init__(self, current=None, globs=None, auth_secret=None, **overrides):
         current = current or settings.Settings()
@@ -64,38 +74,73 @@ ID = ((str, int, float), "a string or a number")
 ANY = ((object,), "any value")
 
 REQUIRED, OPTIONAL = True, False
-OPS = {
-    "advertise": {"topic": (STRING, REQUIRED), "type": (STRING, REQUIRED), "id": (ID, OPTIONAL),
-                  "latch": (BOOL, OPTIONAL), "queue_size": (INT, OPTIONAL)},
+FieldKind = tuple[tuple[type, ...], str]  # (the JSON-decoded types a field may have, how the client is told)
+OPS: dict[str, dict[str, tuple[FieldKind, bool]]] = {
+    "advertise": {
+        "topic": (STRING, REQUIRED),
+        "type": (STRING, REQUIRED),
+        "id": (ID, OPTIONAL),
+        "latch": (BOOL, OPTIONAL),
+        "queue_size": (INT, OPTIONAL),
+    },
     "unadvertise": {"topic": (STRING, REQUIRED), "id": (ID, OPTIONAL)},
-    "publish": {"topic": (STRING, REQUIRED), "msg": (OBJECT, REQUIRED), "id": (ID, OPTIONAL),
-                "latch": (BOOL, OPTIONAL), "queue_size": (INT, OPTIONAL)},
-    "subscribe": {"topic": (STRING, REQUIRED), "id": (ID, OPTIONAL), "type": (STRING, OPTIONAL),
-                  "throttle_rate": (NUMBER, OPTIONAL), "queue_length": (INT, OPTIONAL),
-                  "fragment_size": (INT, OPTIONAL), "compression": (STRING, OPTIONAL)},
+    "publish": {
+        "topic": (STRING, REQUIRED),
+        "msg": (OBJECT, REQUIRED),
+        "id": (ID, OPTIONAL),
+        "latch": (BOOL, OPTIONAL),
+        "queue_size": (INT, OPTIONAL),
+    },
+    "subscribe": {
+        "topic": (STRING, REQUIRED),
+        "id": (ID, OPTIONAL),
+        "type": (STRING, OPTIONAL),
+        "throttle_rate": (NUMBER, OPTIONAL),
+        "queue_length": (INT, OPTIONAL),
+        "fragment_size": (INT, OPTIONAL),
+        "compression": (STRING, OPTIONAL),
+    },
     "unsubscribe": {"topic": (STRING, REQUIRED), "id": (ID, OPTIONAL)},
-    "call_service": {"service": (STRING, REQUIRED), "id": (ID, OPTIONAL), "args": (ARGS, OPTIONAL),
-                     "type": (STRING, OPTIONAL), "fragment_size": (INT, OPTIONAL),
-                     "compression": (STRING, OPTIONAL), "timeout": (NUMBER, OPTIONAL)},
+    "call_service": {
+        "service": (STRING, REQUIRED),
+        "id": (ID, OPTIONAL),
+        "args": (ARGS, OPTIONAL),
+        "type": (STRING, OPTIONAL),
+        "fragment_size": (INT, OPTIONAL),
+        "compression": (STRING, OPTIONAL),
+        "timeout": (NUMBER, OPTIONAL),
+    },
     "advertise_service": {"service": (STRING, REQUIRED), "type": (STRING, REQUIRED), "id": (ID, OPTIONAL)},
     "unadvertise_service": {"service": (STRING, REQUIRED), "id": (ID, OPTIONAL)},
-    "service_response": {"service": (STRING, REQUIRED), "result": (BOOL, REQUIRED), "id": (ID, OPTIONAL),
-                         "values": (ANY, OPTIONAL)},
-    "fragment": {"id": (ID, REQUIRED), "data": (STRING, REQUIRED), "num": (INT, REQUIRED),
-                 "total": (INT, REQUIRED)},
+    "service_response": {
+        "service": (STRING, REQUIRED),
+        "result": (BOOL, REQUIRED),
+        "id": (ID, OPTIONAL),
+        "values": (ANY, OPTIONAL),
+    },
+    "fragment": {"id": (ID, REQUIRED), "data": (STRING, REQUIRED), "num": (INT, REQUIRED), "total": (INT, REQUIRED)},
     "png": {"data": (STRING, REQUIRED), "id": (ID, OPTIONAL), "num": (INT, OPTIONAL), "total": (INT, OPTIONAL)},
-    "auth": {"mac": (STRING, REQUIRED), "client": (STRING, REQUIRED), "dest": (STRING, REQUIRED),
-             "rand": (STRING, REQUIRED), "t": (NUMBER, REQUIRED), "level": (STRING, REQUIRED),
-             "end": (NUMBER, REQUIRED)},
+    "auth": {
+        "mac": (STRING, REQUIRED),
+        "client": (STRING, REQUIRED),
+        "dest": (STRING, REQUIRED),
+        "rand": (STRING, REQUIRED),
+        "t": (NUMBER, REQUIRED),
+        "level": (STRING, REQUIRED),
+        "end": (NUMBER, REQUIRED),
+    },
     "set_level": {"level": (STRING, REQUIRED), "id": (ID, OPTIONAL)},
 }
 
 
 # per op: ({field: (exact JSON-decoded types, type text)}, required field names), for a fast check_fields
 _FIELD_CHECKS = {
-    op: ({name: (frozenset(types) if types != (object,) else None, text) for name, ((types, text), _) in
-          fields.items()}, tuple(name for name, (_, required) in fields.items() if required))
-    for op, fields in OPS.items()}
+    op: (
+        {name: (frozenset(types) if types != (object,) else None, text) for name, ((types, text), _) in fields.items()},
+        tuple(name for name, (_, required) in fields.items() if required),
+    )
+    for op, fields in OPS.items()
+}
 
 
 def check_fields(op, request):
@@ -129,8 +174,20 @@ class Session:
     still under way, the next ones are held (`holding` is true: the server stops reading the client meanwhile,
     so what is held stays small) and handled once it is done; then resume_reading() is called."""
 
-    def __init__(self, backend, config, clock, call_later, wake, close, name="client", resume_reading=None,
-                 off_loop=None, cancel_later=None, unfinished=None):
+    def __init__(
+        self,
+        backend,
+        config,
+        clock,
+        call_later,
+        wake,
+        close,
+        name="client",
+        resume_reading=None,
+        off_loop=None,
+        cancel_later=None,
+        unfinished=None,
+    ):
         self.backend, self.config, self.name = backend, config, name
         self._clock, self._call_later, self._wake, self._close = clock, call_later, wake, close
         self._cancel_later = cancel_later  # cancel_later(what call_later returned): a timer not run after all
@@ -149,8 +206,9 @@ class Session:
         self._reports = collections.deque()  # those status frames: they go first
         self._woken = False
         # its fragment ops' unfinished messages count with every client's (unfinished: a SharedBound, if given)
-        self._fragments = Fragments(config.max_message_size, config.fragment_timeout, unfinished,
-                                    self._fragments_made_way)
+        self._fragments = Fragments(
+            config.max_message_size, config.fragment_timeout, unfinished, self._fragments_made_way
+        )
         self._fragments_timer = None  # when the next unfinished fragmented message expires
 
     # ---- incoming -------------------------------------------------------------------------------
@@ -177,18 +235,26 @@ class Session:
         if self._held is not None:
             self._held.append((self.handle_binary, data))
             return
-        self.status("error", f"binary frame of {len(data)} bytes refused: rosbridge v2 clients send JSON text "
-                             "frames (binary frames are only sent by the server, for CBOR)")
+        self.status(
+            "error",
+            f"binary frame of {len(data)} bytes refused: rosbridge v2 clients send JSON text "
+            "frames (binary frames are only sent by the server, for CBOR)",
+        )
 
     def handle_request(self, request, depth=0):
         request_id = request.get("id") if isinstance(request, dict) else None
-        if not isinstance(request_id, ID[0]) or isinstance(request_id, bool) or (
-                isinstance(request_id, float) and not math.isfinite(request_id)):  # NaN/Infinity: not JSON
+        if (
+            not isinstance(request_id, ID[0])
+            or isinstance(request_id, bool)
+            or (isinstance(request_id, float) and not math.isfinite(request_id))
+        ):  # NaN/Infinity: not JSON
             request_id = None
         op = request.get("op") if isinstance(request, dict) else None
         try:
             if not isinstance(request, dict):
-                raise RequestError(f"a message must be a JSON object with an 'op' field, got {json.dumps(request)[:60]}")
+                raise RequestError(
+                    f"a message must be a JSON object with an 'op' field, got {json.dumps(request)[:60]}"
+                )
             if op is None:
                 raise RequestError("missing field 'op'")
             if not isinstance(op, str):
@@ -251,8 +317,9 @@ class Session:
     def _check_topic_count(self, topics, topic, what):
         limit = self.config.max_topics_per_client
         if topic not in topics and len(topics) >= limit:
-            raise RequestError(f"{what} {topic}: refused, this client already has {len(topics)} topics "
-                               f"(max_topics_per_client {limit})")
+            raise RequestError(
+                f"{what} {topic}: refused, this client already has {len(topics)} topics (max_topics_per_client {limit})"
+            )
 
     def _op_advertise(self, req, depth):
         topic = req["topic"]
@@ -288,10 +355,22 @@ class Session:
         subscription = self.subscriptions.get(topic)
         if subscription is None:
             subscription = self.subscriptions[topic] = Subscription(
-                functools.partial(self._queue, topic), self._clock, self._call_later, self.config.max_queue_bytes,
-                backlogged=lambda: len(self._outgoing) > 0, off_loop=self._off_loop)
-        subscription.add(req.get("id"), {"throttle_rate": throttle_rate, "queue_length": queue_length,
-                                         "fragment_size": fragment_size, "compression": compression})
+                functools.partial(self._queue, topic),
+                self._clock,
+                self._call_later,
+                self.config.max_queue_bytes,
+                backlogged=lambda: len(self._outgoing) > 0,
+                off_loop=self._off_loop,
+            )
+        subscription.add(
+            req.get("id"),
+            {
+                "throttle_rate": throttle_rate,
+                "queue_length": queue_length,
+                "fragment_size": fragment_size,
+                "compression": compression,
+            },
+        )
 
     def _op_unsubscribe(self, req, depth):
         topic, sub_id = req["topic"], req.get("id")
@@ -348,15 +427,21 @@ class Session:
             return
         now = self._clock()
         for frag_id, received, total in self._fragments.expire(now):
-            self.status("warning", f"fragment {frag_id!r}: dropped after fragment_timeout "
-                                   f"({self.config.fragment_timeout} s) with {received} of {total} parts")
+            self.status(
+                "warning",
+                f"fragment {frag_id!r}: dropped after fragment_timeout "
+                f"({self.config.fragment_timeout} s) with {received} of {total} parts",
+            )
         deadline = self._fragments.next_deadline()
         if deadline is not None:
             self._fragments_timer = self._call_later(max(0.0, deadline - now), self._expire_fragments)
 
     def _fragments_made_way(self, count):
-        self.status("error", f"{count} unfinished fragmented message(s) dropped: the unfinished messages of all "
-                             "clients were at their bound, and another client's came faster: send again")
+        self.status(
+            "error",
+            f"{count} unfinished fragmented message(s) dropped: the unfinished messages of all "
+            "clients were at their bound, and another client's came faster: send again",
+        )
 
     def _op_png(self, req, depth):
         if (req.get("total") or 1) != 1:
@@ -433,12 +518,15 @@ class Session:
         """The next frame to write, or None when the queue is empty (the next send wakes the server again).
         What a slow link made the bridge skip, drop or refuse is told first, at most once a REPORT_INTERVAL."""
         outbox = self._outgoing
-        if (outbox.skipped or outbox.dropped or outbox.refused) and \
-                self._clock() - self._last_report >= REPORT_INTERVAL:
+        if (
+            outbox.skipped or outbox.dropped or outbox.refused
+        ) and self._clock() - self._last_report >= REPORT_INTERVAL:
             self._last_report = self._clock()
-            self._reports.extend(status_frame(level, text)
-                                 for level, text in _outbox_report(*outbox.take_report(), self.config)
-                                 if STATUS_LEVELS.index(level) >= self.level)
+            self._reports.extend(
+                status_frame(level, text)
+                for level, text in _outbox_report(*outbox.take_report(), self.config)
+                if STATUS_LEVELS.index(level) >= self.level
+            )
         if self._reports:
             return self._reports.popleft()
         frame = outbox.take()
@@ -471,18 +559,35 @@ class Session:
 
 def _outbox_report(skipped, dropped, refused, config):
     """(level, text) of each status telling a client what its slow link cost it."""
+
     def by_topic(counts):
         return ", ".join(f"{topic or 'other messages'} {n}" for topic, n in counts.most_common())
+
     if skipped:
-        yield "warning", (f"skipped {sum(skipped.values())} older message(s), the newest of each topic kept "
-                          f"(the link is slower than the messages): {by_topic(skipped)}")
+        yield (
+            "warning",
+            (
+                f"skipped {sum(skipped.values())} older message(s), the newest of each topic kept "
+                f"(the link is slower than the messages): {by_topic(skipped)}"
+            ),
+        )
     if dropped:
-        yield "error", (f"dropped {sum(dropped.values())} whole message(s): client too slow (outgoing bound "
-                        f"{config.max_queue} frames, {config.max_queue_bytes} bytes; beyond {OWN_QUEUE_BYTES} bytes "
-                        f"each, {config.queue_pool.limit} bytes for all clients together): {by_topic(dropped)}")
+        yield (
+            "error",
+            (
+                f"dropped {sum(dropped.values())} whole message(s): client too slow (outgoing bound "
+                f"{config.max_queue} frames, {config.max_queue_bytes} bytes; beyond {OWN_QUEUE_BYTES} bytes "
+                f"each, {config.queue_pool.limit} bytes for all clients together): {by_topic(dropped)}"
+            ),
+        )
     if refused:
-        yield "error", (f"refused {sum(refused.values())} message(s) larger than the client's whole outgoing bound "
-                        f"({config.max_queue} frames, {config.max_queue_bytes} bytes): {by_topic(refused)}")
+        yield (
+            "error",
+            (
+                f"refused {sum(refused.values())} message(s) larger than the client's whole outgoing bound "
+                f"({config.max_queue} frames, {config.max_queue_bytes} bytes): {by_topic(refused)}"
+            ),
+        )
 
 
 def _positive(req, name, default):

@@ -1,4 +1,5 @@
 """One client's subscription to one topic: its subscribe requests merged, and the throttling they ask for."""
+
 import collections
 
 MAX_THROTTLE_RATE = 86_400_000  # ms: a day; beyond that a client means "never", which unsubscribe says better
@@ -19,9 +20,27 @@ class Subscription:
     A big message (TopicMessage.big: a map) is encoded off the loop by off_loop (TopicMessage.frames_later), so that
     the other topics and clients go on meanwhile; the topic's next messages wait behind it, in order (at most
     MAX_BEHIND_ENCODING, the oldest dropped). off_loop None: everything is encoded at once (unit tests)."""
-    __slots__ = ("requests", "throttle_rate", "queue_length", "fragment_size", "compression", "_last_sent",
-                 "_pending", "_pending_bytes", "_max_bytes", "_timer", "_send", "_clock", "_call_later", "_active",
-                 "_backlogged", "_off_loop", "_behind", "_encoding")
+
+    __slots__ = (
+        "requests",
+        "throttle_rate",
+        "queue_length",
+        "fragment_size",
+        "compression",
+        "_last_sent",
+        "_pending",
+        "_pending_bytes",
+        "_max_bytes",
+        "_timer",
+        "_send",
+        "_clock",
+        "_call_later",
+        "_active",
+        "_backlogged",
+        "_off_loop",
+        "_behind",
+        "_encoding",
+    )
 
     def __init__(self, send, clock, call_later, max_bytes, backlogged=lambda: False, off_loop=None):
         self._send, self._clock, self._call_later, self._max_bytes = send, clock, call_later, max_bytes

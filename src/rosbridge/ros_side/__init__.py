@@ -15,10 +15,10 @@ Threads, what each may touch, and how work crosses between them:
 - The worker (one thread, RosWorker): asks the master (GraphSnapshot, only it touches that) and makes and drops
   rospy subscribers, publishers and services, in the order the loop submitted them. Each job's outcome goes
   back to the loop (IOLoop.add_callback), and after it the requests a client sent meanwhile, held by
-  its Session until the ROS work before them is done (RosWorker.after_submitted); an object's fields written by a job (`_subscriber`, `_publisher`,
-  `server`) are read only by later jobs or after the loop got the outcome. It writes TopicLinks' two tables
-  (a topic's entry before its rospy object is made, and removed before it is dropped); rospy's threads and the
-  loop only read them (single dict operations).
+  its Session until the ROS work before them is done (RosWorker.after_submitted); an object's fields written by
+  a job (`_subscriber`, `_publisher`, `server`) are read only by later jobs or after the loop got the outcome.
+  It writes TopicLinks' two tables (a topic's entry before its rospy object is made, and removed before it is
+  dropped); rospy's threads and the loop only read them (single dict operations).
 - rospy's threads (its XML-RPC server, its connecting threads) call TopicLinks as a protocol handler:
   create_transport resolves the publisher's address there, adds the link to rospy's list and hands the link
   to the loop (IOLoop.add_callback) to connect; init_publisher only reads the table. rospy may close a link
@@ -30,6 +30,7 @@ Threads, what each may touch, and how work crosses between them:
   calls in flight are only touched on the loop.
 - rospy's service threads for services that clients provide (ProvidedServices._serve): each puts the call on
   the loop (add_callback) and blocks on a concurrent.futures.Future that only the loop resolves."""
+
 from rosbridge.ros_side.backend import RosBackend
 
 __all__ = ["RosBackend"]

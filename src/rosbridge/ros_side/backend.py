@@ -1,16 +1,17 @@
 """RosBackend: the protocol's backend (backend.Backend), a short front over publishers, subscribers and
 services, plus the bridge's own /client_count and the master look-ups they share."""
+
 import contextlib
 
 import rospy
 
 from rosbridge.contract import Backend
+from rosbridge.message_types import message_class
 from rosbridge.ros_side.links import TopicLinks
 from rosbridge.ros_side.publishers import Publishers
 from rosbridge.ros_side.services import ProvidedServices, ServiceCalls
 from rosbridge.ros_side.subscribers import Subscribers
 from rosbridge.ros_side.worker import RosWorker
-from rosbridge.message_types import message_class
 
 MAX_CALLS_RUNNING_PER_CLIENT = 16  # service calls of one client running at once (each on a thread)
 MAX_CALLS_RUNNING = 128  # service calls running at once in all
@@ -18,19 +19,26 @@ MAX_CALLS_PENDING_PER_CLIENT = 1000  # running or waiting
 
 
 class RosBackend(Backend):
-    def __init__(self, loop, rosapi=None, unregister_timeout=10.0, service_timeout=60.0,
-                 stop_drivers_leaving=False, deliveries=contextlib.nullcontext):
+    def __init__(
+        self,
+        loop,
+        rosapi=None,
+        unregister_timeout=10.0,
+        service_timeout=60.0,
+        stop_drivers_leaving=False,
+        deliveries=contextlib.nullcontext,
+    ):
         """deliveries(): a context that each delivery of topics' messages runs in (write_turns.WriteTurns)."""
         self._stop_drivers_leaving = stop_drivers_leaving
         worker = self._worker = RosWorker(loop)
         links = TopicLinks(loop, lambda text: rospy.logwarn_throttle(60, "bridge topics: " + text))
         self._publishers = Publishers(loop, worker, links, unregister_timeout)
         self._subscribers = Subscribers(loop, worker, links, deliveries)
-        self._calls = ServiceCalls(loop, rosapi, MAX_CALLS_RUNNING_PER_CLIENT, MAX_CALLS_RUNNING,
-                                   MAX_CALLS_PENDING_PER_CLIENT)
+        self._calls = ServiceCalls(
+            loop, rosapi, MAX_CALLS_RUNNING_PER_CLIENT, MAX_CALLS_RUNNING, MAX_CALLS_PENDING_PER_CLIENT
+        )
         self._provided = ProvidedServices(loop, worker, service_timeout)
-        self._client_count = rospy.Publisher("/client_count", message_class("std_msgs/Int32"), latch=True,
-                                             queue_size=1)
+        self._client_count = rospy.Publisher("/client_count", message_class("std_msgs/Int32"), latch=True, queue_size=1)
 
     def set_client_count(self, count):
         self._client_count.publish(message_class("std_msgs/Int32")(count))

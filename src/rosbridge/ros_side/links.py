@@ -7,6 +7,7 @@ rospy still does the rest of being a node: it registers the bridge's publishers 
 the connections in getBusInfo (each link is a rospy Transport in its topic's list). TopicLinks joins in as the
 first of rospy's protocol handlers: it makes the connections of the topics the bridge's clients use, and leaves
 the node's own topics (/rosout, /client_count) to rospy's TCPROS handler."""
+
 import collections
 import datetime
 import errno
@@ -22,10 +23,18 @@ import tornado.tcpserver
 import tornado.util
 from tornado.iostream import StreamClosedError
 
-from rosbridge.ros_side import tcpros
-from rosbridge.borrowed import (INBOUND, OUTBOUND, ProtocolHandler, Transport, get_tcpros_handler,
-                                get_topic_manager, handle_connection, node_protocol_handlers)
 from rosbridge.accepting import accept_connections
+from rosbridge.borrowed import (
+    INBOUND,
+    OUTBOUND,
+    ProtocolHandler,
+    Transport,
+    get_tcpros_handler,
+    get_topic_manager,
+    handle_connection,
+    node_protocol_handlers,
+)
+from rosbridge.ros_side import tcpros
 from rosbridge.ros_side.read_pace import ReadPace
 
 TCPROS = "TCPROS"
@@ -90,6 +99,7 @@ class Link(Transport):
     """One connection, as rospy reports it (getBusInfo). close() may come from any thread (rospy closes a topic's
     connections when it is unregistered): it marks the link done, lets rospy forget it, and closes the socket on
     the loop. The socket is only touched on the loop."""
+
     transport_type = TCPROS
 
     def __init__(self, loop, direction, topic):
@@ -109,8 +119,10 @@ class Link(Transport):
             self.on_closed(self)
 
     def get_transport_info(self):  # the format rosnode info parses
-        return (f"{self.transport_type} connection on port {self.local_endpoint[1]} to "
-                f"[{self.remote_endpoint[0]}:{self.remote_endpoint[1]} on socket {self._fileno()}]")
+        return (
+            f"{self.transport_type} connection on port {self.local_endpoint[1]} to "
+            f"[{self.remote_endpoint[0]}:{self.remote_endpoint[1]} on socket {self._fileno()}]"
+        )
 
 
 class InboundLink(Link):
@@ -152,7 +164,8 @@ class InboundLink(Link):
             return
         self._loop.add_handler(self._sock, self._on_events, self._loop.WRITE)
         self._deadline = self._loop.call_later(  # (until the publisher has answered)
-            CONNECT_TIMEOUT, lambda: self._fail(TimeoutError(f"no answer in {CONNECT_TIMEOUT:g} s")))
+            CONNECT_TIMEOUT, lambda: self._fail(TimeoutError(f"no answer in {CONNECT_TIMEOUT:g} s"))
+        )
 
     def _on_events(self, fd, events):
         try:
@@ -189,7 +202,7 @@ class InboundLink(Link):
             self.local_endpoint = sock.getsockname()[:2]
             self._unsent = tcpros.encode_header(tcpros.subscriber_header(self.name, self._cls, rospy.get_name()))
         try:
-            self._unsent = self._unsent[sock.send(self._unsent):]
+            self._unsent = self._unsent[sock.send(self._unsent) :]
         except BlockingIOError:
             return
         if not self._unsent:
@@ -249,8 +262,7 @@ class InboundLink(Link):
         a refusal is final."""
         if self.done:
             return
-        if self._latching is not None or isinstance(error, tcpros.TcprosError) \
-                or self._tries == len(CONNECT_RETRIES):
+        if self._latching is not None or isinstance(error, tcpros.TcprosError) or self._tries == len(CONNECT_RETRIES):
             rospy.logwarn("subscribing %s from %s: %s", self.name, self.endpoint_id, error)
             self.close()
             return
@@ -403,8 +415,7 @@ class TopicLinks(ProtocolHandler):
     async def handshake(self, stream):
         """A subscriber connected to the bridge's TCPROS port: answer its header, then send it the topic."""
         try:
-            header = await tornado.gen.with_timeout(datetime.timedelta(seconds=HANDSHAKE_TIMEOUT),
-                                                    read_header(stream))
+            header = await tornado.gen.with_timeout(datetime.timedelta(seconds=HANDSHAKE_TIMEOUT), read_header(stream))
             topic = header.get("topic", "")
             publication = self.publications.get(topic)
             if publication is None or publication.closed:
@@ -417,8 +428,9 @@ class TopicLinks(ProtocolHandler):
                 stream.close()
                 return
             stream.set_nodelay(tcpros.wants_nodelay(header))
-            link = OutboundLink(self._loop, topic, stream, header["callerid"],
-                                publication.queue_size or LINK_QUEUE_LIMIT)
+            link = OutboundLink(
+                self._loop, topic, stream, header["callerid"], publication.queue_size or LINK_QUEUE_LIMIT
+            )
         except (StreamClosedError, OSError, tcpros.TcprosError, tornado.util.TimeoutError):
             stream.close()
             return

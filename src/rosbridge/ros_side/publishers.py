@@ -1,4 +1,5 @@
 """Client -> ROS: the topics clients publish, one rospy publisher per topic shared by its clients."""
+
 import collections
 import sys
 import time
@@ -6,12 +7,12 @@ import warnings
 
 import rospy
 
-from rosbridge.ros_side import tcpros
+from rosbridge.codec.json_to_ros import packer
 from rosbridge.contract import DRIVE_TYPES
 from rosbridge.errors import RequestError, refusal_text
-from rosbridge.codec.json_to_ros import packer
-from rosbridge.ros_side.holders import Holders
 from rosbridge.message_types import message_class
+from rosbridge.ros_side import tcpros
+from rosbridge.ros_side.holders import Holders
 
 # A client usually publishes right after advertising, before any subscriber has connected to the new
 # publisher (that takes the master's publisherUpdate and a TCP handshake): messages published while nobody was
@@ -53,9 +54,9 @@ class EarlyReplay:
 
 
 class ClientPublisher:
-    """One topic that clients publish. The loop writes each message (its bytes from rosbridge.codec.json_to_ros) straight
-    to the topic's subscribers (ros_side/links.py: one OutboundLink each). rospy's publisher, made on the worker,
-    only registers the topic with the master and lists the connections for getBusInfo.
+    """One topic that clients publish. The loop writes each message (its bytes from rosbridge.codec.json_to_ros)
+    straight to the topic's subscribers (ros_side/links.py: one OutboundLink each). rospy's publisher, made on the
+    worker, only registers the topic with the master and lists the connections for getBusInfo.
 
     A subscriber that reads slowly holds up nobody: its messages wait in its link, at most queue_size of them
     (rospy's meaning: the oldest are dropped; 0 = links.LINK_QUEUE_LIMIT). Like rospy, the publisher numbers
@@ -153,10 +154,13 @@ class Publishers:
         entry = self._entries.get(topic)
         if entry is None:
             cls = message_class(type_name)
-            entry = self._entries[topic] = _Entry(type_name, cls,
-                                                  ClientPublisher(self._links, topic, cls, latch, queue_size))
-            self._worker.submit(lambda: entry.publisher.make(self._worker.graph, type_name),
-                                lambda error, _: self._made(topic, entry, error))
+            entry = self._entries[topic] = _Entry(
+                type_name, cls, ClientPublisher(self._links, topic, cls, latch, queue_size)
+            )
+            self._worker.submit(
+                lambda: entry.publisher.make(self._worker.graph, type_name),
+                lambda error, _: self._made(topic, entry, error),
+            )
         elif entry.type != type_name:
             raise RequestError(f"advertise {topic}: the bridge already publishes it as {entry.type}, not {type_name}")
         if entry.unregister_timer is not None:  # a client came back in time (page reload): keep the publisher
@@ -199,8 +203,10 @@ class Publishers:
         waiting = self._inferring.get(topic)
         if waiting is None:  # ask the master for the topic's type, off the loop
             waiting = self._inferring[topic] = []
-            self._worker.submit(lambda: self._worker.graph.topic_type(topic),
-                                lambda error, type_name: self._inferred(topic, error, type_name))
+            self._worker.submit(
+                lambda: self._worker.graph.topic_type(topic),
+                lambda error, type_name: self._inferred(topic, error, type_name),
+            )
         if len(waiting) >= INFERRING_LIMIT:
             raise RequestError(f"publish {topic}: {INFERRING_LIMIT} messages already wait for the topic's type")
         waiting.append((session, msg, latch, queue_size))
@@ -239,7 +245,8 @@ class Publishers:
         entry = self._entries[topic]
         if self._holders.discard(topic, session) and entry.unregister_timer is None:
             entry.unregister_timer = self._loop.call_later(
-                self._unregister_timeout, lambda: self._unregister(topic, entry))
+                self._unregister_timeout, lambda: self._unregister(topic, entry)
+            )
 
     def _unregister(self, topic, entry):
         entry.unregister_timer = None

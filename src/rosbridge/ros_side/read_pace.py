@@ -17,6 +17,7 @@ class ReadPace:
     COALESCE_AFTER reads in a row that came less than 1 / COALESCE_RATE after the one before, until a read brings
     less than a window's share of messages (the publisher slowed down or stopped), or more may be waiting (a read
     that filled its buffer, a big message on its way: read on as it comes)."""
+
     __slots__ = ("polling", "_last", "_streak")
 
     def __init__(self):

@@ -2,6 +2,7 @@
 restarts, a rospy node's publishers, subscribers and services are unknown to the new master, so nobody connects
 to them. MasterWatch notices the restart (the master's pid changes, or it answers again after a silence) and
 registers everything this node has again, as rospy does once at start-up."""
+
 import http.client
 import threading
 import time
@@ -48,11 +49,13 @@ class MasterWatch:
                 register_again(self._master_uri)
                 self._after_recovery()
             except (OSError, http.client.HTTPException, xmlrpc.client.Error) as error:
-                rospy.logwarn("the master at %s is back but registering again failed (%s); trying again",
-                              self._master_uri, error)
+                rospy.logwarn(
+                    "the master at %s is back but registering again failed (%s); trying again", self._master_uri, error
+                )
                 continue
-            rospy.loginfo("the master at %s restarted: publishers, subscribers and services registered again",
-                          self._master_uri)
+            rospy.loginfo(
+                "the master at %s restarted: publishers, subscribers and services registered again", self._master_uri
+            )
             known_pid = pid
 
     def _pid(self):

@@ -9,6 +9,7 @@ allowed namespace never shows a hidden parameter.
 
 Where the reference fails silently, we answer with an error instead: an unreachable master, a bad argument,
 an unknown type, a parameter value that is not JSON."""
+
 import base64
 import concurrent.futures
 import io
@@ -27,8 +28,22 @@ from rosbridge.globs import Globs, allowed, filter_names
 from rosbridge.message_types import UnknownType, message_class, service_class
 
 # Field types without a typedef of their own. The reference forgets `char`; we count it as a number.
-ATOMIC_TYPES = {"bool", "byte", "char", "int8", "uint8", "int16", "uint16", "int32", "uint32", "int64",
-                "uint64", "float32", "float64", "string"}
+ATOMIC_TYPES = {
+    "bool",
+    "byte",
+    "char",
+    "int8",
+    "uint8",
+    "int16",
+    "uint16",
+    "int32",
+    "uint32",
+    "int64",
+    "uint64",
+    "float32",
+    "float64",
+    "string",
+}
 TIME_TYPES = {"time", "duration"}
 # An action server is a namespace with all five of these topics.
 ACTION_TOPICS = {"cancel", "feedback", "goal", "result", "status"}
@@ -116,8 +131,11 @@ class Rosapi:
 
     def _topics_and_raw_types(self):
         topics = self._topic_types()
-        return {"topics": list(topics), "types": list(topics.values()),
-                "typedefs_full_text": [_full_text(t_type) for t_type in topics.values()]}
+        return {
+            "topics": list(topics),
+            "types": list(topics.values()),
+            "typedefs_full_text": [_full_text(t_type) for t_type in topics.values()],
+        }
 
     def _topic_type(self, topic):
         return {"type": self._topic_types().get(topic, "")}
@@ -167,8 +185,9 @@ class Rosapi:
         if service.startswith("/"):
             return {"providers": services.get(service, [])}
         types = self._service_types(services)
-        return {"providers": sorted({node for name, nodes in services.items() if types[name] == service
-                                     for node in nodes})}
+        return {
+            "providers": sorted({node for name, nodes in services.items() if types[name] == service for node in nodes})
+        }
 
     def _service_node(self, service):
         nodes = self._service_nodes().get(service, [])
@@ -215,8 +234,11 @@ class Rosapi:
     # ---- nodes
 
     def _nodes(self):
-        return {"nodes": sorted({node for kind in self._ask("getSystemState") for _, nodes in kind for node in nodes}
-                                | {self.caller_id})}
+        return {
+            "nodes": sorted(
+                {node for kind in self._ask("getSystemState") for _, nodes in kind for node in nodes} | {self.caller_id}
+            )
+        }
 
     def _node_details(self, node):
         pubs, subs, _ = self._ask("getSystemState")
@@ -224,9 +246,11 @@ class Rosapi:
         def of_node(entries, patterns):
             return filter_names(sorted(name for name, nodes in entries if node in nodes), patterns)
 
-        return {"subscribing": of_node(subs, self.globs.topics),
-                "publishing": of_node(pubs, self.globs.topics),
-                "services": [name for name, nodes in self._service_nodes().items() if node in nodes]}
+        return {
+            "subscribing": of_node(subs, self.globs.topics),
+            "publishing": of_node(pubs, self.globs.topics),
+            "services": [name for name, nodes in self._service_nodes().items() if node in nodes],
+        }
 
     # ---- types
 
@@ -259,8 +283,9 @@ class Rosapi:
         try:
             parsed = json.loads(value)
         except ValueError:
-            raise RosapiError(f"the value of parameter {name} must be JSON text (e.g. 1, \"text\", [1, 2]), "
-                              f"got {value!r}") from None
+            raise RosapiError(
+                f'the value of parameter {name} must be JSON text (e.g. 1, "text", [1, 2]), got {value!r}'
+            ) from None
         if _contains_null(parsed):
             raise RosapiError(f"the value of parameter {name} contains null, which ROS parameters cannot hold")
         try:
@@ -343,7 +368,8 @@ def _probe_service_type(service, uri):
             return ""
         with socket.create_connection((address.hostname, address.port), timeout=PROBE_TIMEOUT) as sock:
             rosgraph.network.write_ros_handshake_header(
-                sock, {"probe": "1", "md5sum": "*", "callerid": "/rosapi", "service": service})
+                sock, {"probe": "1", "md5sum": "*", "callerid": "/rosapi", "service": service}
+            )
             return rosgraph.network.read_ros_handshake_header(sock, io.BytesIO(), 2048).get("type", "")
     except (OSError, ValueError, rosgraph.network.ROSHandshakeException):  # (ValueError: a bad port in the URI)
         return ""
@@ -356,8 +382,9 @@ def _request_fields(service, args):
         args = {}
     elif isinstance(args, list):
         if len(args) > len(fields):
-            raise RosapiError(f"{service} takes {len(fields)} argument(s) ({', '.join(fields) or 'none'}), "
-                              f"got {len(args)}")
+            raise RosapiError(
+                f"{service} takes {len(fields)} argument(s) ({', '.join(fields) or 'none'}), got {len(args)}"
+            )
         args = dict(zip(fields, args))
     elif not isinstance(args, dict):
         raise RosapiError(f"the args of {service} must be an object, got {args!r}")
@@ -407,16 +434,32 @@ def _typedef(cls):
             examples.append(str(getattr(instance, name)))
         else:
             examples.append("{}")
-    constants = sorted((name, value) for name, value in vars(cls).items()
-                       if not name.startswith("_") and name not in cls.__slots__ and not callable(value))
-    return {"type": cls._type, "fieldnames": list(cls.__slots__), "fieldtypes": fieldtypes,
-            "fieldarraylen": arraylens, "examples": examples,
-            "constnames": [name for name, _ in constants], "constvalues": [str(value) for _, value in constants]}
+    constants = sorted(
+        (name, value)
+        for name, value in vars(cls).items()
+        if not name.startswith("_") and name not in cls.__slots__ and not callable(value)
+    )
+    return {
+        "type": cls._type,
+        "fieldnames": list(cls.__slots__),
+        "fieldtypes": fieldtypes,
+        "fieldarraylen": arraylens,
+        "examples": examples,
+        "constnames": [name for name, _ in constants],
+        "constvalues": [str(value) for _, value in constants],
+    }
 
 
 def _time_typedef(type_name):
-    return {"type": type_name, "fieldnames": ["secs", "nsecs"], "fieldtypes": ["int32", "int32"],
-            "fieldarraylen": [-1, -1], "examples": ["0", "0"], "constnames": [], "constvalues": []}
+    return {
+        "type": type_name,
+        "fieldnames": ["secs", "nsecs"],
+        "fieldtypes": ["int32", "int32"],
+        "fieldarraylen": [-1, -1],
+        "examples": ["0", "0"],
+        "constnames": [],
+        "constvalues": [],
+    }
 
 
 def _full_text(type_name):

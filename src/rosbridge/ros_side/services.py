@@ -1,4 +1,5 @@
 """Services: calls from clients to ROS services (and rosapi), and ROS services whose answers come from a client."""
+
 import collections
 import concurrent.futures
 import functools
@@ -10,8 +11,8 @@ import rosservice
 
 from rosbridge.codec.json_values import ConversionError, from_json, request_from_args, to_json
 from rosbridge.errors import RequestError, refusal_text
-from rosbridge.off_loop import CallThreads
 from rosbridge.message_types import service_class
+from rosbridge.off_loop import CallThreads
 
 
 class ServiceCalls:
@@ -33,8 +34,10 @@ class ServiceCalls:
     def call(self, session, service, args, type_name, timeout, reply):
         running, waiting = self._running.get(session, 0), self._waiting.get(session, ())
         if running + len(waiting) >= self._max_pending:
-            raise RequestError(f"call_service {service}: refused, this client has {running + len(waiting)} calls "
-                               f"pending (at most {self._max_pending})")
+            raise RequestError(
+                f"call_service {service}: refused, this client has {running + len(waiting)} calls "
+                f"pending (at most {self._max_pending})"
+            )
         if self._rosapi is not None and self._rosapi.handles(service):
             work = functools.partial(self._rosapi.call, service, args)
         else:
@@ -43,7 +46,8 @@ class ServiceCalls:
         if timeout is not None:
             answer.time_out(timeout, f"Service {service} timed out after {timeout} s")
         self._waiting.setdefault(session, collections.deque()).append(
-            (functools.partial(self._start, session, service, work, answer), answer))
+            (functools.partial(self._start, session, service, work, answer), answer)
+        )
         self._start_waiting()
 
     def release(self, session):
@@ -87,6 +91,7 @@ class ServiceCalls:
 class _Answer:
     """Replies once: with the call's result or with the timeout, whichever comes first; then drops the timer
     (a timer left behind would hold the reply and the client's session for as long as the timeout)."""
+
     __slots__ = ("_loop", "_reply", "_timer")
 
     def __init__(self, loop, reply):
@@ -129,6 +134,7 @@ def _call_ros_service(service, args, type_name):
 
 class _ProvidedService:
     """A ROS service whose answers come from one websocket client."""
+
     __slots__ = ("name", "client_name", "type", "cls", "session", "server", "pending")
 
     def __init__(self, name, client_name, type_name, cls, session):
@@ -173,8 +179,9 @@ class ProvidedServices:
             return
         if self._services.get(entry.name) is entry:
             del self._services[entry.name]
-        entry.session.ros_refused("advertise_service", entry.name,
-                                  refusal_text(error, f"advertising service {entry.name}"))
+        entry.session.ros_refused(
+            "advertise_service", entry.name, refusal_text(error, f"advertising service {entry.name}")
+        )
 
     def unadvertise(self, session, service):
         entry = self._services.get(service)
@@ -199,8 +206,9 @@ class ProvidedServices:
         try:
             return future.result(timeout=self._service_timeout)
         except concurrent.futures.TimeoutError:
-            raise rospy.ServiceException(f"service {entry.name}: the client did not answer within "
-                                         f"{self._service_timeout} s") from None
+            raise rospy.ServiceException(
+                f"service {entry.name}: the client did not answer within {self._service_timeout} s"
+            ) from None
 
     def _forward_call(self, entry, request, future):
         if self._services.get(entry.name) is not entry:
@@ -222,12 +230,19 @@ class ProvidedServices:
             # As the reference: an object still answers the ROS caller (roslibpy's examples return False from
             # handlers that fill the response); anything else fails the call, an error text as the reason.
             if not isinstance(values, dict):
-                reason = values if isinstance(values, str) else \
-                    f"service {service}: the client answered result=false: {values}"
+                reason = (
+                    values
+                    if isinstance(values, str)
+                    else f"service {service}: the client answered result=false: {values}"
+                )
                 future.set_exception(rospy.ServiceException(reason))
                 return
-            session.status("warning", f"service_response {service}: result is false, but its values are an "
-                                      "object: they are the ROS caller's response", call_id)
+            session.status(
+                "warning",
+                f"service_response {service}: result is false, but its values are an "
+                "object: they are the ROS caller's response",
+                call_id,
+            )
         try:
             response = from_json(entry.cls._response_class, {} if values is None else values)
         except ConversionError as error:

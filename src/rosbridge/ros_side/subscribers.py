@@ -1,12 +1,13 @@
 """ROS -> client: the topics clients subscribe to, one rospy subscriber per topic shared by its clients."""
+
 import time
 
 import rospy
 
 from rosbridge.errors import RequestError, log_bug, refusal_text
+from rosbridge.message_types import message_class
 from rosbridge.protocol.encoded import TopicMessage
 from rosbridge.ros_side.holders import Holders
-from rosbridge.message_types import message_class
 
 
 class TopicSubscriber:
@@ -14,8 +15,21 @@ class TopicSubscriber:
     InboundLink per publisher) and handed to the topic's clients there. rospy's subscriber, made and dropped on
     the worker, only registers the topic with the master (which then tells rospy of the publishers, and rospy
     asks the links to connect) and lists the connections for getBusInfo."""
-    __slots__ = ("topic", "type", "asked", "ready", "latched", "active", "_loop", "_links", "_clients",
-                 "_deliveries", "_subscriber", "_class")
+
+    __slots__ = (
+        "topic",
+        "type",
+        "asked",
+        "ready",
+        "latched",
+        "active",
+        "_loop",
+        "_links",
+        "_clients",
+        "_deliveries",
+        "_subscriber",
+        "_class",
+    )
 
     def __init__(self, loop, links, topic, clients, deliveries):
         self._loop, self._links, self.topic, self._clients = loop, links, topic, clients
@@ -36,13 +50,15 @@ class TopicSubscriber:
         if asked_type is None:
             asked_type = graph.topic_type(self.topic)
             if asked_type is None:
-                raise RequestError(f"subscribe {self.topic}: cannot infer the topic's type (nobody publishes it "
-                                   "yet); give 'type'")
+                raise RequestError(
+                    f"subscribe {self.topic}: cannot infer the topic's type (nobody publishes it yet); give 'type'"
+                )
         else:
             published_type = graph.topic_type(self.topic, published=True)
             if published_type not in (None, asked_type):
-                raise RequestError(f"subscribe {self.topic}: the topic is published as {published_type}, "
-                                   f"not {asked_type}")
+                raise RequestError(
+                    f"subscribe {self.topic}: the topic is published as {published_type}, not {asked_type}"
+                )
         self._class = message_class(asked_type)
         self._links.subscriptions[self.topic] = (self._class, self._deliver)
         try:
@@ -98,10 +114,13 @@ class Subscribers:
             message_class(type_name)  # an unknown type is refused at once
         entry = self._entries.get(topic)
         if entry is None:
-            entry = self._entries[topic] = TopicSubscriber(self._loop, self._links, topic, self._holders.holders,
-                                                                 self._deliveries)
-            self._worker.submit(lambda: entry.make(self._worker.graph, type_name),
-                                lambda error, made_type: self._made(entry, error, made_type))
+            entry = self._entries[topic] = TopicSubscriber(
+                self._loop, self._links, topic, self._holders.holders, self._deliveries
+            )
+            self._worker.submit(
+                lambda: entry.make(self._worker.graph, type_name),
+                lambda error, made_type: self._made(entry, error, made_type),
+            )
         elif entry.ready and type_name not in (None, entry.type):
             raise RequestError(f"subscribe {topic}: the topic has type {entry.type}, not {type_name}")
         if self._holders.holds(topic, session):
@@ -127,8 +146,9 @@ class Subscribers:
         entry.type, entry.ready = made_type, True
         for session, asked in entry.asked.items():
             if asked not in (None, made_type) and self._holders.holds(topic, session):
-                self._refuse(session, topic, RequestError(f"subscribe {topic}: the topic has type {made_type}, "
-                                                          f"not {asked}"))
+                self._refuse(
+                    session, topic, RequestError(f"subscribe {topic}: the topic has type {made_type}, not {asked}")
+                )
                 self.unsubscribe(session, topic)
         entry.asked.clear()
 
@@ -152,7 +172,9 @@ class Subscribers:
 
     def _unregister(self, entry):
         """A worker job dropping the topic's rospy subscriber."""
+
         def job():
             entry.unregister()
             self._worker.dropped()
+
         return job

@@ -3,6 +3,7 @@ of messages on the stream (each a 4-byte little-endian length, then the serializ
 use it are in rosbridge.ros_side.links.
 
 The rules are rospy's (rospy.impl.tcpros_pubsub), so that stock nodes see the bridge as any rospy node."""
+
 import struct
 
 from rosgraph.network import ROSHandshakeException, decode_ros_handshake_header, encode_ros_handshake_header
@@ -51,8 +52,14 @@ def decode_header(body):
 def subscriber_header(topic, cls, callerid):
     """What the bridge sends a publisher it subscribes to. tcp_nodelay: every message is sent at once, as the
     bridge forwards each as soon as it comes."""
-    return {"topic": topic, "md5sum": cls._md5sum, "type": cls._type, "message_definition": cls._full_text,
-            "callerid": callerid, "tcp_nodelay": "1"}
+    return {
+        "topic": topic,
+        "md5sum": cls._md5sum,
+        "type": cls._type,
+        "message_definition": cls._full_text,
+        "callerid": callerid,
+        "tcp_nodelay": "1",
+    }
 
 
 def publisher_reply(header, topic, cls, latch, callerid):
@@ -66,11 +73,19 @@ def publisher_reply(header, topic, cls, latch, callerid):
         asked_type = header.get("type", cls._type)
         if asked_type != cls._type:
             return {"error": f"topic types do not match: [{asked_type}] vs. [{cls._type}]"}
-        return {"error": f"Client [{header['callerid']}] wants topic [{topic}] to have datatype/md5sum "
-                         f"[{asked_type}/{md5sum}], but our version has [{cls._type}/{cls._md5sum}] Dropping "
-                         "connection."}
-    return {"callerid": callerid, "md5sum": cls._md5sum, "type": cls._type, "topic": topic,
-            "message_definition": cls._full_text, "latching": "1" if latch else "0"}
+        return {
+            "error": f"Client [{header['callerid']}] wants topic [{topic}] to have datatype/md5sum "
+            f"[{asked_type}/{md5sum}], but our version has [{cls._type}/{cls._md5sum}] Dropping "
+            "connection."
+        }
+    return {
+        "callerid": callerid,
+        "md5sum": cls._md5sum,
+        "type": cls._type,
+        "topic": topic,
+        "message_definition": cls._full_text,
+        "latching": "1" if latch else "0",
+    }
 
 
 def wants_nodelay(header):
@@ -82,6 +97,7 @@ class FrameReader:
     longer than `max_size` is refused (TcprosError) before its bytes are awaited. A message of BIG_FRAME bytes or
     more is read in place: once its length is known, the rest goes straight into its own buffer (`into`,
     `received`), which becomes the message (a bytearray) - no copy of a camera image on the way."""
+
     __slots__ = ("_pending", "_big", "_filled", "max_size")
 
     def __init__(self, max_size=MAX_MESSAGE):
@@ -95,7 +111,7 @@ class FrameReader:
         messages = []
         if self._big is not None:
             taken = min(len(chunk), len(self._big) - self._filled)
-            self._big[self._filled:self._filled + taken] = chunk[:taken]
+            self._big[self._filled : self._filled + taken] = chunk[:taken]
             messages = self.received(taken)
             if not messages:
                 return messages
@@ -115,10 +131,10 @@ class FrameReader:
             if end - start < size:
                 if size >= BIG_FRAME and most is None:  # (messages only: the header is taken alone)
                     self._big = bytearray(size)
-                    self._big[:end - start] = data[start:end]
+                    self._big[: end - start] = data[start:end]
                     self._filled, offset = end - start, end
                 break
-            messages.append(bytes(data[start:start + size]))
+            messages.append(bytes(data[start : start + size]))
             offset = start + size
         if pending:
             data.release()
@@ -130,7 +146,7 @@ class FrameReader:
     def into(self):
         """Where the rest of the big message under way goes (a writable memoryview to read into, then call
         `received`), or None."""
-        return None if self._big is None else memoryview(self._big)[self._filled:]
+        return None if self._big is None else memoryview(self._big)[self._filled :]
 
     def received(self, count):
         """`count` bytes were read into `into()`: the big message once it is complete ([] until then)."""

@@ -1,6 +1,7 @@
 """The ROS work that can block, on one thread of its own: asking the master, and making or dropping rospy
 publishers, subscribers and services (each a call to the master). With the master slow or stopped, only this
 thread waits; the event loop goes on serving every client."""
+
 import collections
 import gc
 import queue

@@ -28,8 +28,9 @@ class ClientBudget:
         elapsed, self._last = now - self._last, now
         delay = 0.0
         if self.frames_per_second:
-            self._frames = min(self.frames_per_second, self._frames + elapsed * self.frames_per_second) \
-                - self._turn_frames
+            self._frames = (
+                min(self.frames_per_second, self._frames + elapsed * self.frames_per_second) - self._turn_frames
+            )
             delay = max(delay, -self._frames / self.frames_per_second)
         if self.bytes_per_second:
             self._bytes = min(self.bytes_per_second, self._bytes + elapsed * self.bytes_per_second) - self._turn_bytes

@@ -8,6 +8,7 @@ Threads: all of it runs on the loop's thread, but for deflating a big message fo
 apart from the encoder so that a map's encoding never holds a slow client's next frame): the thread only reads
 the frame's bytes and returns new ones; the loop keeps them on the frame and resumes each client waiting for
 them (its next frames wait meanwhile, and it counts as backed up)."""
+
 import functools
 import time
 
@@ -15,16 +16,14 @@ import tornado.ioloop
 import tornado.iostream
 import tornado.web
 
-from rosbridge import borrowed
-from rosbridge import protocol
-from rosbridge.transport import rfc6455 as ws
-from rosbridge.transport.budget import ClientBudget
+from rosbridge import borrowed, protocol
 from rosbridge.codec import BIG_BYTES
 from rosbridge.errors import log_bug
+from rosbridge.origins import SECURITY_HEADERS, origin_allowed
 from rosbridge.protocol.encoded import SplicedFrame, Utf8Text
-from rosbridge.origins import origin_allowed
+from rosbridge.transport import rfc6455 as ws
+from rosbridge.transport.budget import ClientBudget
 from rosbridge.transport.slow_link import DEFLATE_MIN_BYTES, LinkMeter, deflated_payload, sends_deflated
-from rosbridge.origins import SECURITY_HEADERS
 from rosbridge.transport.unsent import limit_unsent
 
 READ_CHUNK = 64 * 1024  # bytes asked of a client's stream per read: every frame complete in them is taken at once
@@ -67,8 +66,12 @@ class BridgeSocket(tornado.web.RequestHandler):
         extensions, window_bits = None, None
         if self.bridge.settings.use_compression or self.bridge.settings.compress_slow_links:
             extensions, window_bits = ws.negotiate_deflate(headers.get("Sec-WebSocket-Extensions", ""))
-        answer = ["HTTP/1.1 101 Switching Protocols", "Upgrade: websocket", "Connection: Upgrade",
-                  "Sec-WebSocket-Accept: " + ws.accept_key(headers["Sec-WebSocket-Key"])]
+        answer = [
+            "HTTP/1.1 101 Switching Protocols",
+            "Upgrade: websocket",
+            "Connection: Upgrade",
+            "Sec-WebSocket-Accept: " + ws.accept_key(headers["Sec-WebSocket-Key"]),
+        ]
         if extensions:
             answer.append("Sec-WebSocket-Extensions: " + extensions)
         connection = ClientConnection(self.bridge, self.detach(), self.request.remote_ip, window_bits)
@@ -86,20 +89,29 @@ class BridgeSocket(tornado.web.RequestHandler):
         authenticate, a client that has waited longest without authenticating makes room for a new one (a place
         kept by an idle socket is the first to go; none lives past protocol.AUTH_TIMEOUT anyway)."""
         bridge, peer = self.bridge, self.request.remote_ip
-        if origin is not None and not origin_allowed(origin, self.request.host, peer, bridge.allowed_origins,
-                                                     bridge.allowed_hosts):
+        if origin is not None and not origin_allowed(
+            origin, self.request.host, peer, bridge.allowed_origins, bridge.allowed_hosts
+        ):
             bridge.refused_origin(origin, peer)
             return 403, "Cross origin websockets not allowed"
         if len(bridge.clients) >= bridge.settings.max_clients:
-            idle = min((client for client in bridge.clients if client.unauthenticated_since is not None),
-                       key=lambda client: client.unauthenticated_since, default=None)
+            idle = min(
+                (client for client in bridge.clients if client.unauthenticated_since is not None),
+                key=lambda client: client.unauthenticated_since,
+                default=None,
+            )
             if idle is not None:
-                bridge.log_refusal("max_clients auth", "a client that had not authenticated closed, making room "
-                                   f"for a new one (max_clients {bridge.settings.max_clients})")
+                bridge.log_refusal(
+                    "max_clients auth",
+                    "a client that had not authenticated closed, making room "
+                    f"for a new one (max_clients {bridge.settings.max_clients})",
+                )
                 idle.drop(ws.TRY_AGAIN, "making room for another client: authenticate sooner")
                 return None
-            bridge.log_refusal("max_clients", f"a client refused: {len(bridge.clients)} connected "
-                               f"(max_clients {bridge.settings.max_clients})")
+            bridge.log_refusal(
+                "max_clients",
+                f"a client refused: {len(bridge.clients)} connected (max_clients {bridge.settings.max_clients})",
+            )
             return 503, "too many clients"
         return None
 
@@ -144,14 +156,28 @@ class ClientConnection:
         self._send_direct = type(stream) is tornado.iostream.IOStream  # (not TLS: _send)
         settings = bridge.settings
         self._loop = tornado.ioloop.IOLoop.current()
-        self._reader = ws.FrameReader(frame_limit(settings), deflate=window_bits is not None,
-                                      unmask=borrowed.websocket_mask, max_inflated=settings.max_message_size or None,
-                                      shared=bridge.unfinished, evicted=self._made_way)
+        self._reader = ws.FrameReader(
+            frame_limit(settings),
+            deflate=window_bits is not None,
+            unmask=borrowed.websocket_mask,
+            max_inflated=settings.max_message_size or None,
+            shared=bridge.unfinished,
+            evicted=self._made_way,
+        )
         self.budget = ClientBudget(settings.max_frames_per_second, settings.max_bytes_per_second, time.monotonic)
-        self.session = protocol.Session(bridge.backend, bridge.config, time.time, self._loop.call_later,
-                                        self._wake, self._close_after_sending, name=peer,
-                                        resume_reading=self._resume, off_loop=bridge.encoder.run,
-                                        cancel_later=self._loop.remove_timeout, unfinished=bridge.unfinished)
+        self.session = protocol.Session(
+            bridge.backend,
+            bridge.config,
+            time.time,
+            self._loop.call_later,
+            self._wake,
+            self._close_after_sending,
+            name=peer,
+            resume_reading=self._resume,
+            off_loop=bridge.encoder.run,
+            cancel_later=self._loop.remove_timeout,
+            unfinished=bridge.unfinished,
+        )
         self._waiting = None  # what reading waits for: "read", "turn" (a timer), "session", or "end"
         self._turn_timer = None
         self._unfinished_timer = None  # when the message the client is sending must be whole (_check_unfinished)
@@ -249,8 +275,11 @@ class ClientConnection:
         except ws.ProtocolError as error:
             self._waiting = "end"
             if error.code == ws.TRY_AGAIN:
-                self.bridge.log_refusal("unfinished", f"a client refused: the unfinished messages of all clients "
-                                        f"hold their bound ({self.bridge.unfinished.limit} bytes)")
+                self.bridge.log_refusal(
+                    "unfinished",
+                    f"a client refused: the unfinished messages of all clients "
+                    f"hold their bound ({self.bridge.unfinished.limit} bytes)",
+                )
             self.close(error.code, error.reason, then_drop=True)
         except Exception:  # a bug: this client is dropped, the others go on
             self._waiting = "end"
@@ -274,11 +303,15 @@ class ClientConnection:
     def _made_way(self):
         """The client's unfinished message made way for another client's, whose bytes came faster (SharedBound):
         the reader has let go of it; the connection ends."""
-        self.bridge.log_refusal("unfinished evicted", "a client dropped: its unfinished message made way for a "
-                                f"faster one (unfinished messages of all clients at {self.bridge.unfinished.limit} "
-                                "bytes)")
-        self.drop(ws.TRY_AGAIN, "unfinished messages of all clients at their bound, and yours came slowest: "
-                                 "try again later")
+        self.bridge.log_refusal(
+            "unfinished evicted",
+            "a client dropped: its unfinished message made way for a "
+            f"faster one (unfinished messages of all clients at {self.bridge.unfinished.limit} "
+            "bytes)",
+        )
+        self.drop(
+            ws.TRY_AGAIN, "unfinished messages of all clients at their bound, and yours came slowest: try again later"
+        )
 
     def drop(self, code, reason):
         """Ends the connection, reading nothing more: our close frame, then the stream closed once it is written
@@ -362,13 +395,15 @@ class ClientConnection:
                     log_bug("encoding an outgoing frame")
                     continue
             break
-        if self._window_bits is None or not sends_deflated(len(frame), self.bridge.settings.use_compression,
-                                                            self._link):
+        if self._window_bits is None or not sends_deflated(
+            len(frame), self.bridge.settings.use_compression, self._link
+        ):
             return frame, None
         if len(frame) < DEFLATE_MIN_BYTES:  # (use_compression: made here, in well under a millisecond)
             return frame, deflated_payload(frame, self._window_bits)
-        payload = deflated_payload(frame, self._window_bits, self.bridge.deflater.run,
-                                   functools.partial(self._deflated, frame))
+        payload = deflated_payload(
+            frame, self._window_bits, self.bridge.deflater.run, functools.partial(self._deflated, frame)
+        )
         if payload is not None:  # (made already, for another client)
             return frame, payload
         self._deflating = len(frame)
@@ -398,8 +433,7 @@ class ClientConnection:
         written.add_done_callback(self._drained)
         self._wrote_at = time.monotonic()
         if self._stall_timer is None:
-            self._stall_timer = self._loop.call_later(self.bridge.settings.websocket_ping_timeout,
-                                                      self._check_stalled)
+            self._stall_timer = self._loop.call_later(self.bridge.settings.websocket_ping_timeout, self._check_stalled)
 
     def _wrote(self, _):
         self._wrote_at = time.monotonic()
@@ -413,8 +447,10 @@ class ClientConnection:
         if left > 0:
             self._stall_timer = self._loop.call_later(left, self._check_stalled)
             return
-        self.bridge.log_refusal("stalled", f"a client dropped: it read nothing of what waited for it for "
-                                f"websocket_ping_timeout ({timeout} s)")
+        self.bridge.log_refusal(
+            "stalled",
+            f"a client dropped: it read nothing of what waited for it for websocket_ping_timeout ({timeout} s)",
+        )
         self._stream.close()  # (a close frame would wait behind what it does not read)
 
     def _drained(self, written):
@@ -473,7 +509,7 @@ class ClientConnection:
             return stream.write(data)
         view = memoryview(data)
         for start in range(0, len(view), WRITE_PIECE_BYTES):
-            written = stream.write(view[start:start + WRITE_PIECE_BYTES])
+            written = stream.write(view[start : start + WRITE_PIECE_BYTES])
             written.add_done_callback(self._wrote)
         return written
 
@@ -495,8 +531,10 @@ class ClientConnection:
     def _keep_alive(self):
         """Every websocket_ping_interval: a ping; a client that has not answered the last one within
         websocket_ping_timeout is gone (a dropped link sends no FIN)."""
-        if self._ping_sent is not None and \
-                time.monotonic() - self._ping_sent > self.bridge.settings.websocket_ping_timeout:
+        if (
+            self._ping_sent is not None
+            and time.monotonic() - self._ping_sent > self.bridge.settings.websocket_ping_timeout
+        ):
             self._stream.close()
         else:
             self.ping()

@@ -1,4 +1,5 @@
 """The dead-man stop (README, Dead-man stop): a robot is stopped when the client driving it goes silent."""
+
 import time
 
 import tornado.ioloop

@@ -8,6 +8,7 @@ no sockets; the shell (transport/connection.py) moves the bytes and chooses whic
 
 A client's frames come out one event per frame, so that whoever reads can weigh every frame a client sends
 (budget.py), the parts of a fragmented message and the control frames included."""
+
 import base64
 import hashlib
 import struct
@@ -80,13 +81,21 @@ def negotiate_deflate(offers):
         for param in params:
             key, _, value = param.partition("=")
             key, value = key.strip(), value.strip().strip('"')
-            if key in asked or key not in ("server_no_context_takeover", "client_no_context_takeover",
-                                           "server_max_window_bits", "client_max_window_bits"):
+            if key in asked or key not in (
+                "server_no_context_takeover",
+                "client_no_context_takeover",
+                "server_max_window_bits",
+                "client_max_window_bits",
+            ):
                 ok = False
             asked[key] = value
         server_bits, client_bits = asked.get("server_max_window_bits", "15"), asked.get("client_max_window_bits")
-        if not ok or not (server_bits.isdigit() and int(server_bits) in _WINDOW_BITS) or client_bits and not (
-                client_bits.isdigit() and 8 <= int(client_bits) <= 15):
+        if (
+            not ok
+            or not (server_bits.isdigit() and int(server_bits) in _WINDOW_BITS)
+            or client_bits
+            and not (client_bits.isdigit() and 8 <= int(client_bits) <= 15)
+        ):
             continue  # (zlib writes raw deflate with windows of 9 to 15 bits only; we inflate any window)
         answer = ["permessage-deflate", "server_no_context_takeover", "client_no_context_takeover"]
         if "server_max_window_bits" in asked:
@@ -107,7 +116,7 @@ def deflate_message(parts, bits):
     of `bits` (message_window_bits)."""
     compressor = zlib.compressobj(DEFLATE_LEVEL, zlib.DEFLATED, -bits)
     data = [compressor.compress(part) for part in parts]
-    data.append(compressor.flush(zlib.Z_SYNC_FLUSH)[:-len(_DEFLATE_TAIL)])  # (a sync flush ends with the tail)
+    data.append(compressor.flush(zlib.Z_SYNC_FLUSH)[: -len(_DEFLATE_TAIL)])  # (a sync flush ends with the tail)
     return b"".join(data)
 
 
@@ -178,8 +187,14 @@ class SharedBound:
         return True
 
     def _make_room(self, asking, pace, needed, now):
-        slower = sorted(((holding.recent(now), holding.count, holder) for holder, holding in self._holders.items()
-                         if holder is not asking and holding.recent(now) < pace), key=lambda item: item[0])
+        slower = sorted(
+            (
+                (holding.recent(now), holding.count, holder)
+                for holder, holding in self._holders.items()
+                if holder is not asking and holding.recent(now) < pace
+            ),
+            key=lambda item: item[0],
+        )
         evicted, freed = [], 0
         for _, count, holder in slower:
             if freed >= needed:
@@ -197,6 +212,7 @@ class SharedBound:
 class _Holding:
     """What one holder of a SharedBound holds, and the bytes it received lately (in the window begun at `since`,
     and the one before it)."""
+
     __slots__ = ("count", "since", "now_bytes", "before_bytes")
 
     def __init__(self, now):
@@ -241,8 +257,16 @@ class FrameReader:
     compressed messages held, 2 * CONTEXT_BYTES at most (see _start_inflating). While a message is unfinished
     (unfinished_since), what it holds beyond OWN_BYTES counts against `shared` (a SharedBound, if given)."""
 
-    def __init__(self, max_size, deflate=False, unmask=xor_mask, max_inflated=None, shared=None, evicted=None,
-                 clock=time.monotonic):
+    def __init__(
+        self,
+        max_size,
+        deflate=False,
+        unmask=xor_mask,
+        max_inflated=None,
+        shared=None,
+        evicted=None,
+        clock=time.monotonic,
+    ):
         self.max_size, self._unmask = max_size, unmask
         self.max_inflated = max_size if max_inflated is None else max_inflated
         self._buffer = bytearray()
@@ -274,7 +298,7 @@ class FrameReader:
 
     def receive(self, data):
         if self._start:
-            del self._buffer[:self._start]
+            del self._buffer[: self._start]
             self._start = 0
         self._buffer += data
 
@@ -300,8 +324,7 @@ class FrameReader:
             return self._incomplete(available)
         first, second = buf[start], buf[start + 1]
         opcode, length, head = first & 0x0F, second & 0x7F, 2
-        if first & _RESERVED and not (first & _RESERVED == _RSV1 and self._deflate and opcode in
-                                      (TEXT, BINARY)):
+        if first & _RESERVED and not (first & _RESERVED == _RSV1 and self._deflate and opcode in (TEXT, BINARY)):
             raise ProtocolError(PROTOCOL_ERROR, "reserved bits set without an extension that uses them")
         if not second & _MASKED:
             raise ProtocolError(PROTOCOL_ERROR, "a client's frames must be masked")
@@ -334,7 +357,7 @@ class FrameReader:
             return self._incomplete(available)
         if length:
             with memoryview(buf) as view:
-                payload = self._unmask(view[payload_at - 4:payload_at].tobytes(), view[payload_at:end])
+                payload = self._unmask(view[payload_at - 4 : payload_at].tobytes(), view[payload_at:end])
         else:
             payload = b""
         if end == len(buf):  # all taken: what the last frames held goes now, not with the next read
@@ -398,8 +421,9 @@ class FrameReader:
         if count == self._held:
             return
         if not shared.hold(self, count):
-            raise ProtocolError(TRY_AGAIN, f"unfinished messages of all clients at their bound ({shared.limit} "
-                                           "bytes): try again later")
+            raise ProtocolError(
+                TRY_AGAIN, f"unfinished messages of all clients at their bound ({shared.limit} bytes): try again later"
+            )
         self._held = count
 
     def _start_inflating(self):
@@ -423,7 +447,7 @@ class FrameReader:
         else:
             source, fed = inflater.unconsumed_tail, 0
             if not source:
-                source = packed[self._input_at:self._input_at + INFLATE_SLICE]
+                source = packed[self._input_at : self._input_at + INFLATE_SLICE]
                 fed = len(source)
                 self._input_at += fed
             asked = min(INFLATE_SLICE, self.max_inflated + 1 - len(parts))

@@ -1,6 +1,7 @@
 """A client's slow link, for the transport: how fast its socket drains (LinkMeter), whether a message goes
 to it deflated (sends_deflated), and the deflated payload, made once for every client that gets the frame
 compressed (deflated_payload). Pure but for the hand-off to the deflate thread, which the caller gives."""
+
 from rosbridge.protocol.encoded import SplicedFrame, Utf8Text
 from rosbridge.protocol.outbox import SMALL_MESSAGE
 from rosbridge.transport.rfc6455 import deflate_message, message_window_bits
@@ -24,6 +25,7 @@ class LinkMeter:
     waits drains at the link's pace). Bytes over the seconds until drained, each summed with a decay: a big write
     counts by its size, a reader's pause by its length. A write on loopback waits too (for the reader to take a
     megabyte), but drains at hundreds of MB/s. Pure: the server says what waited and how long."""
+
     __slots__ = ("bytes", "seconds")
 
     def __init__(self):

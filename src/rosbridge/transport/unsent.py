@@ -2,6 +2,7 @@
 slow link, and what sits there can no longer be skipped for a fresher message: with TCP_NOTSENT_LOWAT the socket
 takes no more once that many bytes wait unsent, so the rest waits in the bridge, which chooses what goes next
 (outgoing.Outbox for a websocket client, the newest frame for a stream viewer)."""
+
 import socket
 
 UNSENT_LIMIT = 32 * 1024  # bytes: 50 ms at 5 Mbit/s; on loopback, enough for the socket to take a burst at once

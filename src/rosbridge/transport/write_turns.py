@@ -4,6 +4,7 @@ write: at the end of the delivery under way, if one is (the messages one read of
 ros_side/subscribers.py delivers inside `delivering()`: they are written in the same turn of the loop as the
 read, one turn a message at 1 kHz instead of two), else in the loop's next turn. Pure: the server gives it the
 loop's call_soon. Loop thread only."""
+
 from rosbridge.errors import log_bug
 
 
