@@ -1,6 +1,6 @@
 """The bag recorder: record chosen topics into rosbag files in one folder, or keep a "black box" of the last
 minutes in memory and save it on demand; list and delete the bags. The messages are the bridge's own
-(backend.Client subscriptions: TopicMessage, serialized bytes), written raw with the rosbag API, never
+(contract.Client subscriptions: TopicMessage, serialized bytes), written raw with the rosbag API, never
 deserialized. The HTTP side is bag_routes.py; what bags take and their bounds, bag_bounds.py.
 
 Threads: everything here runs on the loop but the writing. One writer thread (a queue bounded in jobs and in bytes:
@@ -87,7 +87,7 @@ def write_message(bag, topic, message, when):
 
 
 class _Subscriber:
-    """A backend.Client that takes the messages of some topics (the ROS side calls it on the loop)."""
+    """A contract.Client that takes the messages of some topics (the ROS side calls it on the loop)."""
 
     is_closed = False
 

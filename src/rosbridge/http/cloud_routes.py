@@ -13,7 +13,7 @@ X-Frame-Id is the frame id percent-encoded (its UTF-8, as urllib.parse.quote doe
 back; the usual ids, letters, digits, `_-.~/`, are unchanged): a frame id may hold anything, a header neither
 control characters nor more than Latin-1.
 
-One subscription per topic through the bridge's backend (CloudTopic, a backend.Client), shared with the websocket
+One subscription per topic through the bridge's backend (CloudTopic, a contract.Client), shared with the websocket
 clients, kept LINGER seconds after its last request; MAX_TOPICS topics at once, more are refused (503). Only a
 topic the master lists as a PointCloud2 is subscribed: a request for a name it does not list looks again every
 streams.WAIT_POLL seconds (streams.TopicTypes) and answers 204 if it never came within WAIT_S. (Each subscription
@@ -58,7 +58,7 @@ ANSWER_BYTES = 512  # what an answer kept costs beside its body and headers (its
 
 
 class CloudTopic:
-    """One cloud topic: its subscription (this is its backend.Client), its newest cloud, the requests waiting for
+    """One cloud topic: its subscription (this is its contract.Client), its newest cloud, the requests waiting for
     a newer one, and the answers asked of its clouds that are being made (`wanted`, in the order asked)."""
 
     def __init__(self, clouds, topic):
@@ -142,7 +142,7 @@ class CloudTopic:
         waiting, self.waiting = self.waiting, set()
         _wake_all(waiting)
 
-    # ---- backend.Client
+    # ---- contract.Client
     def deliver(self, message):
         self.seq += 1
         self.latest = message

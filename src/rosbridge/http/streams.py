@@ -5,7 +5,7 @@ authenticate (rosauth fields as query parameters), topics_glob; at most max_clie
 
 What lives where: jpeg.py makes the pictures (pure: reading the messages, decoding, resizing, JPEG, and the
 adaptation's ladder and policy); this file holds the requests (the handlers, thin), each topic's frames and
-subscription (StreamTopic, a backend.Client: one subscription per topic through the bridge's RosBackend, shared
+subscription (StreamTopic, a contract.Client: one subscription per topic through the bridge's RosBackend, shared
 with the websocket clients), the viewers (StreamViewer, SnapshotViewer) and the encoder thread.
 
 Each viewer gets the newest frame and never a backlog: one frame is written to it at a time, and while its
@@ -181,7 +181,7 @@ def choose_source(request, topic, types):
 # ---- the master's topics -----------------------------------------------------------------------------------------
 class TopicTypes:
     """The allowed topics' types, from the backend's /rosapi/topics (filtered by topics_glob), asked at most once
-    per TYPES_MAX_AGE; the requests that come while a look-up runs share it. It is the look-ups' backend.Client."""
+    per TYPES_MAX_AGE; the requests that come while a look-up runs share it. It is the look-ups' contract.Client."""
 
     is_closed = False
 
@@ -214,7 +214,7 @@ class TopicTypes:
             except Exception:
                 log_bug("answering a camera stream's topic look-up")
 
-    # (backend.Client: nothing else is ever sent to a look-up)
+    # (contract.Client: nothing else is ever sent to a look-up)
     def deliver(self, message):
         pass
 
@@ -307,7 +307,7 @@ def _encode(picture, keys):
 
 
 class StreamTopic:
-    """One topic that viewers watch: its subscription (this object is its backend.Client), its newest frame and
+    """One topic that viewers watch: its subscription (this object is its contract.Client), its newest frame and
     the viewers waiting for it to be made as they ask."""
 
     def __init__(self, streams, source):
@@ -346,7 +346,7 @@ class StreamTopic:
         for viewer in list(self.viewers):
             viewer.fail(503, f"the subscription to {self.topic} ended")
 
-    # ---- backend.Client
+    # ---- contract.Client
     def deliver(self, message):
         if self.is_closed:
             return

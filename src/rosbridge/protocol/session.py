@@ -1,5 +1,5 @@
 """The rosbridge v2 protocol for one websocket client: check every frame and dispatch it, keep the client's
-state (subscriptions, authentication, status level) and call the ROS side through the `backend.Backend`
+state (subscriptions, authentication, status level) and call the ROS side through the `contract.Backend`
 contract. Pure: no rospy, no tornado; the server gives it a clock, a timer and a wake-up.
 
 The jobs around it have rooms of their own: reassembly.py (fragment and png ops), subscription.py (merging and
