@@ -241,7 +241,12 @@ def test_the_console_at_a_sub_path_of_nginx_connects_drives_shows_the_camera_and
     shot(page, f"reverse-proxy-{scheme}-bags", "#tab-bags")
     page.click(f'#tab-bags a[href="{link}"]')
     downloaded = tmp_path / name
-    wait_for(downloaded.exists, 10, what=f"{name} downloaded by Chromium")
+    # (Chromium reserves the name with an empty file at the start and writes a .crdownload beside it until done)
+    wait_for(
+        lambda: downloaded.exists() and downloaded.stat().st_size and not list(tmp_path.glob("*.crdownload")),
+        10,
+        what=f"{name} downloaded by Chromium",
+    )
     assert downloaded.read_bytes()[:13] == b"#ROSBAG V2.0\n"
     assert get(link)[::2] == (200, downloaded.read_bytes())
 
