@@ -407,8 +407,9 @@ def transport_rtt(run):
 
 
 def fanout(run, clients, messages=30):
-    """`clients` websocket clients on one 10 Hz topic of a fresh bridge: loss, memory and threads."""
-    bridge, url, server = run.bridge()
+    """`clients` websocket clients on one 10 Hz topic of a fresh bridge: loss, memory and threads. (They all come from
+    127.0.0.1: the bridge is told to take that many from one address, max_connections_per_address.)"""
+    bridge, url, server = run.bridge(max_connections_per_address=clients + 16)
     time.sleep(1.0)
     idle_rss, idle_threads = server.rss_mb(), server.threads()
     topic = run.topic("fan")
