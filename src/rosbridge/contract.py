@@ -19,7 +19,7 @@ class Client(typing.Protocol):
     is_closed: bool  # the client left: nothing more is sent to it
 
     def deliver(self, message) -> None:
-        """A frames.TopicMessage of a topic the client subscribes to."""
+        """A protocol/encoded.TopicMessage of a topic the client subscribes to."""
 
     def ros_refused(self, op: str, name: str, text: str) -> None:
         """The ROS side could not do what an earlier `op` on `name` asked (found out off the loop)."""

@@ -9,5 +9,5 @@
 All pure: no rospy, no tornado."""
 
 # bytes: a byte string this long (an image's data) is cheaper to write to the socket by reference, as a part of
-# its frame, than to copy into one frame with the rest (frames.SplicedFrame)
+# its frame, than to copy into one frame with the rest (protocol/encoded.SplicedFrame)
 BIG_BYTES = 1 << 16

@@ -511,7 +511,7 @@ class Session:
 
     def backed_up(self, flag, in_flight=0):
         """The server says whether the client's socket has stopped taking frames (then each topic keeps only
-        what is fresh: outgoing.Outbox), and how many bytes it was given that have not left yet."""
+        what is fresh: outbox.Outbox), and how many bytes it was given that have not left yet."""
         self._outgoing.set_backed_up(flag, in_flight)
 
     def take_frame(self):

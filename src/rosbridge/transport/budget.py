@@ -1,6 +1,6 @@
 """How much of the event loop one client may take: its frames are handled in turns with the other clients',
 and beyond a rate (frames and bytes per second) its next frame waits, which leaves the rest in its socket
-(backpressure) rather than in the bridge. Pure: websocket.ClientConnection asks it after each frame it takes
+(backpressure) rather than in the bridge. Pure: connection.ClientConnection asks it after each frame it takes
 and turns a delay into a timer before it takes the next (0 s: after the other clients' turns)."""
 
 FRAMES_PER_TURN = 32  # then the client's turn ends, so the loop serves the others in between

@@ -147,7 +147,7 @@ class ClientConnection:
 
     Deflating, with a client that offered permessage-deflate (window_bits: the largest window negotiated, else
     None): every message with use_compression; else, with compress_slow_links, the messages of DEFLATE_MIN_BYTES
-    or more while its link is measured slow (outgoing.LinkMeter, from the writes that waited for the drain). Those
+    or more while its link is measured slow (slow_link.LinkMeter, from the writes that waited for the drain). Those
     are deflated once for every such client (slow_link.deflated_payload), on the deflate thread; a small one (only
     with use_compression) on the loop. RSV1 marks each compressed frame; the others go as they are."""
 

@@ -6,7 +6,7 @@ from rosbridge.protocol.encoded import SplicedFrame, Utf8Text
 from rosbridge.protocol.outbox import SMALL_MESSAGE
 from rosbridge.transport.rfc6455 import deflate_message, message_window_bits
 
-# Deflating what a slow link carries (websocket.ClientConnection, for a client that offered permessage-deflate):
+# Deflating what a slow link carries (connection.ClientConnection, for a client that offered permessage-deflate):
 # a message of DEFLATE_MIN_BYTES or more goes compressed when the client's link drains slower than
 # SLOW_LINK_BYTES_PER_SECOND. Why that rate: zlib's level 1 takes a camera's 1.2 MB of JSON (base64) to 0.5-0.6
 # of its size at 60-85 MB/s on this project's 2-core machine (15-20 ms, once for every slow client, off the loop).

@@ -1,7 +1,7 @@
 """How much a client's socket may hold unsent in the kernel. The kernel's send buffer holds seconds of frames on a
 slow link, and what sits there can no longer be skipped for a fresher message: with TCP_NOTSENT_LOWAT the socket
 takes no more once that many bytes wait unsent, so the rest waits in the bridge, which chooses what goes next
-(outgoing.Outbox for a websocket client, the newest frame for a stream viewer)."""
+(protocol/outbox.Outbox for a websocket client, the newest frame for a stream viewer)."""
 
 import socket
 
