@@ -26,7 +26,7 @@ from pathlib import Path
 
 BENCH = Path(__file__).resolve().parent
 REPO = BENCH.parent
-sys.path.insert(0, str(REPO / "test"))
+sys.path.insert(0, str(REPO / "testkit"))
 import harness  # noqa: E402  (private roscore, process groups, logs, /proc readings)
 import peers  # noqa: E402
 import reporting  # noqa: E402

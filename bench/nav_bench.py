@@ -25,7 +25,7 @@ from pathlib import Path
 
 BENCH = Path(__file__).resolve().parent
 REPO = BENCH.parent
-sys.path.insert(0, str(REPO / "test"))
+sys.path.insert(0, str(REPO / "testkit"))
 import nav_messages  # noqa: E402
 
 import harness  # noqa: E402  (private roscore, process groups, logs, /proc readings)
@@ -72,7 +72,7 @@ class Bench:
     def __init__(self, workdir, a):
         self.workdir, self.a = Path(workdir), a
         self.ros = harness.RosMaster(self.workdir).start()
-        self.ros.env["PYTHONPATH"] = f"{BENCH}:{REPO / 'test'}:{self.ros.env.get('PYTHONPATH', '')}"
+        self.ros.env["PYTHONPATH"] = f"{BENCH}:{REPO / 'testkit'}:{self.ros.env.get('PYTHONPATH', '')}"
         self.spawned = 0
         self.robot = self.start([PY, BENCH / "nav_robot.py"], "nav_robot")
         self.wait_line(self.robot, r"^READY", 60)

@@ -3,7 +3,7 @@ message, with the odd cases such messages have: NaN and inf ranges, empty arrays
 a 300k-point cloud. Each message is built once; a publisher only sets its stamps (stamp()). Shared by the generator
 node (nav_robot.py), the ceiling (nav_ceiling.py), the clients that check what arrives (nav_clients.py) and
 convert_bench.py. Needs the ROS message packages (no node); the TF frames and the map's cells come from
-test/sensor_messages.py (shared with the tests)."""
+testkit/sensor_messages.py (shared with the tests)."""
 
 import io
 import math
@@ -16,7 +16,7 @@ from pathlib import Path
 import genpy
 import std_msgs.msg
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "test"))
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "testkit"))
 from sensor_messages import moving_frames, occupancy_grid_cells, quaternion, tf_message  # noqa: E402
 
 Stream = namedtuple("Stream", "name topic type hz build")  # hz 0: latched, published once
@@ -54,7 +54,7 @@ def laser_scan():
 
 
 def tf_frames():
-    """/tf of a busy robot: 50 frames moving under odom (test/sensor_messages.py's)."""
+    """/tf of a busy robot: 50 frames moving under odom (testkit/sensor_messages.py's)."""
     return moving_frames(0, genpy.Time())
 
 

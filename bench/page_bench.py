@@ -7,7 +7,7 @@
    subscription (JSON, the image data as base64, no throttling), decoded into an ImageData and drawn on a canvas.
 2. A robot's console (issue 23): the Laser viewer of a 1081-ray scan at 40 Hz, the TF tree of 50 frames at 100 Hz
    and the camera, all at once, opened as test/browser/test_viewers.py opens them, from the same publishers
-   (test/sensor_messages.py): frames/s in each second of the run (median and lowest), the longest frame, the scans
+   (testkit/sensor_messages.py): frames/s in each second of the run (median and lowest), the longest frame, the scans
    published, reaching the page and drawn, and the CPU of the bridge, Chromium and the publishers beside the load
    average. Compared with the same page with nothing open, in the same run (its own rate on this machine).
 
@@ -29,8 +29,8 @@ from selenium.webdriver.chrome.service import Service
 from sensor_msgs.msg import Image, LaserScan
 from tf2_msgs.msg import TFMessage
 
-TEST = Path(__file__).resolve().parent.parent / "test"
-sys.path[:0] = [str(TEST), str(TEST / "browser")]
+REPO = Path(__file__).resolve().parent.parent
+sys.path[:0] = [str(REPO / "testkit"), str(REPO / "test" / "browser")]
 from test_viewers import open_viewer, text_of  # noqa: E402  (the viewers opened as a person does, as the tests do)
 
 import harness  # noqa: E402

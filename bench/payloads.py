@@ -112,7 +112,7 @@ def ros_msg(kind, seq=0):
             step=IMAGE_W * 3,
             data=_cached("image", _image_bytes),
         )
-    if kind == "cloud":  # (test/sensor_messages.py: the cloud the viewer's tests draw; on PYTHONPATH in the suite)
+    if kind == "cloud":  # (testkit/sensor_messages.py: the cloud the viewer's tests draw; on PYTHONPATH in the suite)
         from sensor_messages import big_cloud
 
         return _cached("cloud", big_cloud)

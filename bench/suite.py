@@ -15,8 +15,8 @@ from pathlib import Path
 
 BENCH = Path(__file__).resolve().parent
 REPO = BENCH.parent
-sys.path.insert(0, str(REPO / "test"))
-import harness  # noqa: E402  (the tests' process tools: private roscore, process groups, logs)
+sys.path.insert(0, str(REPO / "testkit"))
+import harness  # noqa: E402  (the tests' process tools, testkit/: private roscore, process groups, logs)
 
 sys.path.insert(0, str(REPO / "test" / "integration"))
 import hostile  # noqa: E402  (the isolation tests' hostile clients and their victim)
@@ -35,8 +35,8 @@ class Run:
         self.peers = peer_args  # (bench/peers.py: where the other bridges are)
         self.foxglove_missing = peers.foxglove_missing(peer_args)
         self.ros = harness.RosMaster(self.workdir).start()
-        # (test/ for the messages the tests publish too: test/sensor_messages.py)
-        self.ros.env["PYTHONPATH"] = f"{BENCH}:{REPO / 'test'}:{self.ros.env.get('PYTHONPATH', '')}"
+        # (testkit/ for the messages the tests publish too: testkit/sensor_messages.py)
+        self.ros.env["PYTHONPATH"] = f"{BENCH}:{REPO / 'testkit'}:{self.ros.env.get('PYTHONPATH', '')}"
         self.topics = 0
         self.spawned = 0
 

@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(REPO / "test"))
+sys.path.insert(0, str(REPO / "testkit"))
 from harness import ProcStat, RosMaster, make_workdir, wait_for  # noqa: E402  (the test harness starts the processes)
 
 TARGET_HZ = 62.5

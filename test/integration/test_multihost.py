@@ -165,7 +165,7 @@ def test_turtle_driven_from_a_fourth_machine_through_the_bridge(lan):
             f"import {Path(__file__).stem}; {Path(__file__).stem}.drive('ws://{SUBNET}.3:{BRIDGE_PORT}')",
         ],
         timeout=90,
-        env={"PYTHONPATH": f"{here}:{here.parent}"},
+        env={"PYTHONPATH": f"{here}:{here.parents[1] / 'testkit'}"},
     )
     assert client.returncode == 0, f"client failed:\n{client.stdout}\n{client.stderr}\nbridge:\n{bridge.output()}"
     seen = json.loads(client.stdout.strip().splitlines()[-1])
