@@ -1,5 +1,5 @@
 """Fixtures for the integration tests: a fresh `rosrun turtlesim turtlesim_node` per test; a websocket client
-per test (ws) of the module's `bridge` (made by fixtures.bridge_fixture, or the module's own)."""
+per test (ws) of the module's `bridge` (made by fixtures.bridge_fixture)."""
 
 import pytest
 
