@@ -131,7 +131,7 @@ class Bench:
         self.shots.mkdir(parents=True, exist_ok=True)
         self.a = a
         self.ros = harness.RosMaster(self.workdir).start()
-        self.ros.env["PYTHONPATH"] = f"{BENCH}:{self.ros.env.get('PYTHONPATH', '')}"
+        self.ros.env["PYTHONPATH"] = f"{BENCH}:{REPO / 'testkit'}:{self.ros.env.get('PYTHONPATH', '')}"
         self.link = Link().up()
         self.rover = None
         self.picture = None

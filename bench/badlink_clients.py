@@ -191,16 +191,8 @@ async def driver(a):
 
 # ---- console -----------------------------------------------------------------------------------------------
 
-CHROMIUM_FLAGS = [
-    "--headless=new",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-dev-shm-usage",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
+# (beside the tests' flags: the page keeps its full pace while nothing looks at it)
+KEEP_PACE = [
     "--disable-background-timer-throttling",
     "--disable-renderer-backgrounding",
     "--disable-backgrounding-occluded-windows",
@@ -245,10 +237,12 @@ def console(a):
     from selenium import webdriver
     from selenium.webdriver.chrome.service import Service
 
+    from chromium import CHROMIUM_FLAGS  # (testkit/, on the roles' PYTHONPATH: the browser tests' flags)
+
     profile = tempfile.mkdtemp(prefix="badlink-chromium-")
     options = webdriver.ChromeOptions()
     options.binary_location = "/usr/bin/chromium"
-    for flag in CHROMIUM_FLAGS:
+    for flag in (*CHROMIUM_FLAGS, *KEEP_PACE):
         options.add_argument(flag)
     width, height = (390, 844) if a.phone else map(int, a.window.split(","))
     options.add_argument(f"--user-data-dir={profile}")

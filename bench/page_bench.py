@@ -34,21 +34,13 @@ sys.path[:0] = [str(REPO / "testkit"), str(REPO / "test" / "browser")]
 from test_viewers import open_viewer, text_of  # noqa: E402  (the viewers opened as a person does, as the tests do)
 
 import harness  # noqa: E402
+from chromium import CHROMIUM_FLAGS  # noqa: E402
 from sensor_messages import Publishing, moving_frames, wide_scan  # noqa: E402
 
 WIDTH, HEIGHT = 640, 480
 MEASURE_S = 10.0
 TREE_TOPIC, CAMERA_TOPIC = "/bench_page/pose", "/bench_page/camera"
 SCAN_TOPIC, SCAN_HZ, TF_HZ = "/bench_page/scan", 40, 100
-CHROMIUM_FLAGS = [
-    "--headless=new",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-dev-shm-usage",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--window-size=1280,1600",
-]
 
 # In the page: the time of each animation frame (camera frames' ages are recorded by show_console_camera).
 PROBE = """
@@ -236,7 +228,7 @@ def frame_rates(times):
 def browser():
     options = webdriver.ChromeOptions()
     options.binary_location = "/usr/bin/chromium"
-    for flag in CHROMIUM_FLAGS:
+    for flag in (*CHROMIUM_FLAGS, "--window-size=1280,1600"):
         options.add_argument(flag)
     return webdriver.Chrome(service=Service(executable_path="/usr/bin/chromedriver"), options=options)
 

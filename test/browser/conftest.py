@@ -12,6 +12,7 @@ from selenium import webdriver
 from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
 
+from chromium import CHROMIUM_FLAGS
 from harness import start_bridge, wait_for
 from sensor_messages import CAMERA
 
@@ -19,17 +20,6 @@ SCREENS = {
     "desktop": {"width": 1280, "height": 800, "pixelRatio": 1},
     "phone": {"width": 390, "height": 844, "pixelRatio": 3},
 }
-CHROMIUM_FLAGS = [
-    "--headless=new",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-dev-shm-usage",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-]
 
 
 class Browser:
