@@ -31,6 +31,7 @@ import harness  # noqa: E402  (private roscore, process groups, logs, /proc read
 import peers  # noqa: E402
 import reporting  # noqa: E402
 import stats  # noqa: E402
+from reporting import fmt  # noqa: E402
 
 PY = "/usr/bin/python3"
 VENV_PY = str(REPO / ".build" / "venv" / "bin" / "python")  # (Selenium)
@@ -483,63 +484,8 @@ def summarize(got, kind, t0, t1, published):
 # ---- the table ---------------------------------------------------------------------------------------------
 
 
-def fmt(value, unit):
-    if value is None:
-        return "n/a"
-    if value != value:  # NaN: measured, and it never came
-        return "none"
-    if unit == "%":
-        return f"{value * 100:.0f} %"
-    if unit == "s":
-        return f"{value:.2f} s" if value < 10 else f"{value:.1f} s"
-    if unit == "ms":  # (values in s)
-        return f"{value * 1000:.1f} ms" if value < 0.01 else f"{value * 1000:.0f} ms"
-    if unit == "/s":
-        return f"{value:.1f}/s"
-    if unit == "MB":
-        return f"{value:.1f} MB"
-    if unit == "cpu ms":
-        return f"{value:.1f} ms"
-    return f"{value:.3g} {unit}".strip()
-
-
 PHONE = False  # (--phone: the console cases ran on a phone's screen)
 EXTRA = {"reference": peers.REFERENCE_NAME}  # more servers measured: their columns' titles
-
-
-class Table:
-    """The suite's table (Figure | Bridge | Baseline | Ratio | Target | met), and a last column for each other
-    server measured in the same run (`extra`: the bridge of an earlier commit, rosbridge_server 0.11.17)."""
-
-    def __init__(self, extra):
-        self.rows = []
-        self.extra = extra
-
-    def row(self, figure, value, unit, baseline_name, baseline, target="", ok=None, others=None):
-        ratio = value / baseline if value is not None and baseline else None
-        cells = [
-            figure,
-            fmt(value, unit),
-            f"{baseline_name}: {fmt(baseline, unit)}" if baseline_name else "",
-            f"{ratio:.2f}x" if ratio is not None else "",
-            target,
-            "" if ok is None else ("met" if ok else "**missed**"),
-        ]
-        for server in self.extra:
-            value = (others or {}).get(server)
-            cells.append(fmt(value, unit) if value is not None else "")
-        self.rows.append(cells)
-
-    def text_row(self, figure, value, baseline, others):
-        """A row of texts (no ratio, no goal): e.g. a figure at the start and at the end of the window."""
-        self.rows.append([figure, value, baseline, "", "", ""] + [others.get(server, "") for server in self.extra])
-
-    def markdown(self):
-        head = ["Figure", "Bridge", "Baseline (same run)", "Ratio", "Target", ""]
-        head += [f"{EXTRA[server]} (same run)" for server in self.extra]
-        align = ["---", "---:", "---", "---:", "---", "---"] + ["---:"] * len(self.extra)
-        lines = ["| " + " | ".join(head) + " |", "|" + "|".join(align) + "|"]
-        return "\n".join(lines + ["| " + " | ".join(r) + " |" for r in self.rows])
 
 
 def goals(mbit, kind, picture):
@@ -580,12 +526,12 @@ CLIENT_NAMES = {
 
 def table(results, capacity):
     primary = "bridge" if any(k[3] == "bridge" for k in results) else "before"
-    t = Table(
-        [
-            server
+    t = reporting.Table(
+        {
+            server: EXTRA[server]
             for server in ("before", "reference")
             if server in EXTRA and server != primary and any(k[3] == server for k in results)
-        ]
+        }
     )
     for mbit in sorted({k[0] for k in results}, reverse=True):
         if mbit in capacity:
@@ -605,7 +551,6 @@ def table(results, capacity):
                 name = "phone" if kind == "console" and PHONE else kind
                 where = f"{mbit} Mbit/s, {CLIENT_NAMES[name]}" + (f", {picture} picture" if kind == "console" else "")
                 base = "plain forwarder" if kind != "console" else "JPEG q50 page (rosboard's way)"
-                ms = "ms" if kind == "console" else "s"
 
                 def row(key, label, unit):
                     target, test = g.get(key, ("", None))
@@ -622,7 +567,7 @@ def table(results, capacity):
 
                 def trend(key, label):
                     def text(f):
-                        return f"{fmt(f.get(key + '_first'), ms)} -> {fmt(f.get(key + '_last'), ms)}" if f else ""
+                        return f"{fmt(f.get(key + '_first'), 's')} -> {fmt(f.get(key + '_last'), 's')}" if f else ""
 
                     t.text_row(
                         f"{where}: {label} age p95, first third of the window -> last third",
@@ -635,16 +580,16 @@ def table(results, capacity):
                     row("small_delivered", f"small topic delivered (within {GRACE:.0f} s)", "%")
                 else:
                     row("small_rate", "small topic: new values shown", "/s")
-                row("small_p50", "small topic age p50", ms)
-                row("small_p95", "small topic age p95", ms)
-                row("small_max", "small topic age max", ms)
+                row("small_p50", "small topic age p50", "s")
+                row("small_p95", "small topic age p95", "s")
+                row("small_max", "small topic age max", "s")
                 trend("small_p95", "small topic")
                 row("camera_fps", "camera frames/s" + (" on screen" if kind == "console" else ""), "/s")
-                row("camera_p50", "camera age p50" + (" (from the pixels)" if kind == "console" else ""), ms)
-                row("camera_p95", "camera age p95", ms)
+                row("camera_p50", "camera age p50" + (" (from the pixels)" if kind == "console" else ""), "s")
+                row("camera_p95", "camera age p95", "s")
                 trend("camera_p95", "camera")
                 row("rss_growth", "server RSS growth", "MB")
-                row("cpu_ms_per_frame", "server CPU per camera frame delivered", "cpu ms")
+                row("cpu_ms_per_frame", "server CPU per camera frame delivered", "ms")
         for how in DRIVER_CUTS:
             driven = results.get((mbit, "driver", how, primary))
             if not driven:
@@ -659,7 +604,7 @@ def table(results, capacity):
                 t.row(
                     f"{where}, killed: zero Twist after its connection's end",
                     zero(driven, "zero_after_end"),
-                    "ms",
+                    "s",
                     "",
                     None,
                     "<= 0.5 s",
@@ -670,28 +615,18 @@ def table(results, capacity):
                 t.row(
                     f"{where}, its link cut (no FIN): zero Twist after the last Twist that arrived",
                     zero(driven, "zero_after_last"),
-                    "ms",
+                    "s",
                     "",
                     None,
                     "<= 1 s (the timeout)",
                     (driven.get("zero_after_last") or 9) <= 1.0,
                     {k: zero(v, "zero_after_last") for k, v in others.items()},
                 )
-                t.row(
+                t.text_row(
                     f"{where}: Twist age at the rover p50 / p95 / max (client -> ROS while the camera fills the link)",
-                    driven.get("twist_p95"),
-                    "ms",
+                    " / ".join(fmt(driven.get(k), "s") for k in ("twist_p50", "twist_p95", "twist_max")),
                     "",
-                    None,
-                    "",
-                    None,
-                    {k: v.get("twist_p95") for k, v in others.items()},
-                )
-                t.rows[-1][1] = (
-                    "/".join(
-                        fmt(driven.get(k), "ms").replace(" ms", "") for k in ("twist_p50", "twist_p95", "twist_max")
-                    )
-                    + " ms"
+                    {k: fmt(v.get("twist_p95"), "s") for k, v in others.items() if v.get("twist_p95") is not None},
                 )
     return t
 

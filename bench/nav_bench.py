@@ -32,6 +32,7 @@ import harness  # noqa: E402  (private roscore, process groups, logs, /proc read
 import peers  # noqa: E402
 import reporting  # noqa: E402
 import stats  # noqa: E402
+from reporting import fmt, markdown  # noqa: E402
 
 PY = "/usr/bin/python3"
 MARKERS = ("<!-- nav:start -->", "<!-- nav:end -->")
@@ -438,22 +439,6 @@ def median_figures(runs):
 # ---- the report ------------------------------------------------------------------------------------------------
 
 
-def fmt(value, unit=""):
-    if value is None:
-        return "n/a"
-    if unit == "%":
-        return f"{value * 100:.0f} %" if value < 0.995 or value >= 1 else f"{value * 100:.1f} %"
-    if unit == "ms":  # (value in s)
-        return f"{value * 1e3:.1f} ms" if value < 0.1 else f"{value * 1e3:.0f} ms" if value < 10 else f"{value:.1f} s"
-    if unit == "x":
-        return f"{value:.2f}x"
-    if unit == "MB":
-        return f"{value:.0f} MB"
-    if abs(value) >= 100:
-        return f"{value:,.0f} {unit}".strip()
-    return f"{value:.3g} {unit}".strip()
-
-
 def ratio(a, b):
     return a / b if a is not None and b else None
 
@@ -484,8 +469,7 @@ def streams_table(results, ros_bytes):
         "RSS after: bridge / reference / foxglove",
         "Whole and right: bridge; reference; foxglove",
     ]
-    lines = ["| " + " | ".join(head) + " |", "|" + "|".join(["---"] * 2 + ["---:"] * 11 + ["---"]) + "|"]
-    s = results["streams"]
+    rows, s = [], results["streams"]
     for stream in nav_messages.STREAMS:
         unit = "ms/MB" if ros_bytes[stream.name] >= BIG else "µs/msg"
         fox = s.get((stream.name, "foxglove", "raw")) or {}
@@ -496,29 +480,25 @@ def streams_table(results, ros_bytes):
             ref = s.get((stream.name, "reference", road)) or {}
             ceiling = s.get((stream.name, "ceiling", road)) or {}
             age = "after_asked" if not stream.hz else "age_p95"
-            lines.append(
-                "| "
-                + " | ".join(
-                    [
-                        f"{stream.name} ({_rate(stream)}, {ros_bytes[stream.name]:,} B)",
-                        road,
-                        fmt(ours.get("cpu"), unit),
-                        fmt(_cpu(ref), unit),
-                        fmt(ratio(ours.get("cpu"), _cpu(ref)), "x"),
-                        fmt(ceiling.get("cpu"), unit),
-                        fmt(ratio(ours.get("cpu"), ceiling.get("cpu")), "x"),
-                        fmt(_cpu(fox), unit),
-                        fmt(ratio(ours.get("cpu"), _cpu(fox)), "x"),
-                        " / ".join(fmt(f.get("delivered"), "%") for f in (ours, ref, ceiling, fox)),
-                        " / ".join(fmt(f.get(age), "ms") for f in (ours, ref, ceiling, fox)),
-                        " / ".join(fmt(f.get("peak_rss"), "MB") for f in (ours, ref, fox)),
-                        " / ".join(fmt(f.get("rss_after"), "MB") for f in (ours, ref, fox)),
-                        f"{right(ours)}; {right(ref)}; {right(fox)}",
-                    ]
-                )
-                + " |"
+            rows.append(
+                [
+                    f"{stream.name} ({_rate(stream)}, {ros_bytes[stream.name]:,} B)",
+                    road,
+                    fmt(ours.get("cpu"), unit),
+                    fmt(_cpu(ref), unit),
+                    fmt(ratio(ours.get("cpu"), _cpu(ref)), "x"),
+                    fmt(ceiling.get("cpu"), unit),
+                    fmt(ratio(ours.get("cpu"), ceiling.get("cpu")), "x"),
+                    fmt(_cpu(fox), unit),
+                    fmt(ratio(ours.get("cpu"), _cpu(fox)), "x"),
+                    " / ".join(fmt(f.get("delivered"), "%") for f in (ours, ref, ceiling, fox)),
+                    " / ".join(fmt(f.get(age), "s") for f in (ours, ref, ceiling, fox)),
+                    " / ".join(fmt(f.get("peak_rss"), "MB") for f in (ours, ref, fox)),
+                    " / ".join(fmt(f.get("rss_after"), "MB") for f in (ours, ref, fox)),
+                    f"{right(ours)}; {right(ref)}; {right(fox)}",
+                ]
             )
-    return "\n".join(lines)
+    return markdown(head, ["---"] * 2 + ["---:"] * 11 + ["---"], rows)
 
 
 def _cpu(f):
@@ -543,7 +523,7 @@ ALL_CASES = {
 def all_table(results):
     cases = [(key, name) for key, name in ALL_CASES.items() if results["all"].get(key)]
     head = ["Stream"] + [name for _, name in cases]
-    lines = ["| " + " | ".join(head) + " |", "|" + "|".join(["---"] + ["---:"] * len(cases)) + "|"]
+    rows = []
     for stream in nav_messages.STREAMS:
         if not any(stream.name in results["all"][key]["streams"] for key, _ in cases):
             continue
@@ -553,13 +533,13 @@ def all_table(results):
             if f is None:
                 cells.append("")
             elif stream.hz:
-                cells.append(f"{fmt(f['delivered'], '%')}, p95 {fmt(f['age_p95'], 'ms')}, right: {right(f)}")
+                cells.append(f"{fmt(f['delivered'], '%')}, p95 {fmt(f['age_p95'], 's')}, right: {right(f)}")
             else:
-                cells.append(f"after {fmt(f['after_asked'], 'ms')}, right: {right(f)}")
-        lines.append("| " + " | ".join(cells) + " |")
+                cells.append(f"after {fmt(f['after_asked'], 's')}, right: {right(f)}")
+        rows.append(cells)
     for label, key, unit in (("server CPU (share of a core)", "cpu_share", "%"), ("server peak RSS", "peak_rss", "MB")):
-        lines.append("| " + " | ".join([label] + [fmt(results["all"][k][key], unit) for k, _ in cases]) + " |")
-    return "\n".join(lines)
+        rows.append([label] + [fmt(results["all"][k][key], unit) for k, _ in cases])
+    return markdown(head, ["---"] + ["---:"] * len(cases), rows)
 
 
 def targets(results, ros_bytes):
@@ -625,7 +605,7 @@ def targets(results, ros_bytes):
             continue
         wrong = [n for n, g in f["streams"].items() if g.get("wrong") or not g.get("delivered")]
         stale = [
-            f"{n} {fmt(g['age_p95'], 'ms')}"
+            f"{n} {fmt(g['age_p95'], 's')}"
             for n, g in f["streams"].items()
             if nav_messages.BY_NAME[n].hz and (g.get("age_p95") is None or g["age_p95"] > FRESH)
         ]
@@ -643,7 +623,7 @@ def targets(results, ros_bytes):
                 f"every stream at once to one client ({name}): every message whole and right, every stream "
                 f"there, fresh (age p95 <= {FRESH * 1e3:.0f} ms), /tf_static within 1 s of being asked",
                 f"not right or missing: {', '.join(wrong) or 'none'}; older: {', '.join(stale) or 'none'}; "
-                f"/tf_static after {fmt(tf, 'ms')}; the least delivered {fmt(least, '%')}",
+                f"/tf_static after {fmt(tf, 's')}; the least delivered {fmt(least, '%')}",
                 not wrong and not stale and tf is not None and tf <= 1.0,
             )
         )
@@ -651,7 +631,7 @@ def targets(results, ros_bytes):
 
 
 def _num(value, key):
-    return fmt(value, "ms") if key == "cpu_s" else fmt(value, "MB")
+    return fmt(value, "s") if key == "cpu_s" else fmt(value, "MB")
 
 
 def render(results, ros_bytes, remarks, footer):
@@ -670,7 +650,7 @@ def render(results, ros_bytes, remarks, footer):
             "The map again (JSON, one client; clouds and maps between): CPU / peak RSS / RSS after of each, "
             "the first, then the ten: "
             + "; ".join(
-                f"{fmt(m['cpu_s'], 'ms')} / {fmt(m['peak_rss'], 'MB')} / {fmt(m['rss_after'], 'MB')}"
+                f"{fmt(m['cpu_s'], 's')} / {fmt(m['peak_rss'], 'MB')} / {fmt(m['rss_after'], 'MB')}"
                 for m in [again["first"], *again["again"]]
             )
             + f" (idle {fmt(again['idle_rss'], 'MB')})."
@@ -679,7 +659,7 @@ def render(results, ros_bytes, remarks, footer):
     if fox:
         parts.append(
             f"foxglove_bridge with `send_buffer_limit` 100 MB (its default, 10 MB, drops the 16 MB map): the "
-            f"map {fmt(fox.get('cpu'), 'ms/MB')}, after {fmt(fox.get('after_asked'), 'ms')}, peak RSS "
+            f"map {fmt(fox.get('cpu'), 'ms/MB')}, after {fmt(fox.get('after_asked'), 's')}, peak RSS "
             f"{fmt(fox.get('peak_rss'), 'MB')}, right: {right(fox)}."
         )
     notes = []

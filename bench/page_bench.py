@@ -35,6 +35,7 @@ from test_viewers import open_viewer, text_of  # noqa: E402  (the viewers opened
 
 import harness  # noqa: E402
 from chromium import CHROMIUM_FLAGS  # noqa: E402
+from reporting import markdown  # noqa: E402
 from sensor_messages import Publishing, moving_frames, wide_scan  # noqa: E402
 
 WIDTH, HEIGHT = 640, 480
@@ -300,30 +301,33 @@ def print_tables(results):
         "console": "the console's camera (the bridge's JPEG stream, adaptive; newest frame only)",
         "json": "a usual roslibjs camera (JSON, base64, every frame)",
     }
-    print(
-        "| camera shown with a 100 Hz topic tree and a plot | page frames/s | camera frames drawn/s | "
-        "frame age p50 / p95 / max | goal |"
-    )
-    print("|---|---:|---:|---:|---|")
+    rows = []
     for variant in ("console", "json"):
         got = results[variant]
         met = got["fps"] >= 50 and got["age_max"] <= 100
-        goal = ("met" if met else "**missed**") if variant == "console" else "(for comparison)"
-        print(
-            f"| {names[variant]} | {got['fps']:.0f} | {got['camera_fps']:.1f} | {got['age_p50']:.0f} / "
-            f"{got['age_p95']:.0f} / {got['age_max']:.0f} ms | {goal} |"
+        rows.append(
+            [
+                names[variant],
+                f"{got['fps']:.0f}",
+                f"{got['camera_fps']:.1f}",
+                f"{got['age_p50']:.0f} / {got['age_p95']:.0f} / {got['age_max']:.0f} ms",
+                ("met" if met else "**missed**") if variant == "console" else "(for comparison)",
+            ]
         )
+    head = [
+        "camera shown with a 100 Hz topic tree and a plot",
+        "page frames/s",
+        "camera frames drawn/s",
+        "frame age p50 / p95 / max",
+        "goal",
+    ]
+    print(markdown(head, ["---", "---:", "---:", "---:", "---"], rows))
     print(
         f"\nGoal: at least 50 page frames/s and no camera frame older than 100 ms when drawn; {MEASURE_S:.0f} s "
         "each, after 3 s to settle. Both panels (Topics and Camera) shown at once.\n"
     )
     idle, robot = results["idle"], results["robot"]
-    print(
-        "| a robot's console: shown at once | page frames/s, median / lowest second (vs nothing shown) | "
-        "longest frame | scans/s published / reaching the page / drawn | camera frames drawn/s, age p50 / max | "
-        "CPU, % of a core: bridge / Chromium / publishers | load (1 min) | goal |"
-    )
-    print("|---|---:|---:|---:|---:|---:|---:|---|")
+    rows = []
     for name, got in (
         ("nothing (the page connected, the same publishers running)", idle),
         (
@@ -334,14 +338,29 @@ def print_tables(results):
         scans = got.get("scans")
         cpu = got["cpu"]
         versus = f" ({got['fps_p50'] / idle['fps_p50']:.2f}x)" if got is robot and idle["fps_p50"] else ""
-        print(
-            f"| {name} | {got['fps_p50']:.0f} / {got['fps_min']:.0f}{versus} | {got['longest_ms']:.0f} ms | "
-            + (f"{scans['published']:.1f} / {scans['received']:.1f} / {scans['drawn']:.1f} | " if scans else "| ")
-            + (f"{got['camera_fps']:.1f}, {got['age_p50']:.0f} / {got['age_max']:.0f} ms | " if scans else "| ")
-            + f"{cpu['bridge']:.0f} / {cpu['chromium']:.0f} / {cpu['publishers']:.0f} | {got['load']:.1f} | "
-            + (("met" if got["fps_min"] >= 50 else "**missed**") if scans else "(baseline)")
-            + " |"
+        rows.append(
+            [
+                name,
+                f"{got['fps_p50']:.0f} / {got['fps_min']:.0f}{versus}",
+                f"{got['longest_ms']:.0f} ms",
+                f"{scans['published']:.1f} / {scans['received']:.1f} / {scans['drawn']:.1f}" if scans else "",
+                f"{got['camera_fps']:.1f}, {got['age_p50']:.0f} / {got['age_max']:.0f} ms" if scans else "",
+                f"{cpu['bridge']:.0f} / {cpu['chromium']:.0f} / {cpu['publishers']:.0f}",
+                f"{got['load']:.1f}",
+                ("met" if got["fps_min"] >= 50 else "**missed**") if scans else "(baseline)",
+            ]
         )
+    head = [
+        "a robot's console: shown at once",
+        "page frames/s, median / lowest second (vs nothing shown)",
+        "longest frame",
+        "scans/s published / reaching the page / drawn",
+        "camera frames drawn/s, age p50 / max",
+        "CPU, % of a core: bridge / Chromium / publishers",
+        "load (1 min)",
+        "goal",
+    ]
+    print(markdown(head, ["---"] + ["---:"] * 6 + ["---"], rows))
     print(
         f"\nGoal: the page keeps at least 50 frames/s (every second of the {MEASURE_S:.0f} s, after 3 s to settle) "
         "with the three shown at once. Scans not drawn: those merged on the way (the viewer asks the bridge for "

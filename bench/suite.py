@@ -22,6 +22,7 @@ sys.path.insert(0, str(REPO / "test" / "integration"))
 import hostile  # noqa: E402  (the isolation tests' hostile clients and their victim)
 import payloads  # noqa: E402
 import peers  # noqa: E402
+import reporting  # noqa: E402
 import stats  # noqa: E402
 
 PY = "/usr/bin/python3"
@@ -465,42 +466,6 @@ def fanout(run, clients, messages=30):
 def medians(rounds):
     keys = [k for k in rounds[0] if isinstance(rounds[0][k], (int, float))]
     return {k: stats.median([r.get(k) for r in rounds]) for k in keys}
-
-
-class Table:
-    """Rows of: figure, bridge value, baseline name, baseline value, target; the ratio is computed."""
-
-    def __init__(self):
-        self.rows = []
-        self.notes = []
-
-    def row(self, figure, value, unit, baseline_name, baseline, target="", ok=None):
-        ratio = value / baseline if value is not None and baseline else None
-        self.rows.append(
-            (
-                figure,
-                fmt(value, unit),
-                f"{baseline_name}: {fmt(baseline, unit)}" if baseline_name else "",
-                f"{ratio:.2f}x" if ratio is not None else "",
-                target,
-                "" if ok is None else ("met" if ok else "**missed**"),
-            )
-        )
-
-    def markdown(self):
-        lines = ["| Figure | Bridge | Baseline (same run) | Ratio | Target | |", "|---|---:|---|---:|---|---|"]
-        lines += ["| " + " | ".join(r) + " |" for r in self.rows]
-        return "\n".join(lines)
-
-
-def fmt(value, unit):
-    if value is None:
-        return "n/a"
-    if unit == "%":  # (a loss too small for one decimal still shows)
-        return f"{value * 100:.1f}%" if value >= 1 or value < 0.9995 else f"{value * 100:.2f}%"
-    if abs(value) >= 100:
-        return f"{value:,.0f} {unit}".strip()
-    return f"{value:.3g} {unit}".strip()
 
 
 def section_throughput(run, table, rounds, count):
@@ -1061,7 +1026,7 @@ def main():
         signal.signal(sig, lambda *_: sys.exit("bench: stopped by signal"))
 
     started, load_before = time.monotonic(), os.getloadavg()[0]
-    table, extras = Table(), []
+    table, extras = reporting.Table(), []
     run = Run(tempfile.mkdtemp(prefix="bench-"), a)
     try:
         sections = {

@@ -17,6 +17,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO / "testkit"))
 from harness import ProcStat, RosMaster, make_workdir, wait_for  # noqa: E402  (the test harness starts the processes)
+from reporting import markdown, markdown_row  # noqa: E402
 
 TARGET_HZ = 62.5
 TURN = 0.8  # rad/s: every turtle drives in circles
@@ -100,20 +101,21 @@ def main():
     xvfb, display = ros.start_xvfb()
     try:
         print(f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} at the start\n")
-        print(
-            "| turtles | view | pose rate per turtle, Hz (min / mean / max) | within 62.5 Hz +-2 % | "
-            "ticks simulated, Hz | node CPU, % of one core |"
-        )
-        print("|---|---|---|---|---|---|")
+        head = [
+            "turtles",
+            "view",
+            "pose rate per turtle, Hz (min / mean / max)",
+            "within 62.5 Hz +-2 %",
+            "ticks simulated, Hz",
+            "node CPU, % of one core",
+        ]
+        print(markdown(head, ["---"] * 6, []))
         for turtles in args.turtles:
             for view in (None, display):
                 low, mean, high, ticks, cpu = measure(ros, rospy, turtles, view, args.seconds)
                 ok = "yes" if abs(low - TARGET_HZ) <= 0.02 * TARGET_HZ and high <= TARGET_HZ * 1.02 else "NO"
-                print(
-                    f"| {turtles} | {'Xvfb window' if view else 'headless'} | "
-                    f"{low:.2f} / {mean:.2f} / {high:.2f} | {ok} | {ticks:.2f} | {cpu:.0f} |",
-                    flush=True,
-                )
+                cells = [f"{turtles}", "Xvfb window" if view else "headless", f"{low:.2f} / {mean:.2f} / {high:.2f}"]
+                print(markdown_row([*cells, ok, f"{ticks:.2f}", f"{cpu:.0f}"]), flush=True)
     finally:
         xvfb.stop()
         rospy.signal_shutdown("done")
