@@ -1,5 +1,6 @@
-"""Real processes for the tests: a private roscore per session, nodes started with rosrun/roslaunch,
-and the stock CLI tools. Every process is started in its own process group and killed at teardown."""
+"""Real processes for the tests and the benches (bench/ imports testkit/ too): a private roscore per session,
+nodes started with rosrun/roslaunch, and the stock CLI tools. Every process is started in its own process group
+and killed at teardown."""
 
 import os
 import random
