@@ -42,6 +42,7 @@ from rosbridge import globs as globs_module
 from rosbridge.errors import ClientError
 from rosbridge.http.access import EndpointHandler, query_text, refusal
 from rosbridge.http.cloud import Answers, CloudError, decimate, point_count, read_cloud, stride_for
+from rosbridge.http.no_op_client import NoOpClient
 from rosbridge.http.streams import WAIT_POLL, BadRequest, TopicTypes
 from rosbridge.off_loop import EncodingThread
 
@@ -57,7 +58,7 @@ CACHE_BYTES = 16 << 20  # answers kept, all topics together: 8.4 MB for every st
 ANSWER_BYTES = 512  # what an answer kept costs beside its body and headers (its tuple, dict and keys)
 
 
-class CloudTopic:
+class CloudTopic(NoOpClient):
     """One cloud topic: its subscription (this is its contract.Client), its newest cloud, the requests waiting for
     a newer one, and the answers asked of its clouds that are being made (`wanted`, in the order asked)."""
 
@@ -151,12 +152,6 @@ class CloudTopic:
 
     def ros_refused(self, op, name, text):
         self.close()
-
-    def request_service(self, call_id, service, args):
-        pass
-
-    def status(self, level, msg, request_id=None):
-        pass
 
 
 def made_of(message, seq, max_points):

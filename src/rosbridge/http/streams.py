@@ -49,6 +49,7 @@ import tornado.web
 from rosbridge import globs as globs_module
 from rosbridge.errors import ClientError, log_bug
 from rosbridge.http import access, jpeg
+from rosbridge.http.no_op_client import NoOpClient
 from rosbridge.off_loop import EncodingThread
 from rosbridge.origins import SECURITY_HEADERS
 from rosbridge.transport.unsent import limit_unsent
@@ -179,11 +180,10 @@ def choose_source(request, topic, types):
 
 
 # ---- the master's topics -----------------------------------------------------------------------------------------
-class TopicTypes:
+class TopicTypes(NoOpClient):
     """The allowed topics' types, from the backend's /rosapi/topics (filtered by topics_glob), asked at most once
-    per TYPES_MAX_AGE; the requests that come while a look-up runs share it. It is the look-ups' contract.Client."""
-
-    is_closed = False
+    per TYPES_MAX_AGE; the requests that come while a look-up runs share it. It is the look-ups' contract.Client
+    (nothing else is ever sent to a look-up)."""
 
     def __init__(self, backend):
         self._backend = backend
@@ -213,19 +213,6 @@ class TopicTypes:
                 callback(self._types, None) if ok else callback(None, str(values))
             except Exception:
                 log_bug("answering a camera stream's topic look-up")
-
-    # (contract.Client: nothing else is ever sent to a look-up)
-    def deliver(self, message):
-        pass
-
-    def ros_refused(self, op, name, text):
-        pass
-
-    def request_service(self, call_id, service, args):
-        pass
-
-    def status(self, level, msg, request_id=None):
-        pass
 
 
 # ---- frames and topics -------------------------------------------------------------------------------------------
@@ -306,7 +293,7 @@ def _encode(picture, keys):
     return results
 
 
-class StreamTopic:
+class StreamTopic(NoOpClient):
     """One topic that viewers watch: its subscription (this object is its contract.Client), its newest frame and
     the viewers waiting for it to be made as they ask."""
 
@@ -368,12 +355,6 @@ class StreamTopic:
         for viewer in list(self.viewers):
             viewer.fail(503, text)
         self.close()
-
-    def request_service(self, call_id, service, args):
-        pass
-
-    def status(self, level, msg, request_id=None):
-        pass
 
     # ---- making frames for viewers
     def want(self, viewer):
