@@ -27,7 +27,7 @@ from rosbridge.http.bag_recorder import Recorder
 from rosbridge.http.bag_routes import MAX_BODY, bag_routes
 from rosbridge.http.cloud_routes import cloud_routes
 from rosbridge.http.pages import PageFiles, missing_files
-from rosbridge.http.streams import stream_routes
+from rosbridge.http.stream_routes import stream_routes
 from rosbridge.off_loop import EncodingThread
 from rosbridge.ros_side import RosBackend
 from rosbridge.ros_side.recovery import MasterWatch

@@ -1,4 +1,4 @@
-"""streams.py without processes: a topic's frames made once per (frame, size, quality) for all its viewers, only
+"""stream_routes.py without processes: a topic's frames made once per (frame, size, quality) for all its viewers, only
 when a viewer wants them, one encoding job at a time with the newest frame winning, jobs bounded in pixels and
 topics taking turns, a frame's variants bounded in bytes; the pictures being sent to the viewers bounded in bytes
 (jpeg.Sending); the requests' parameters and which topic a request streams from."""
@@ -8,7 +8,7 @@ import io
 import pytest
 from sensor_msgs.msg import Image as RosImage
 
-from rosbridge.http import jpeg, streams
+from rosbridge.http import jpeg, stream_routes
 from rosbridge.protocol.encoded import TopicMessage
 
 from fakes import Loop
@@ -82,7 +82,7 @@ def image_message(index, encoding="rgb8"):
 @pytest.fixture
 def topic():
     shared = FakeStreams()
-    made = streams.StreamTopic(shared, streams.Source("/cam", jpeg.IMAGE))
+    made = stream_routes.StreamTopic(shared, stream_routes.Source("/cam", jpeg.IMAGE))
     shared.topics["/cam"] = made
     return made
 
@@ -113,9 +113,9 @@ def test_different_sizes_are_made_in_one_job_each_once(topic):
 
 
 def test_at_most_MAX_KEYS_PER_JOB_variants_a_job_the_rest_in_the_next(topic):
-    viewers = [FakeViewer(topic, ((8 + i, 6), 80, False)) for i in range(streams.MAX_KEYS_PER_JOB + 3)]
+    viewers = [FakeViewer(topic, ((8 + i, 6), 80, False)) for i in range(stream_routes.MAX_KEYS_PER_JOB + 3)]
     topic.deliver(image_message(1))
-    assert len(encoder(topic).jobs[0][1]) == streams.MAX_KEYS_PER_JOB
+    assert len(encoder(topic).jobs[0][1]) == stream_routes.MAX_KEYS_PER_JOB
     encoder(topic).finish()
     assert len(encoder(topic).jobs) == 1 and len(encoder(topic).jobs[0][1]) == 3
     encoder(topic).finish()
@@ -135,7 +135,7 @@ def test_a_job_is_bounded_in_pixels_and_makes_each_size_once(topic):
         encoder(topic).finish()
     assert [big] in jobs  # (alone: it is more than JOB_PIXELS)
     for keys in jobs:
-        assert len(keys) == 1 or sum(width * height for (width, height), _, _ in keys) <= streams.JOB_PIXELS
+        assert len(keys) == 1 or sum(width * height for (width, height), _, _ in keys) <= stream_routes.JOB_PIXELS
         assert [size for size, _, _ in keys] == sorted(size for size, _, _ in keys)
     assert all(len(viewer.got) == 1 for viewer in viewers)
 
@@ -144,7 +144,9 @@ def test_topics_take_turns_at_the_encoder():
     """Two topics on one encoder: the second waits for one job of the first, however many of the first's viewers
     ask sizes of their own (it waited for 8 such variants before)."""
     shared = FakeStreams()
-    flooded, other = (streams.StreamTopic(shared, streams.Source(name, jpeg.IMAGE)) for name in ("/flood", "/cam"))
+    flooded, other = (
+        stream_routes.StreamTopic(shared, stream_routes.Source(name, jpeg.IMAGE)) for name in ("/flood", "/cam")
+    )
     flood = [FakeViewer(flooded, ((4096 - 16 * index, 2048), 100, False)) for index in range(24)]
     viewer = FakeViewer(other)
     flooded.deliver(image_message(1))
@@ -158,7 +160,7 @@ def test_topics_take_turns_at_the_encoder():
 def test_the_variants_a_frame_keeps_are_bounded_in_bytes(topic, monkeypatch):
     """A frame keeps its newest variants, MAX_VARIANT_BYTES of them at most; every viewer still gets its own, and a
     viewer asking a forgotten one again has it made again."""
-    monkeypatch.setattr(streams, "MAX_VARIANT_BYTES", 250)
+    monkeypatch.setattr(stream_routes, "MAX_VARIANT_BYTES", 250)
     keys = [((8 + index, 6), 80, False) for index in range(6)]
     viewers = [FakeViewer(topic, key) for key in keys]
     topic.deliver(image_message(1))
@@ -204,7 +206,7 @@ def test_a_frame_that_cannot_be_made_is_told_to_the_viewer(topic):
     topic.deliver(image_message(1, encoding="yuv422"))
     made = encoder(topic).jobs  # (the fake encoder makes anything: read what the real one does)
     picture, keys, done = made.pop()
-    done(streams._encode(picture, keys))
+    done(stream_routes._encode(picture, keys))
     ((_, error),) = viewer.got
     assert isinstance(error, jpeg.UnsupportedEncoding)
 
@@ -213,7 +215,7 @@ def test_the_subscription_lingers_after_the_last_viewer_then_goes(topic):
     shared = topic._streams
     viewer = FakeViewer(topic)
     topic.remove(viewer)
-    assert len(shared.loop.timers) == 1 and shared.loop.timers[0][0] == streams.LINGER
+    assert len(shared.loop.timers) == 1 and shared.loop.timers[0][0] == stream_routes.LINGER
     again = FakeViewer(topic)  # a reload within LINGER keeps it
     assert shared.loop.timers == []
     topic.remove(again)
@@ -285,7 +287,7 @@ def args(query):
 
 
 def test_a_request_with_web_video_servers_defaults():
-    request = streams.StreamRequest(args("topic=/cam"))
+    request = stream_routes.StreamRequest(args("topic=/cam"))
     assert (
         request.topic,
         request.type,
@@ -296,7 +298,7 @@ def test_a_request_with_web_video_servers_defaults():
         request.adaptive,
         request.transport,
     ) == ("/cam", "mjpeg", 0, 0, None, False, False, "raw")
-    request = streams.StreamRequest(args("topic=/cam&width=-1&height=200&quality=30&invert&adaptive=1"))
+    request = stream_routes.StreamRequest(args("topic=/cam&width=-1&height=200&quality=30&invert&adaptive=1"))
     assert (request.width, request.height, request.quality, request.invert, request.adaptive) == (
         0,
         200,
@@ -317,8 +319,8 @@ def test_a_request_with_web_video_servers_defaults():
     ],
 )
 def test_bad_parameters(query, text):
-    with pytest.raises(streams.BadRequest, match=text) as refused:
-        streams.StreamRequest(args(query))
+    with pytest.raises(stream_routes.BadRequest, match=text) as refused:
+        stream_routes.StreamRequest(args(query))
     assert refused.value.status == 400
 
 
@@ -347,11 +349,11 @@ TYPES = {
     ],
 )
 def test_which_topic_a_request_streams_from(query, topic, expected):
-    source = streams.choose_source(streams.StreamRequest(args(f"topic={topic}&{query}")), topic, TYPES)
+    source = stream_routes.choose_source(stream_routes.StreamRequest(args(f"topic={topic}&{query}")), topic, TYPES)
     assert (source.topic, source.type, source.pass_mode) == expected if expected else source is None
 
 
 def test_a_topic_of_another_type_is_404():
-    with pytest.raises(streams.BadRequest, match="topic /text is a std_msgs/String, not an image") as refused:
-        streams.choose_source(streams.StreamRequest(args("topic=/text")), "/text", TYPES)
+    with pytest.raises(stream_routes.BadRequest, match="topic /text is a std_msgs/String, not an image") as refused:
+        stream_routes.choose_source(stream_routes.StreamRequest(args("topic=/text")), "/text", TYPES)
     assert refused.value.status == 404
