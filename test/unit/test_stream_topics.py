@@ -1,4 +1,4 @@
-"""stream_routes.py without processes: a topic's frames made once per (frame, size, quality) for all its viewers, only
+"""http/stream_*.py without processes: a topic's frames made once per (frame, size, quality) for all its viewers, only
 when a viewer wants them, one encoding job at a time with the newest frame winning, jobs bounded in pixels and
 topics taking turns, a frame's variants bounded in bytes; the pictures being sent to the viewers bounded in bytes
 (jpeg.Sending); the requests' parameters and which topic a request streams from."""
@@ -8,7 +8,7 @@ import io
 import pytest
 from sensor_msgs.msg import Image as RosImage
 
-from rosbridge.http import jpeg, stream_routes
+from rosbridge.http import jpeg, stream_requests, stream_routes
 from rosbridge.protocol.encoded import TopicMessage
 
 from fakes import Loop
@@ -82,7 +82,7 @@ def image_message(index, encoding="rgb8"):
 @pytest.fixture
 def topic():
     shared = FakeStreams()
-    made = stream_routes.StreamTopic(shared, stream_routes.Source("/cam", jpeg.IMAGE))
+    made = stream_routes.StreamTopic(shared, stream_requests.Source("/cam", jpeg.IMAGE))
     shared.topics["/cam"] = made
     return made
 
@@ -145,7 +145,7 @@ def test_topics_take_turns_at_the_encoder():
     ask sizes of their own (it waited for 8 such variants before)."""
     shared = FakeStreams()
     flooded, other = (
-        stream_routes.StreamTopic(shared, stream_routes.Source(name, jpeg.IMAGE)) for name in ("/flood", "/cam")
+        stream_routes.StreamTopic(shared, stream_requests.Source(name, jpeg.IMAGE)) for name in ("/flood", "/cam")
     )
     flood = [FakeViewer(flooded, ((4096 - 16 * index, 2048), 100, False)) for index in range(24)]
     viewer = FakeViewer(other)
@@ -287,7 +287,7 @@ def args(query):
 
 
 def test_a_request_with_web_video_servers_defaults():
-    request = stream_routes.StreamRequest(args("topic=/cam"))
+    request = stream_requests.StreamRequest(args("topic=/cam"))
     assert (
         request.topic,
         request.type,
@@ -298,7 +298,7 @@ def test_a_request_with_web_video_servers_defaults():
         request.adaptive,
         request.transport,
     ) == ("/cam", "mjpeg", 0, 0, None, False, False, "raw")
-    request = stream_routes.StreamRequest(args("topic=/cam&width=-1&height=200&quality=30&invert&adaptive=1"))
+    request = stream_requests.StreamRequest(args("topic=/cam&width=-1&height=200&quality=30&invert&adaptive=1"))
     assert (request.width, request.height, request.quality, request.invert, request.adaptive) == (
         0,
         200,
@@ -319,8 +319,8 @@ def test_a_request_with_web_video_servers_defaults():
     ],
 )
 def test_bad_parameters(query, text):
-    with pytest.raises(stream_routes.BadRequest, match=text) as refused:
-        stream_routes.StreamRequest(args(query))
+    with pytest.raises(stream_requests.BadRequest, match=text) as refused:
+        stream_requests.StreamRequest(args(query))
     assert refused.value.status == 400
 
 
@@ -349,11 +349,11 @@ TYPES = {
     ],
 )
 def test_which_topic_a_request_streams_from(query, topic, expected):
-    source = stream_routes.choose_source(stream_routes.StreamRequest(args(f"topic={topic}&{query}")), topic, TYPES)
+    source = stream_requests.choose_source(stream_requests.StreamRequest(args(f"topic={topic}&{query}")), topic, TYPES)
     assert (source.topic, source.type, source.pass_mode) == expected if expected else source is None
 
 
 def test_a_topic_of_another_type_is_404():
-    with pytest.raises(stream_routes.BadRequest, match="topic /text is a std_msgs/String, not an image") as refused:
-        stream_routes.choose_source(stream_routes.StreamRequest(args("topic=/text")), "/text", TYPES)
+    with pytest.raises(stream_requests.BadRequest, match="topic /text is a std_msgs/String, not an image") as refused:
+        stream_requests.choose_source(stream_requests.StreamRequest(args("topic=/text")), "/text", TYPES)
     assert refused.value.status == 404

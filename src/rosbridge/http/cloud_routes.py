@@ -43,7 +43,8 @@ from rosbridge.errors import ClientError
 from rosbridge.http.access import EndpointHandler, query_text, refusal
 from rosbridge.http.cloud import Answers, CloudError, decimate, point_count, read_cloud, stride_for
 from rosbridge.http.no_op_client import NoOpClient
-from rosbridge.http.stream_routes import WAIT_POLL, BadRequest, TopicTypes
+from rosbridge.http.stream_requests import BadRequest
+from rosbridge.http.stream_routes import WAIT_POLL, TopicTypes
 from rosbridge.off_loop import EncodingThread
 
 CLOUD = "sensor_msgs/PointCloud2"

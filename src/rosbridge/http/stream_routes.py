@@ -50,13 +50,13 @@ from rosbridge import globs as globs_module
 from rosbridge.errors import ClientError, log_bug
 from rosbridge.http import access, jpeg
 from rosbridge.http.no_op_client import NoOpClient
+from rosbridge.http.stream_requests import BadRequest, StreamRequest, choose_source
 from rosbridge.off_loop import EncodingThread
 from rosbridge.origins import SECURITY_HEADERS
 from rosbridge.transport.unsent import limit_unsent
 
 BOUNDARY = "boundarydonotcross"  # web_video_server's
 DEFAULT_QUALITY = 95  # web_video_server's, for a stream that does not adapt
-STREAM_TYPES = ("mjpeg", "ros_compressed")
 SNAPSHOT_TIMEOUT = 5.0  # seconds a snapshot waits for the next frame
 SNAPSHOT_GRACE = 2.0  # then seconds it may take to make the newest frame seen, if one was
 WAIT_POLL = 1.0  # seconds between looks at the master for a topic nobody publishes yet
@@ -71,112 +71,6 @@ CROWDED_STALL = 2.0  # seconds a viewer's picture may take to leave before the v
 MAX_DISCARDED = 64 * 1024  # bytes a viewer may send after its request before its stream is closed
 PASS = "pass"  # the key of a CompressedImage sent as it is
 NO_CACHE = "no-cache, no-store, must-revalidate, pre-check=0, post-check=0, max-age=0"
-
-
-class BadRequest(Exception):
-    """A request refused: the HTTP status and the text the client gets."""
-
-    def __init__(self, status, text):
-        super().__init__(text)
-        self.status, self.text = status, text
-
-
-# ---- requests ---------------------------------------------------------------------------------------------------
-class StreamRequest:
-    """What a /stream, /snapshot or /stream_viewer request asks (web_video_server's query parameters, plus
-    adaptive). quality is None when not given; width and height 0 when not given (or -1, web_video_server's
-    "as the source")."""
-
-    __slots__ = ("topic", "type", "width", "height", "quality", "invert", "adaptive", "transport")
-
-    def __init__(self, args):
-        self.topic = _text(args, "topic") or ""
-        if not self.topic:
-            raise BadRequest(400, "topic is required, e.g. ?topic=/camera/image_raw")
-        self.type = _text(args, "type") or "mjpeg"
-        if self.type not in STREAM_TYPES:
-            video = (
-                " (web_video_server's video codecs are not offered by this bridge)"
-                if self.type in ("vp8", "vp9", "h264", "png")
-                else ""
-            )
-            raise BadRequest(
-                400, f"stream type {self.type!r} is not supported{video}: use type=mjpeg (or ros_compressed)"
-            )
-        self.width = _integer(args, "width", 0, jpeg.MAX_SIDE)
-        self.height = _integer(args, "height", 0, jpeg.MAX_SIDE)
-        self.quality = _integer(args, "quality", 1, 100, default=None)
-        self.adaptive = _flag(args, "adaptive", absent=False, bare=True)
-        self.invert = _flag(args, "invert", absent=False, bare=True)
-        self.transport = _text(args, "default_transport") or "raw"
-        if self.transport not in ("raw", "compressed"):
-            raise BadRequest(400, f"default_transport must be raw or compressed, got {self.transport!r}")
-
-    @property
-    def resized(self):
-        return bool(self.width or self.height or self.quality is not None or self.invert or self.adaptive)
-
-
-_text = access.query_text
-
-
-def _integer(args, name, low, high, default=0):
-    text = _text(args, name)
-    if text is None or text == "":
-        return default
-    try:
-        value = int(text)
-    except ValueError:
-        value = None
-    if value == -1 and name in ("width", "height"):
-        return 0
-    if value is None or not low <= value <= high:
-        raise BadRequest(400, f"{name} must be an integer from {low} to {high}, got {text!r}")
-    return value
-
-
-def _flag(args, name, absent, bare):
-    text = _text(args, name)
-    if text is None:
-        return absent
-    text = text.lower()
-    if text == "":
-        return bare
-    if text in ("1", "true", "yes", "on"):
-        return True
-    if text in ("0", "false", "no", "off"):
-        return False
-    raise BadRequest(400, f"{name} must be 1 or 0, got {text!r}")
-
-
-class Source:
-    """The topic a viewer's frames come from: its name and type, and pass: "any" to send a CompressedImage's JPEG or
-    PNG as it is (type=ros_compressed), "jpeg" to send its JPEG as it is (nothing resized), None to make JPEGs."""
-
-    __slots__ = ("topic", "type", "pass_mode")
-
-    def __init__(self, topic, type_name, pass_mode=None):
-        self.topic, self.type, self.pass_mode = topic, type_name, pass_mode
-
-
-def choose_source(request, topic, types):
-    """The Source of a request for `topic` (resolved) from the master's {topic: type} (the allowed ones), or None
-    while nobody publishes it. As web_video_server: type=ros_compressed (and default_transport=compressed) take
-    `topic`/compressed when it exists, else `topic` itself."""
-    compressed = topic.rstrip("/") + "/compressed"
-    if types.get(compressed) == jpeg.COMPRESSED:
-        if request.type == "ros_compressed" and not request.adaptive:
-            return Source(compressed, jpeg.COMPRESSED, "any")
-        if request.type == "ros_compressed" or request.transport == "compressed":
-            return Source(compressed, jpeg.COMPRESSED)
-    kind = types.get(topic)
-    if not kind:
-        return None
-    if kind not in jpeg.IMAGE_TYPES:
-        raise BadRequest(404, f"topic {topic} is a {kind}, not an image ({jpeg.IMAGE} or {jpeg.COMPRESSED})")
-    if kind == jpeg.COMPRESSED and request.type == "ros_compressed" and not request.adaptive:
-        return Source(topic, kind, "any")
-    return Source(topic, kind, "jpeg" if kind == jpeg.COMPRESSED and not request.resized else None)
 
 
 # ---- the master's topics -----------------------------------------------------------------------------------------
@@ -1039,7 +933,7 @@ class StreamListHandler(_Handler):
         if refusal is not None:
             self.refuse(*refusal)
             return
-        fmt = _text(self.request.query_arguments, "format") or "html"
+        fmt = access.query_text(self.request.query_arguments, "format") or "html"
         if fmt not in ("html", "json"):
             self.refuse(400, f"format must be html or json, got {fmt!r}")
             return
@@ -1057,7 +951,7 @@ class StreamListHandler(_Handler):
             self.finish(json.dumps({"topics": [{"topic": topic, "type": kind} for topic, kind in images]}))
             return
         auth = "".join(
-            f"&{name}={urllib.parse.quote(_text(self.request.query_arguments, name) or '')}"
+            f"&{name}={urllib.parse.quote(access.query_text(self.request.query_arguments, name) or '')}"
             for name in access.AUTH_FIELDS
             if self.streams.bridge.config.authenticate
         )
