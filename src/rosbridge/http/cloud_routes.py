@@ -16,7 +16,7 @@ control characters nor more than Latin-1.
 One subscription per topic through the bridge's backend (CloudTopic, a contract.Client), shared with the websocket
 clients, kept LINGER seconds after its last request; MAX_TOPICS topics at once, more are refused (503). Only a
 topic the master lists as a PointCloud2 is subscribed: a request for a name it does not list looks again every
-streams.WAIT_POLL seconds (streams.TopicTypes) and answers 204 if it never came within WAIT_S. (Each subscription
+WAIT_POLL seconds (topic_types.TopicTypes) and answers 204 if it never came within WAIT_S. (Each subscription
 costs a master registration and graph updates on the ROS side: requests for names nobody publishes, each
 subscribed, held the other clients' calls for seconds.)
 
@@ -44,7 +44,7 @@ from rosbridge.http.access import EndpointHandler, query_text, refusal
 from rosbridge.http.cloud import Answers, CloudError, decimate, point_count, read_cloud, stride_for
 from rosbridge.http.no_op_client import NoOpClient
 from rosbridge.http.stream_requests import BadRequest
-from rosbridge.http.stream_routes import WAIT_POLL, TopicTypes
+from rosbridge.http.topic_types import WAIT_POLL, TopicTypes
 from rosbridge.off_loop import EncodingThread
 
 CLOUD = "sensor_msgs/PointCloud2"

@@ -51,6 +51,7 @@ from rosbridge.errors import ClientError, log_bug
 from rosbridge.http import access, jpeg
 from rosbridge.http.no_op_client import NoOpClient
 from rosbridge.http.stream_requests import BadRequest, StreamRequest, choose_source
+from rosbridge.http.topic_types import WAIT_POLL, TopicTypes
 from rosbridge.off_loop import EncodingThread
 from rosbridge.origins import SECURITY_HEADERS
 from rosbridge.transport.unsent import limit_unsent
@@ -59,10 +60,7 @@ BOUNDARY = "boundarydonotcross"  # web_video_server's
 DEFAULT_QUALITY = 95  # web_video_server's, for a stream that does not adapt
 SNAPSHOT_TIMEOUT = 5.0  # seconds a snapshot waits for the next frame
 SNAPSHOT_GRACE = 2.0  # then seconds it may take to make the newest frame seen, if one was
-WAIT_POLL = 1.0  # seconds between looks at the master for a topic nobody publishes yet
 LINGER = 5.0  # seconds a topic's subscription outlives its last viewer (a reload or the next snapshot reuses it)
-TYPES_MAX_AGE = 0.5  # seconds the master's topic types answer for
-LOOKUP_TIMEOUT = 5.0
 MAX_KEYS_PER_JOB = 8  # variants one encoding job makes; more wait for the next job (the topic's next turn)
 JOB_PIXELS = 4_000_000  # and pixels in all (one variant at least): a topic's turn at the encoder, ~0.1 s here
 MAX_VARIANT_BYTES = 16 * 1024 * 1024  # the variants a frame keeps, newest first (older ones are made again if asked)
@@ -71,42 +69,6 @@ CROWDED_STALL = 2.0  # seconds a viewer's picture may take to leave before the v
 MAX_DISCARDED = 64 * 1024  # bytes a viewer may send after its request before its stream is closed
 PASS = "pass"  # the key of a CompressedImage sent as it is
 NO_CACHE = "no-cache, no-store, must-revalidate, pre-check=0, post-check=0, max-age=0"
-
-
-# ---- the master's topics -----------------------------------------------------------------------------------------
-class TopicTypes(NoOpClient):
-    """The allowed topics' types, from the backend's /rosapi/topics (filtered by topics_glob), asked at most once
-    per TYPES_MAX_AGE; the requests that come while a look-up runs share it. It is the look-ups' contract.Client
-    (nothing else is ever sent to a look-up)."""
-
-    def __init__(self, backend):
-        self._backend = backend
-        self._types, self._taken = None, float("-inf")
-        self._waiting = None  # callbacks waiting for the look-up in flight
-
-    def get(self, callback):
-        """callback(types, None) or callback(None, error text), on the loop (at once when fresh)."""
-        if self._types is not None and time.monotonic() - self._taken < TYPES_MAX_AGE:
-            callback(self._types, None)
-            return
-        if self._waiting is not None:
-            self._waiting.append(callback)
-            return
-        self._waiting = [callback]
-        try:
-            self._backend.call_service(self, "/rosapi/topics", {}, None, LOOKUP_TIMEOUT, self._answered)
-        except ClientError as error:
-            self._answered(False, str(error))
-
-    def _answered(self, ok, values):
-        waiting, self._waiting = self._waiting or [], None
-        if ok:
-            self._types, self._taken = dict(zip(values["topics"], values["types"])), time.monotonic()
-        for callback in waiting:
-            try:
-                callback(self._types, None) if ok else callback(None, str(values))
-            except Exception:
-                log_bug("answering a camera stream's topic look-up")
 
 
 # ---- frames and topics -------------------------------------------------------------------------------------------
