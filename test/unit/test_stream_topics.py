@@ -8,7 +8,7 @@ import io
 import pytest
 from sensor_msgs.msg import Image as RosImage
 
-from rosbridge.http import jpeg, stream_requests, stream_routes
+from rosbridge.http import camera_encoder, jpeg, stream_requests, stream_routes
 from rosbridge.protocol.encoded import TopicMessage
 
 from fakes import Loop
@@ -206,7 +206,7 @@ def test_a_frame_that_cannot_be_made_is_told_to_the_viewer(topic):
     topic.deliver(image_message(1, encoding="yuv422"))
     made = encoder(topic).jobs  # (the fake encoder makes anything: read what the real one does)
     picture, keys, done = made.pop()
-    done(stream_routes._encode(picture, keys))
+    done(camera_encoder._encode(picture, keys))
     ((_, error),) = viewer.got
     assert isinstance(error, jpeg.UnsupportedEncoding)
 

@@ -4,9 +4,10 @@ and `/streams` (the image topics, as HTML or JSON). The same access rules as the
 authenticate (rosauth fields as query parameters), topics_glob; at most max_clients viewers at once.
 
 What lives where: jpeg.py makes the pictures (pure: reading the messages, decoding, resizing, JPEG, and the
-adaptation's ladder and policy); this file holds the requests (the handlers, thin), each topic's frames and
-subscription (StreamTopic, a contract.Client: one subscription per topic through the bridge's RosBackend, shared
-with the websocket clients), the viewers (StreamViewer, SnapshotViewer) and the encoder thread.
+adaptation's ladder and policy); camera_encoder.py makes them on its thread; this file holds the requests (the
+handlers, thin), each topic's frames and subscription (StreamTopic, a contract.Client: one subscription per topic
+through the bridge's RosBackend, shared with the websocket clients) and the viewers (StreamViewer,
+SnapshotViewer).
 
 Each viewer gets the newest frame and never a backlog: one frame is written to it at a time, and while its
 socket has not taken it (the IOStream's write future not done; unsent.limit_unsent keeps the kernel's share
@@ -19,20 +20,8 @@ makes room. A viewer counts (max_clients, and its picture in those bytes) until 
 dropped if it has not left after websocket_ping_timeout; a snapshot is written on its own connection, as a stream
 is, not joined to its head by Tornado (a copy).
 
-Threads (everything runs on the event loop but the encoding):
-- the loop: the handlers, Streams, every StreamTopic, Frame (its `variants`, what was made of it) and viewer, and
-  their streams;
-- the encoder (Encoder, one thread): decodes a frame and makes the JPEGs asked of it (jpeg.Picture). A job gets
-  the frame's Picture (which only the encoder touches; the loop only drops its reference) and a list of keys,
-  and its results go back to the loop (IOLoop.add_callback) to be stored in the frame's variants. A topic has at
-  most one job in flight: frames arriving meanwhile only replace the topic's newest frame, and the next job takes
-  the newest frame for the viewers still waiting (newest wins), so a busy encoder costs frames, never a backlog.
-  Topics take turns: the jobs run in the order they came, a topic's next job comes only once its last is done,
-  and a job is small (at most MAX_KEYS_PER_JOB variants and JOB_PIXELS, or one variant, itself at most
-  jpeg.MAX_OUTPUT_PIXELS), so a topic waits at most one turn of each other busy topic, and one topic's viewers,
-  whatever sizes they ask, take at most the encoder's one core;
-- master look-ups (a topic's type, the image topics) are the backend's /rosapi/topics call, on one of its
-  service-call threads; the reply comes back on the loop (TopicTypes shares one look-up between requests)."""
+Everything here runs on the event loop; the JPEGs are made on the encoder thread (camera_encoder.py, which says
+who touches what)."""
 
 import functools
 import html
@@ -47,12 +36,12 @@ import tornado.iostream
 import tornado.web
 
 from rosbridge import globs as globs_module
-from rosbridge.errors import ClientError, log_bug
+from rosbridge.errors import ClientError
 from rosbridge.http import access, jpeg
+from rosbridge.http.camera_encoder import Encoder
 from rosbridge.http.no_op_client import NoOpClient
 from rosbridge.http.stream_requests import BadRequest, StreamRequest, choose_source
 from rosbridge.http.topic_types import WAIT_POLL, TopicTypes
-from rosbridge.off_loop import EncodingThread
 from rosbridge.origins import SECURITY_HEADERS
 from rosbridge.transport.unsent import limit_unsent
 
@@ -114,39 +103,6 @@ class Frame:
             return self.read().stamp or self.message.stamp
         except jpeg.ImageError:
             return self.message.stamp
-
-
-class Encoder:
-    """The encoder thread: makes the JPEGs asked of a frame (see the module's docstring for the hand-off)."""
-
-    def __init__(self, loop):
-        self._thread = EncodingThread(loop, "stream encoder")
-
-    def submit(self, picture, keys, done):
-        """done(results) runs on the loop: key -> ("image/jpeg", bytes) or jpeg.ImageError."""
-
-        def finished(results):
-            if results is None:  # a bug (logged): the viewers are told, and the topic's next job can start
-                results = {key: jpeg.ImageError("the frame could not be encoded") for key in keys}
-            done(results)
-
-        self._thread.run(functools.partial(_encode, picture, keys), finished)
-
-
-def _encode(picture, keys):
-    """On the encoder thread. keys come sorted by size: each size is resized once."""
-    results = {}
-    for key in keys:
-        size, quality, invert = key
-        try:
-            results[key] = ("image/jpeg", picture.jpeg(size, quality, invert))
-        except jpeg.ImageError as error:
-            results[key] = error
-        except Exception as error:  # a bug (or a picture Pillow chokes on): the viewers are told, and it is logged
-            log_bug("encoding a camera frame", error)
-            results[key] = jpeg.ImageError(f"the frame could not be encoded ({type(error).__name__})")
-    picture.forget_resized()
-    return results
 
 
 class StreamTopic(NoOpClient):
