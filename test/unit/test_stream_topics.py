@@ -8,7 +8,7 @@ import io
 import pytest
 from sensor_msgs.msg import Image as RosImage
 
-from rosbridge.http import camera_encoder, jpeg, stream_requests, stream_routes
+from rosbridge.http import camera_encoder, jpeg, stream_requests, stream_topics
 from rosbridge.protocol.encoded import TopicMessage
 
 from fakes import Loop
@@ -82,7 +82,7 @@ def image_message(index, encoding="rgb8"):
 @pytest.fixture
 def topic():
     shared = FakeStreams()
-    made = stream_routes.StreamTopic(shared, stream_requests.Source("/cam", jpeg.IMAGE))
+    made = stream_topics.StreamTopic(shared, stream_requests.Source("/cam", jpeg.IMAGE))
     shared.topics["/cam"] = made
     return made
 
@@ -113,9 +113,9 @@ def test_different_sizes_are_made_in_one_job_each_once(topic):
 
 
 def test_at_most_MAX_KEYS_PER_JOB_variants_a_job_the_rest_in_the_next(topic):
-    viewers = [FakeViewer(topic, ((8 + i, 6), 80, False)) for i in range(stream_routes.MAX_KEYS_PER_JOB + 3)]
+    viewers = [FakeViewer(topic, ((8 + i, 6), 80, False)) for i in range(stream_topics.MAX_KEYS_PER_JOB + 3)]
     topic.deliver(image_message(1))
-    assert len(encoder(topic).jobs[0][1]) == stream_routes.MAX_KEYS_PER_JOB
+    assert len(encoder(topic).jobs[0][1]) == stream_topics.MAX_KEYS_PER_JOB
     encoder(topic).finish()
     assert len(encoder(topic).jobs) == 1 and len(encoder(topic).jobs[0][1]) == 3
     encoder(topic).finish()
@@ -135,7 +135,7 @@ def test_a_job_is_bounded_in_pixels_and_makes_each_size_once(topic):
         encoder(topic).finish()
     assert [big] in jobs  # (alone: it is more than JOB_PIXELS)
     for keys in jobs:
-        assert len(keys) == 1 or sum(width * height for (width, height), _, _ in keys) <= stream_routes.JOB_PIXELS
+        assert len(keys) == 1 or sum(width * height for (width, height), _, _ in keys) <= stream_topics.JOB_PIXELS
         assert [size for size, _, _ in keys] == sorted(size for size, _, _ in keys)
     assert all(len(viewer.got) == 1 for viewer in viewers)
 
@@ -145,7 +145,7 @@ def test_topics_take_turns_at_the_encoder():
     ask sizes of their own (it waited for 8 such variants before)."""
     shared = FakeStreams()
     flooded, other = (
-        stream_routes.StreamTopic(shared, stream_requests.Source(name, jpeg.IMAGE)) for name in ("/flood", "/cam")
+        stream_topics.StreamTopic(shared, stream_requests.Source(name, jpeg.IMAGE)) for name in ("/flood", "/cam")
     )
     flood = [FakeViewer(flooded, ((4096 - 16 * index, 2048), 100, False)) for index in range(24)]
     viewer = FakeViewer(other)
@@ -160,7 +160,7 @@ def test_topics_take_turns_at_the_encoder():
 def test_the_variants_a_frame_keeps_are_bounded_in_bytes(topic, monkeypatch):
     """A frame keeps its newest variants, MAX_VARIANT_BYTES of them at most; every viewer still gets its own, and a
     viewer asking a forgotten one again has it made again."""
-    monkeypatch.setattr(stream_routes, "MAX_VARIANT_BYTES", 250)
+    monkeypatch.setattr(stream_topics, "MAX_VARIANT_BYTES", 250)
     keys = [((8 + index, 6), 80, False) for index in range(6)]
     viewers = [FakeViewer(topic, key) for key in keys]
     topic.deliver(image_message(1))
@@ -215,7 +215,7 @@ def test_the_subscription_lingers_after_the_last_viewer_then_goes(topic):
     shared = topic._streams
     viewer = FakeViewer(topic)
     topic.remove(viewer)
-    assert len(shared.loop.timers) == 1 and shared.loop.timers[0][0] == stream_routes.LINGER
+    assert len(shared.loop.timers) == 1 and shared.loop.timers[0][0] == stream_topics.LINGER
     again = FakeViewer(topic)  # a reload within LINGER keeps it
     assert shared.loop.timers == []
     topic.remove(again)

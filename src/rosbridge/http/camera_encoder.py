@@ -3,13 +3,13 @@
 Threads (everything of the camera streams runs on the event loop but the encoding):
 - the loop: the handlers, Streams, every StreamTopic, Frame (its `variants`, what was made of it) and viewer, and
   their streams;
-- the encoder (Encoder, one thread): decodes a frame and makes the JPEGs asked of it (jpeg.Picture). A job gets
-  the frame's Picture (which only the encoder touches; the loop only drops its reference) and a list of keys,
-  and its results go back to the loop (IOLoop.add_callback) to be stored in the frame's variants. A topic has at
-  most one job in flight: frames arriving meanwhile only replace the topic's newest frame, and the next job takes
-  the newest frame for the viewers still waiting (newest wins), so a busy encoder costs frames, never a backlog.
-  Topics take turns: the jobs run in the order they came, a topic's next job comes only once its last is done,
-  and a job is small (at most MAX_KEYS_PER_JOB variants and JOB_PIXELS, or one variant, itself at most
+- the encoder (Encoder, one thread): decodes a frame and makes the JPEGs asked of it (jpeg.Picture). A job gets the
+  frame's Picture (which only the encoder touches; the loop only drops its reference) and a list of keys, and its
+  results go back to the loop (IOLoop.add_callback) to be stored in the frame's variants. A topic has at most one
+  job in flight: frames arriving meanwhile only replace the topic's newest frame, and the next job takes the newest
+  frame for the viewers still waiting (newest wins), so a busy encoder costs frames, never a backlog. Topics take
+  turns: the jobs run in the order they came, a topic's next job comes only once its last is done, and a job is
+  small (at most stream_topics.MAX_KEYS_PER_JOB variants and JOB_PIXELS, or one variant, itself at most
   jpeg.MAX_OUTPUT_PIXELS), so a topic waits at most one turn of each other busy topic, and one topic's viewers,
   whatever sizes they ask, take at most the encoder's one core;
 - master look-ups (a topic's type, the image topics) are the backend's /rosapi/topics call, on one of its
