@@ -9,16 +9,12 @@ import pytest
 from tornado.websocket import websocket_connect
 
 from bridge_client import WsClient, ping
-from harness import start_bridge, wait_for
+from fixtures import bridge_fixture
+from harness import wait_for
 
 UNREGISTER_TIMEOUT = 3.0
 
-
-@pytest.fixture(scope="module")
-def bridge(ros):
-    proc, port = start_bridge(ros, node_name="clients_bridge", unregister_timeout=UNREGISTER_TIMEOUT, max_queue=20)
-    yield port
-    proc.stop()
+bridge = bridge_fixture("clients_bridge", unregister_timeout=UNREGISTER_TIMEOUT, max_queue=20)
 
 
 def connect(port):

@@ -7,14 +7,10 @@ import threading
 import pytest
 import roslibpy
 
-from harness import start_bridge, wait_for
+from fixtures import bridge_fixture
+from harness import wait_for
 
-
-@pytest.fixture(scope="module")
-def bridge(ros):
-    proc, port = start_bridge(ros)
-    yield port
-    proc.stop()
+bridge = bridge_fixture()
 
 
 @pytest.fixture(scope="module")

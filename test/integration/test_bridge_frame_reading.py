@@ -12,17 +12,13 @@ import time
 import pytest
 
 from bridge_client import RawWebSocket
-from harness import start_bridge, wait_for, wait_publisher_connected
+from fixtures import bridge_fixture
+from harness import wait_for, wait_publisher_connected
 
 TOPIC = "/frame_reading/text"
 BIG = 300_000  # characters: several of the bridge's reads (64 KB each)
 
-
-@pytest.fixture(scope="module")
-def port(ros):
-    proc, port = start_bridge(ros, node_name="frame_reading_bridge")
-    yield port
-    proc.stop()
+port = bridge_fixture("frame_reading_bridge")
 
 
 def publish(text, topic=TOPIC):
@@ -164,11 +160,7 @@ def test_a_frame_over_the_websocket_limit_is_refused_with_1009_before_its_payloa
         client.close()
 
 
-@pytest.fixture(scope="module")
-def slow_port(ros):
-    proc, port = start_bridge(ros, node_name="frame_budget_bridge", max_frames_per_second=100)
-    yield port
-    proc.stop()
+slow_port = bridge_fixture("frame_budget_bridge", max_frames_per_second=100)
 
 
 def test_a_client_over_its_frame_budget_is_slowed_and_loses_nothing(ros, slow_port, node):

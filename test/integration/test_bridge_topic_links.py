@@ -16,14 +16,10 @@ from rosbridge.ros_side import tcpros
 from rosbridge.ros_side.links import LINK_QUEUE_BYTES
 
 from bridge_client import WsClient
-from harness import ProcStat, node_pid, start_bridge, wait_for, wait_publisher_connected
+from fixtures import bridge_fixture
+from harness import ProcStat, node_pid, wait_for, wait_publisher_connected
 
-
-@pytest.fixture(scope="module")
-def bridge(ros):
-    proc, port = start_bridge(ros, node_name="links_bridge")
-    yield port
-    proc.stop()
+bridge = bridge_fixture("links_bridge")
 
 
 class FakePublisher:

@@ -9,16 +9,13 @@ import pytest
 from geometry_msgs.msg import Twist, TwistStamped
 
 from bridge_client import RawWebSocket, WsClient
-from harness import start_bridge, wait_for, wait_publisher_connected
+from fixtures import bridge_fixture
+from harness import wait_for, wait_publisher_connected
 
 TIMEOUT = 1.0  # the bridge's deadman_timeout in these tests
 
-
-@pytest.fixture(scope="module")
-def bridge(ros):
-    proc, port = start_bridge(ros, node_name="deadman_bridge", deadman_timeout=TIMEOUT)
-    yield port
-    proc.stop()
+bridge = bridge_fixture("deadman_bridge", deadman_timeout=TIMEOUT)
+off_bridge = bridge_fixture("deadman_off_bridge", scope="function", deadman_timeout=0)
 
 
 class Recorder:
@@ -101,19 +98,15 @@ def test_a_client_that_only_watches_or_publishes_other_types_stops_nothing(bridg
     assert [msg.data for _, msg in recorder.got] == ["hi"]
 
 
-def test_off_with_a_timeout_of_zero(ros, node):
-    proc, port = start_bridge(ros, node_name="deadman_off_bridge", deadman_timeout=0)
-    try:
-        topic = "/deadman/off/cmd_vel"
-        recorder = Recorder(node, topic, Twist)
-        ws = WsClient(f"ws://127.0.0.1:{port}/")
-        ws.send({"op": "advertise", "topic": topic, "type": "geometry_msgs/Twist"})
-        wait_publisher_connected(ros, "/deadman_off_bridge", topic, _me())
-        ws.send({"op": "publish", "topic": topic, "msg": {"linear": {"x": 2.0}}})
-        wait_for(lambda: recorder.got, 10, what="the moving command")
-        ended = time.monotonic()
-        ws.close()
-        time.sleep(1.0)
-        assert not recorder.zeros_after(ended)
-    finally:
-        proc.stop()
+def test_off_with_a_timeout_of_zero(ros, node, off_bridge):
+    topic = "/deadman/off/cmd_vel"
+    recorder = Recorder(node, topic, Twist)
+    ws = WsClient(f"ws://127.0.0.1:{off_bridge}/")
+    ws.send({"op": "advertise", "topic": topic, "type": "geometry_msgs/Twist"})
+    wait_publisher_connected(ros, "/deadman_off_bridge", topic, _me())
+    ws.send({"op": "publish", "topic": topic, "msg": {"linear": {"x": 2.0}}})
+    wait_for(lambda: recorder.got, 10, what="the moving command")
+    ended = time.monotonic()
+    ws.close()
+    time.sleep(1.0)
+    assert not recorder.zeros_after(ended)

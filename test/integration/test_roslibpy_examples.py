@@ -9,14 +9,9 @@ import time
 import pytest
 import roslibpy
 
-from harness import start_bridge
+from fixtures import bridge_fixture
 
-
-@pytest.fixture(scope="module")
-def bridge(ros):
-    proc, port = start_bridge(ros, node_name="roslibpy_examples_bridge")
-    yield port
-    proc.stop()
+bridge = bridge_fixture("roslibpy_examples_bridge")
 
 
 @pytest.fixture
