@@ -1,8 +1,8 @@
 """Work off the event loop.
 
 EncodingThread: work too long for the event loop: encoding a big message (a 16 MB map would hold every other
-client and topic meanwhile: `bridge.encoder`), making a camera stream's JPEGs (http/streams.py), deflating a big
-message for the clients whose link is slow (`bridge.deflater`, transport/connection.py and
+client and topic meanwhile: `bridge.encoder`), making a camera stream's JPEGs (http/camera_encoder.py), deflating a
+big message for the clients whose link is slow (`bridge.deflater`, transport/connection.py and
 transport/slow_link.deflated_payload: a thread apart, so that a map's encoding never holds a slow client's next
 frame). One thread per use, jobs in the
 order given; a thread starts with its first job.

@@ -1,4 +1,4 @@
-"""Camera pictures for the stream endpoints (streams.py), pure: no tornado, no rospy, only Pillow.
+"""Camera pictures for the stream endpoints (stream_routes.py), pure: no tornado, no rospy, only Pillow.
 
 - `read_frame`: a serialized sensor_msgs/Image or CompressedImage read in place (no message object, no copy of
   its pixels): its header stamp, size and encoding, and a view of its data;
@@ -11,7 +11,7 @@
   topic's frame interval, from the frames' arrival times);
 - `Sending`: the pictures being written to the viewers, bounded in bytes, and which stalled viewers make room.
 
-Decoding and encoding (Picture) is CPU work: streams.py runs it on its encoder thread and says how frames get
+Decoding and encoding (Picture) is CPU work: camera_encoder.py runs it on its thread and says how frames get
 there. Everything else here is cheap and runs on the event loop."""
 
 import io
@@ -246,7 +246,7 @@ def decode_compressed(frame, at_least=None):
 
 
 class Picture:
-    """One frame, decoded once for every JPEG made of it. Not thread-safe: one thread at a time (streams.py's
+    """One frame, decoded once for every JPEG made of it. Not thread-safe: one thread at a time (camera_encoder.py's
     encoder) may use it."""
 
     __slots__ = ("frame", "_image", "_decoded_for", "_resized")
