@@ -6,7 +6,8 @@ import shutil
 
 import pytest
 
-from harness import REPO, start_bridge
+from fixtures import bridge_fixture
+from harness import REPO
 
 CLIENTS = REPO / "test" / "js"
 
@@ -17,14 +18,20 @@ pytestmark = pytest.mark.skipif(
 
 
 @pytest.fixture(scope="module")
-def url(ros):
+def fibonacci_server(ros):
     with ros.spawn(
         ["/usr/bin/python3", str(REPO / "test" / "nodes" / "fibonacci_server.py"), "_step:=0.05"], "fibonacci_server"
     ) as server:
         server.wait_output("serving /tools_fibonacci", 30)
-        proc, port = start_bridge(ros, node_name="actions_bridge")
-        with proc:
-            yield f"ws://127.0.0.1:{port}"
+        yield server
+
+
+bridge = bridge_fixture("actions_bridge", needs=("fibonacci_server",))
+
+
+@pytest.fixture(scope="module")
+def url(bridge):
+    return f"ws://127.0.0.1:{bridge}"
 
 
 @pytest.mark.parametrize("roslib", ["roslib1", "roslib2"])

@@ -12,7 +12,8 @@ import pytest
 from tornado.websocket import websocket_connect
 
 from bridge_client import WsClient
-from harness import ProcStat, node_pid, start_bridge, wait_for
+from fixtures import bridge_fixture
+from harness import ProcStat, node_pid, wait_for
 
 pytestmark = pytest.mark.slow  # (deselect with -m 'not slow' for a quick run)
 
@@ -21,12 +22,7 @@ BATCH = 250  # frames sent before waiting for their answers (keeps the bridge's 
 MAX_MESSAGE_SIZE = 100_000
 TOPIC = "/fuzz/chatter"
 
-
-@pytest.fixture(scope="module")
-def fuzz_bridge(ros):
-    proc, port = start_bridge(ros, node_name="fuzz_bridge", max_message_size=MAX_MESSAGE_SIZE)
-    yield proc, port
-    proc.stop()
+fuzz_bridge = bridge_fixture("fuzz_bridge", yields="bridge", max_message_size=MAX_MESSAGE_SIZE)
 
 
 class Plan:
@@ -320,7 +316,7 @@ async def fuzz_one_client(url, name, plans, deadline):
 def test_ten_thousand_fuzzed_frames_leave_the_bridge_working(ros, node, fuzz_bridge):
     from std_msgs.msg import String
 
-    proc, port = fuzz_bridge
+    proc, port = fuzz_bridge.proc, fuzz_bridge.port
     url = f"ws://127.0.0.1:{port}/"
     bridge = ProcStat(node_pid(ros, "/fuzz_bridge"))
     rss_before = bridge.rss_mb()

@@ -7,7 +7,8 @@ import shutil
 
 import pytest
 
-from harness import REPO, start_bridge, wait_for
+from fixtures import bridge_fixture
+from harness import REPO, wait_for
 
 CLIENTS = REPO / "test" / "js"
 SCRIPT = CLIENTS / "roslibjs_client.mjs"
@@ -20,12 +21,18 @@ pytestmark = pytest.mark.skipif(
 
 
 @pytest.fixture(scope="module")
-def url(ros):
-    with ros.spawn(["rosrun", "turtlesim", "turtlesim_node"], "turtlesim_node"):
+def module_turtlesim(ros):
+    with ros.spawn(["rosrun", "turtlesim", "turtlesim_node"], "turtlesim_node") as proc:
         wait_for(lambda: "/turtle1/pose" in dict(ros.master().getTopicTypes()), 30, what="/turtle1/pose")
-        proc, port = start_bridge(ros, node_name="roslibjs_bridge")
-        with proc:
-            yield f"ws://127.0.0.1:{port}"
+        yield proc
+
+
+bridge = bridge_fixture("roslibjs_bridge", needs=("module_turtlesim",))
+
+
+@pytest.fixture(scope="module")
+def url(bridge):
+    return f"ws://127.0.0.1:{bridge}"
 
 
 @pytest.fixture(params=VERSIONS)

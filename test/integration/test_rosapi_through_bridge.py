@@ -11,41 +11,40 @@ from test_rosapi_against_cli import graph, settle  # noqa: F401  (graph is a fix
 
 from rosbridge.ros_side.rosapi import SERVICES
 
-from harness import start_bridge, wait_for
+from fixtures import bridge_fixture
+from harness import wait_for
 
 
-def connect(port):
+def client_of(port):
+    """A roslibpy client of the bridge on this port (yielded), closed after."""
     client = roslibpy.Ros(host="127.0.0.1", port=port)
     client.run(timeout=30)
-    return client
+    try:
+        yield client
+    finally:
+        client.close()
 
 
-def bridge_and_client(ros, node_name, **settings):
-    """A bridge with these settings and a roslibpy client of it (yielded); both stopped after, even when the client
-    never connects."""
-    proc, port = start_bridge(ros, node_name=node_name, **settings)
-    with proc:
-        client = connect(port)
-        try:
-            yield client
-        finally:
-            client.close()
-
-
-@pytest.fixture(scope="module")
-def bridge(ros, graph):
-    yield from bridge_and_client(ros, "rosapi_bridge")
+rosapi_bridge = bridge_fixture("rosapi_bridge", needs=("graph",))
+rosapi_glob_bridge = bridge_fixture(
+    "rosapi_glob_bridge",
+    needs=("graph",),
+    topics_glob="[/rosapi_test/*]",
+    services_glob="['/rosapi_test/*']",
+    params_glob="[/rosapi_test/gain]",
+)
 
 
 @pytest.fixture(scope="module")
-def glob_bridge(ros, graph):
-    yield from bridge_and_client(
-        ros,
-        "rosapi_glob_bridge",
-        topics_glob="[/rosapi_test/*]",
-        services_glob="['/rosapi_test/*']",
-        params_glob="[/rosapi_test/gain]",
-    )
+def bridge(rosapi_bridge):
+    """A roslibpy client of the bridge."""
+    yield from client_of(rosapi_bridge)
+
+
+@pytest.fixture(scope="module")
+def glob_bridge(rosapi_glob_bridge):
+    """A roslibpy client of the bridge with globs."""
+    yield from client_of(rosapi_glob_bridge)
 
 
 def cli_list(ros, *args):

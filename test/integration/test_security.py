@@ -17,7 +17,8 @@ import roslibpy
 import tornado.httpclient
 
 from bridge_client import WsClient, ping
-from harness import ProcStat, make_workdir, node_pid, start_bridge, wait_for
+from fixtures import From, bridge_fixture
+from harness import ProcStat, make_workdir, node_pid, wait_for
 from sensor_messages import big_cloud
 
 SECRET = "fuzz-and-security-secret"
@@ -45,41 +46,31 @@ def other_local_addresses():
 
 
 # ---- address binding --------------------------------------------------------------------------------------
+bind_bridge = bridge_fixture("security_bind_bridge", scope="function", address=From("address"))
+
+
 @pytest.mark.parametrize("address", ["127.0.0.1", "127.0.0.2"])
-def test_the_bridge_listens_only_on_the_given_address(ros, address):
-    proc, port = start_bridge(ros, node_name="security_bind_bridge", address=address)
-    try:
-        assert listening_addresses(port) == [address]
-        client = WsClient(f"ws://{address}:{port}/")
-        assert ping(client)
-        client.close()
-        for other in other_local_addresses() + ["127.0.0.1"]:
-            if other != address:
-                assert connect_refused(other, port), f"reachable on {other}:{port}"
-    finally:
-        proc.stop()
+def test_the_bridge_listens_only_on_the_given_address(address, bind_bridge):
+    port = bind_bridge
+    assert listening_addresses(port) == [address]
+    client = WsClient(f"ws://{address}:{port}/")
+    assert ping(client)
+    client.close()
+    for other in other_local_addresses() + ["127.0.0.1"]:
+        if other != address:
+            assert connect_refused(other, port), f"reachable on {other}:{port}"
 
 
 # ---- origins ----------------------------------------------------------------------------------------------
-@pytest.fixture(scope="module")
-def origin_bridge(ros):
-    proc, port = start_bridge(
-        ros, node_name="security_origin_bridge", allowed_origins="[http://good.example:8080, https://*.robots.lan]"
-    )
-    yield port
-    proc.stop()
-
-
-@pytest.fixture(scope="module")
-def default_bridge_proc(ros):
-    proc, port = start_bridge(ros, node_name="security_default_origin_bridge")
-    yield proc, port
-    proc.stop()
+origin_bridge = bridge_fixture(
+    "security_origin_bridge", allowed_origins="[http://good.example:8080, https://*.robots.lan]"
+)
+default_bridge_proc = bridge_fixture("security_default_origin_bridge", yields="bridge")
 
 
 @pytest.fixture(scope="module")
 def default_bridge(default_bridge_proc):
-    return default_bridge_proc[1]
+    return default_bridge_proc.port
 
 
 def refused_with_403(port, origin, host_header=None):
@@ -148,7 +139,7 @@ def test_default_refuses_look_alike_origins(default_bridge):
 
 
 def test_a_refused_origin_is_logged_once_with_the_launch_arg_that_allows_it(default_bridge_proc):
-    proc, port = default_bridge_proc
+    proc, port = default_bridge_proc.proc, default_bridge_proc.port
     origin = "http://once.example:8000"
     for _ in range(3):
         assert refused_with_403(port, origin)
@@ -170,24 +161,36 @@ BAG_BYTES = b"#ROSBAG V2.0\n" + bytes(range(256))
 
 
 @pytest.fixture(scope="module")
-def rebind_bridge(ros, node, tmp_path_factory):
-    """A bridge that has something to steal: a bag, a latched camera picture and a latched cloud; and a reverse
-    proxy's public name in allowed_hosts. (proc, port)."""
-    from sensor_msgs.msg import Image, PointCloud2
-
+def rebind_folder(tmp_path_factory):
+    """A bag folder with a bag in it."""
     folder = tmp_path_factory.mktemp("rebind_bags")
     (folder / "run.bag").write_bytes(BAG_BYTES)
+    return folder
+
+
+@pytest.fixture(scope="module")
+def rebind_latched(node):
+    """A latched camera picture and a latched cloud."""
+    from sensor_msgs.msg import Image, PointCloud2
+
     camera = node.Publisher(f"{REBIND}/camera", Image, queue_size=1, latch=True)
     camera.publish(Image(width=4, height=2, encoding="mono8", step=4, data=bytes(8)))
     cloud = node.Publisher(f"{REBIND}/cloud", PointCloud2, queue_size=1, latch=True)
     cloud.publish(big_cloud(100))
-    proc, port = start_bridge(
-        ros, node_name="security_rebind_bridge", bag_folder=str(folder), allowed_hosts="[robots.example, *.robots.lan]"
-    )
-    yield proc, port
-    proc.stop()
+    yield
     camera.unregister()
     cloud.unregister()
+
+
+# a bridge that has something to steal: a bag, a latched camera picture and a latched cloud; and a reverse proxy's
+# public name in allowed_hosts
+rebind_bridge = bridge_fixture(
+    "security_rebind_bridge",
+    yields="bridge",
+    needs=("rebind_latched",),
+    bag_folder=From("rebind_folder"),
+    allowed_hosts="[robots.example, *.robots.lan]",
+)
 
 
 def browser_get(port, path, host):
@@ -230,7 +233,7 @@ REBIND_PATHS = [
 @pytest.mark.parametrize("path", REBIND_PATHS)
 def test_a_dns_rebinding_page_reads_nothing(rebind_bridge, path):
     """Before: 200 and the bag, the list, the picture, the cloud (a same-origin GET carries no Origin)."""
-    _, port = rebind_bridge
+    port = rebind_bridge.port
     host = f"evil.example:{port}"
     status, body = browser_get(port, path, host)
     assert status == 403, (status, body[:200])
@@ -239,7 +242,7 @@ def test_a_dns_rebinding_page_reads_nothing(rebind_bridge, path):
 
 def test_a_dns_rebinding_page_opens_no_websocket(rebind_bridge):
     """A browser sends the page's Origin with a websocket; Host is checked before it, with or without one."""
-    _, port = rebind_bridge
+    port = rebind_bridge.port
     for headers in (
         {"Host": f"evil.example:{port}"},
         {"Host": f"evil.example:{port}", "Origin": f"http://evil.example:{port}"},
@@ -279,7 +282,7 @@ def test_a_dns_rebinding_page_opens_no_websocket(rebind_bridge):
     ],
 )
 def test_this_machines_names_and_allowed_hosts_still_work(rebind_bridge, make_host):
-    _, port = rebind_bridge
+    port = rebind_bridge.port
     host = make_host(port)
     assert browser_get(port, "/bags/run.bag", host) == (200, BAG_BYTES)
     client = WsClient(f"ws://127.0.0.1:{port}/", headers={"Host": host})
@@ -288,14 +291,14 @@ def test_this_machines_names_and_allowed_hosts_still_work(rebind_bridge, make_ho
 
 
 def test_a_malformed_host_is_a_bad_request(rebind_bridge):
-    _, port = rebind_bridge
+    port = rebind_bridge.port
     status, body = browser_get(port, "/bags/run.bag", "evil.example@localhost")
     assert status == 400 and b"evil.example@localhost" in body, (status, body)
 
 
 def test_a_request_without_host_is_not_a_browsers_and_is_served(rebind_bridge):
     """HTTP/1.0 scripts may send no Host; browsers always send one (the page's), so rebinding cannot come so."""
-    _, port = rebind_bridge
+    port = rebind_bridge.port
     with socket.create_connection(("127.0.0.1", port), timeout=10) as conn:
         conn.sendall(b"GET /bags/run.bag HTTP/1.0\r\n\r\n")
         answer = b""
@@ -305,7 +308,7 @@ def test_a_request_without_host_is_not_a_browsers_and_is_served(rebind_bridge):
 
 
 def test_a_refused_host_is_logged_once_with_the_launch_arg_that_allows_it(rebind_bridge):
-    proc, port = rebind_bridge
+    proc, port = rebind_bridge.proc, rebind_bridge.port
     for _ in range(3):
         assert browser_get(port, "/bags", f"once.example:{port}")[0] == 403
     advice = 'allowed_hosts:="[robots.example, *.robots.lan, once.example]"'
@@ -346,7 +349,7 @@ def test_the_page_server_serves_nothing_outside_web_root(default_bridge, path):
 
 
 @pytest.fixture(scope="module")
-def page_bridge(ros, tmp_path_factory):
+def web_root(tmp_path_factory):
     """A web_root laid out as the demo's is, with a symlink pointing out of it and the npm tree beside the page."""
     root = tmp_path_factory.mktemp("web_root")
     (root / "index.html").write_text("<canvas></canvas>")
@@ -356,9 +359,10 @@ def page_bridge(ros, tmp_path_factory):
     (root / "node_modules" / "roslib" / "index.js").write_text("module.exports = 1;")
     (root / "package.json").write_text('{"name": "page"}')
     (root / ".hidden.js").write_text("secret")
-    proc, port = start_bridge(ros, node_name="security_page_bridge", web_root=root)
-    yield f"http://127.0.0.1:{port}"
-    proc.stop()
+    return root
+
+
+page_bridge = bridge_fixture("security_page_bridge", web_root=From("web_root"))
 
 
 def http(url, method="GET"):
@@ -373,7 +377,7 @@ def http(url, method="GET"):
 
 @pytest.mark.parametrize("path", ["/", "/app.js"])
 def test_page_files_are_served_with_nosniff_and_no_framing(page_bridge, path):
-    status, headers, body = http(page_bridge + path)
+    status, headers, body = http(f"http://127.0.0.1:{page_bridge}{path}")
     assert status == 200 and body
     assert headers["X-Content-Type-Options"] == "nosniff"
     assert headers["X-Frame-Options"] == "DENY"
@@ -381,28 +385,20 @@ def test_page_files_are_served_with_nosniff_and_no_framing(page_bridge, path):
 
 
 def test_head_of_the_page(page_bridge):
-    status, headers, body = http(page_bridge + "/", method="HEAD")
+    status, headers, body = http(f"http://127.0.0.1:{page_bridge}/", method="HEAD")
     assert (status, body) == (200, b"") and headers["Content-Type"].startswith("text/html")
 
 
 @pytest.mark.parametrize("path", ["/leak.js", "/node_modules/roslib/index.js", "/package.json", "/.hidden.js"])
 def test_only_the_pages_own_files_are_served(page_bridge, path):
-    status, _, body = http(page_bridge + path)
+    status, _, body = http(f"http://127.0.0.1:{page_bridge}{path}")
     assert status == 404 and b"root:" not in body
 
 
 # ---- globs ------------------------------------------------------------------------------------------------
-@pytest.fixture(scope="module")
-def glob_bridge(ros):
-    proc, port = start_bridge(
-        ros,
-        node_name="security_glob_bridge",
-        topics_glob="[/sec/open/*]",
-        services_glob="[/sec/open/*]",
-        params_glob="[/sec/open/*]",
-    )
-    yield port
-    proc.stop()
+glob_bridge = bridge_fixture(
+    "security_glob_bridge", topics_glob="[/sec/open/*]", services_glob="[/sec/open/*]", params_glob="[/sec/open/*]"
+)
 
 
 @pytest.fixture
@@ -575,12 +571,14 @@ def auth_frame(secret=SECRET, t=None, end=None, rand="r4nd0m", **changes):
 
 
 @pytest.fixture(scope="module")
-def auth_bridge(ros):
-    secret_file = make_workdir("rosauth") / "secret"
-    secret_file.write_text(SECRET + "\n")
-    proc, port = start_bridge(ros, node_name="security_auth_bridge", authenticate="true", secret_file=str(secret_file))
-    yield port
-    proc.stop()
+def secret_file():
+    path = make_workdir("rosauth") / "secret"
+    path.write_text(SECRET + "\n")
+    return path
+
+
+auth_bridge = bridge_fixture("security_auth_bridge", authenticate="true", secret_file=From("secret_file"))
+nosecret_bridge = bridge_fixture("security_auth_nosecret_bridge", scope="function", authenticate="true")
 
 
 @pytest.fixture
@@ -702,19 +700,16 @@ def test_a_query_string_whose_t_lies_ahead_counts_that_within_its_window(auth_br
     op.close()
 
 
-def test_without_a_secret_nobody_gets_in(ros):
-    proc, port = start_bridge(ros, node_name="security_auth_nosecret_bridge", authenticate="true")
-    try:
-        client = WsClient(f"ws://127.0.0.1:{port}/")
-        client.send(auth_frame(secret=""))
-        assert client.recv()["level"] == "error" and client.is_closed()
-    finally:
-        proc.stop()
+def test_without_a_secret_nobody_gets_in(nosecret_bridge):
+    client = WsClient(f"ws://127.0.0.1:{nosecret_bridge}/")
+    client.send(auth_frame(secret=""))
+    assert client.recv()["level"] == "error" and client.is_closed()
 
 
 # ---- TLS --------------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
-def tls_bridge(ros):
+def tls_folder():
+    """A self-signed certificate for localhost (cert.pem) and its key (key.pem)."""
     folder = make_workdir("tls")
     cert, key = folder / "cert.pem", folder / "key.pem"
     subprocess.run(
@@ -739,20 +734,23 @@ def tls_bridge(ros):
         check=True,
         capture_output=True,
     )
-    proc, port = start_bridge(ros, node_name="security_tls_bridge", ssl="true", certfile=str(cert), keyfile=str(key))
-    yield port, cert
-    proc.stop()
+    return folder
+
+
+tls_bridge = bridge_fixture(
+    "security_tls_bridge", ssl="true", certfile=From("tls_folder", "cert.pem"), keyfile=From("tls_folder", "key.pem")
+)
 
 
 def test_wss_refuses_an_untrusted_certificate(tls_bridge):
-    port, _ = tls_bridge
+    port = tls_bridge
     with pytest.raises(ssl.SSLError):
         WsClient(f"wss://127.0.0.1:{port}/")
 
 
 def test_roslibpy_over_wss(tls_bridge):
     """roslibpy 2.1.0 (autobahn + twisted) connects with is_secure=True; it does not verify the certificate."""
-    port, _ = tls_bridge
+    port = tls_bridge
     ros = roslibpy.Ros(host="127.0.0.1", port=port, is_secure=True)
     ros.run(timeout=20)
     try:
@@ -763,7 +761,7 @@ def test_roslibpy_over_wss(tls_bridge):
 
 
 def test_plain_ws_to_the_tls_port_fails(tls_bridge):
-    port, _ = tls_bridge
+    port = tls_bridge
     with pytest.raises(Exception) as error:
         WsClient(f"ws://127.0.0.1:{port}/", timeout=10)
     assert not isinstance(error.value, AssertionError)
@@ -844,12 +842,14 @@ def urllib_post(port, path, data):
         return error.code, error.read().decode()
 
 
-def test_stalled_bodies_from_one_address_leave_the_descriptors_to_others(ros):
+fds_bridge = bridge_fixture("security_fds_bridge", scope="function", max_fds=256)
+
+
+def test_stalled_bodies_from_one_address_leave_the_descriptors_to_others(fds_bridge):
     """Under `ulimit -n 256`, 300 POSTs from 127.0.0.1 whose bodies never come: before, they took every descriptor
     and a client from another address waited in vain (and the stalled ones were never closed). Now one address
     holds a quarter of the descriptors at most (48 here; 503 beyond), and a body must come within 10 s."""
-    proc, port = start_bridge(ros, node_name="security_fds_bridge", max_fds=256)
-    stalled = []
+    port, stalled = fds_bridge, []
     try:
         for _ in range(300):
             try:
@@ -872,4 +872,3 @@ def test_stalled_bodies_from_one_address_leave_the_descriptors_to_others(ros):
     finally:
         for sock in stalled:
             sock.close()
-        proc.stop()
