@@ -1,5 +1,5 @@
-"""Stand-ins for time and Tornado's IOLoop in the unit tests of pure parts: what a test moves by hand. Only the
-clock and the loop are faked; everything else the tests touch is the real code."""
+"""Stand-ins for time, Tornado's IOLoop and a protocol session's connection in the unit tests of pure parts: what
+a test moves by hand. Only these are faked; everything else the tests touch is the real code."""
 
 import queue
 import time
@@ -86,3 +86,55 @@ class OffLoop:
         jobs, self.jobs = self.jobs, []
         for fn, then in jobs:
             then(fn())
+
+
+class Host:
+    """A contract.SessionHost for a protocol session under test. Its clock is `now`; its timers wait in `timers`
+    ([due, delay, fn], in the order set) until the test runs them (advance, run_next); it keeps what the session
+    asked: `cancelled` timers, `close_reasons`, `resumes`. off_loop: an OffLoop or the like, else each job runs at
+    once; unfinished: a shared bound (rfc6455.SharedBound), else none."""
+
+    def __init__(self, now=1000.0, off_loop=None, unfinished=None):
+        self.now, self.unfinished, self._off_loop = now, unfinished, off_loop
+        self.timers, self.cancelled, self.close_reasons, self.resumes = [], [], [], 0
+
+    def clock(self):
+        return self.now
+
+    def call_later(self, delay, fn):
+        timer = [self.now + delay, delay, fn]
+        self.timers.append(timer)
+        return timer
+
+    def cancel_later(self, handle):
+        self.cancelled.append(handle)
+        self.timers = [timer for timer in self.timers if timer is not handle]
+
+    def wake(self):
+        """(the test takes the session's frames when it wants)"""
+
+    def close_after_sending(self, reason):
+        self.close_reasons.append(reason)
+
+    def resume_reading(self):
+        self.resumes += 1
+
+    def off_loop(self, fn, then):
+        if self._off_loop is not None:
+            self._off_loop(fn, then)
+        else:
+            then(fn())
+
+    def advance(self, seconds):
+        """Moves the clock on by `seconds`, running the timers due by then."""
+        self.now += seconds
+        due = [timer for timer in self.timers if timer[0] <= self.now]
+        self.timers = [timer for timer in self.timers if timer[0] > self.now]
+        for _, _, fn in due:
+            fn()
+
+    def run_next(self):
+        """Runs the timer set first, the clock moved on by its delay."""
+        _, delay, fn = self.timers.pop(0)
+        self.now += delay
+        fn()

@@ -1,12 +1,17 @@
-"""The contract between the protocol (one Session per client) and the ROS side (ros_side.RosBackend), both
-ways: Backend is what the protocol may ask of the ROS side, Client what the ROS side may call on a client.
+"""The contracts of a protocol session (one per client: protocol.Session for rosbridge), both ways:
+- with the ROS side (ros_side.RosBackend): Backend is what a session may ask of it, Client what it may call on a
+  session;
+- with its connection (transport/connection.ClientConnection): SessionHost is what a session may ask of it,
+  ProtocolSession what it calls on a session.
+A second protocol beside rosbridge implements ProtocolSession and Client, and gets the same SessionHost and Backend.
 
-Every method of both runs on the event-loop thread. A Backend method that refuses raises a ClientError whose
+Every method of them runs on the event-loop thread. A Backend method that refuses raises a ClientError whose
 text goes back to the client; any other exception is a bug. Work that can block (the master, making rospy
 objects) is done off the loop: a refusal found out there comes later, through `Client.ros_refused`."""
 
 import abc
 import typing
+from collections.abc import Callable
 
 DRIVE_TYPES = frozenset(("geometry_msgs/Twist", "geometry_msgs/TwistStamped"))  # velocity commands: a robot
 # goes on with the last one it got, so a driver that goes away is stopped (Backend.stop_driving)
@@ -29,6 +34,78 @@ class Client(typing.Protocol):
 
     def status(self, level: str, msg: str, request_id=None) -> None:
         """A status message for the client (shown at its status level)."""
+
+
+class Bound(typing.Protocol):
+    """Bytes that many holders share, at most `limit` together (transport/rfc6455.SharedBound). A holder that
+    must make way for another is told by its evict()."""
+
+    limit: int
+
+    def hold(self, holder, count: int) -> bool:
+        """`holder` now holds `count` bytes (0: nothing); False if refused (it then holds what it held)."""
+
+
+class SessionHost(typing.Protocol):
+    """What a protocol session may ask of its connection (transport/connection.ClientConnection). Protocol-neutral:
+    a session never writes; it queues frames, wakes its host, and the host takes them (ProtocolSession.take_frame)
+    when the client's socket can take them."""
+
+    unfinished: Bound | None  # what the unfinished messages of all clients hold together (a session's fragments too)
+
+    def clock(self) -> float:
+        """Seconds since the epoch."""
+
+    def call_later(self, delay: float, fn: Callable[[], None]) -> object:
+        """Runs fn() on the loop `delay` seconds from now; returns a handle for cancel_later."""
+
+    def cancel_later(self, handle: object) -> None:
+        """The timer of `handle` (from call_later) does not run after all (nothing, if it has run)."""
+
+    def wake(self) -> None:
+        """Frames are queued: the host takes them (ProtocolSession.take_frame) until there are none."""
+
+    def close_after_sending(self, reason: str) -> None:
+        """Closes the connection once the frames queued so far are sent; `reason` goes in the close frame."""
+
+    def resume_reading(self) -> None:
+        """The session no longer holds the client's requests (ProtocolSession.holding): read the client again."""
+
+    def off_loop(self, fn: Callable[[], typing.Any], then: Callable[[typing.Any], None]) -> None:
+        """Runs fn() on another thread (the bridge's encoder), then then(its result) on the loop; the result is
+        None if fn raised (logged)."""
+
+
+class ProtocolSession(typing.Protocol):
+    """What the connection (transport/connection.ClientConnection) calls on the protocol session of its client,
+    which it chose at the handshake. The session is also the ROS side's Client, and gets a SessionHost."""
+
+    @property
+    def authenticated(self) -> bool:
+        """Whether the client may do more than authenticate (True unless the authenticate setting is on):
+        max_clients makes room by closing the client that has waited longest without."""
+
+    @property
+    def holding(self) -> bool:
+        """Whether the session holds the client's next requests (behind ROS work under way): the connection
+        reads nothing more meanwhile, until SessionHost.resume_reading."""
+
+    def handle_text(self, text: str) -> None:
+        """A whole text message from the client."""
+
+    def handle_binary(self, data: bytes) -> None:
+        """A whole binary message from the client."""
+
+    def take_frame(self) -> object | None:
+        """The next frame to write (str or protocol/encoded.Utf8Text: text; bytes: binary; SplicedFrame: either),
+        or None when none is queued (the next one queued wakes the host again)."""
+
+    def backed_up(self, flag: bool, in_flight: int = 0) -> None:
+        """Whether the client's socket has stopped taking frames, and how many bytes taken from the session have
+        not left yet (the session then keeps each topic fresh, and within its bounds)."""
+
+    def closed(self) -> None:
+        """The connection is gone: the session releases everything it held (on the ROS side too)."""
 
 
 class Backend(abc.ABC):

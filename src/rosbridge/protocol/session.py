@@ -1,6 +1,6 @@
 """The rosbridge v2 protocol for one websocket client: check every frame and dispatch it, keep the client's
 state (subscriptions, authentication, status level) and call the ROS side through the `contract.Backend`
-contract. Pure: no rospy, no tornado; the server gives it a clock, a timer and a wake-up.
+contract. Pure: no rospy, no tornado; its connection is its `contract.SessionHost` (a clock, timers, a wake-up).
 
 The jobs around it have rooms of their own: reassembly.py (fragment and png ops), subscription.py (merging and
 throttling), outbox.py (the outbox: whole messages, small first, fresh on a slow link), encoded.py (encoding what
@@ -15,6 +15,7 @@ from rosbridge import globs as globs_module
 from rosbridge import settings
 from rosbridge.auth import mac_is_valid
 from rosbridge.codec.json_values import dumps
+from rosbridge.contract import SessionHost
 from rosbridge.errors import ClientError, RequestError, log_bug
 from rosbridge.protocol.encoded import COMPRESSIONS, service_response_frames, status_frame
 from rosbridge.protocol.outbox import OWN_QUEUE_BYTES, Outbox, QueuePool
@@ -164,50 +165,33 @@ def check_fields(op, request):
 
 
 class Session:
-    """One websocket client. The server feeds it frames (handle_text / handle_binary), drains its outgoing
-    queue (take_frame) when `wake` is called, and calls `closed` when the connection is gone.
-
-    clock() -> seconds since the epoch; call_later(delay, fn) runs fn on the loop later; wake() says frames
-    are waiting; close(reason) asks the server to close the connection after the queued frames.
+    """One websocket client: a contract.ProtocolSession and a contract.Client. Its connection, `host` (a
+    contract.SessionHost), feeds it frames (handle_text / handle_binary), takes its queued frames (take_frame)
+    once it is woken (host.wake()), and calls `closed` when the connection is gone.
 
     A client's requests take effect in the order it sent them: after an ORDERED_OPS request whose ROS side is
-    still under way, the next ones are held (`holding` is true: the server stops reading the client meanwhile,
-    so what is held stays small) and handled once it is done; then resume_reading() is called."""
+    still under way, the next ones are held (`holding` is true: the host stops reading the client meanwhile,
+    so what is held stays small) and handled once it is done; then host.resume_reading() is called."""
 
-    def __init__(
-        self,
-        backend,
-        config,
-        clock,
-        call_later,
-        wake,
-        close,
-        name="client",
-        resume_reading=None,
-        off_loop=None,
-        cancel_later=None,
-        unfinished=None,
-    ):
+    def __init__(self, backend, config, host: SessionHost, name="client"):
         self.backend, self.config, self.name = backend, config, name
-        self._clock, self._call_later, self._wake, self._close = clock, call_later, wake, close
-        self._cancel_later = cancel_later  # cancel_later(what call_later returned): a timer not run after all
-        self._off_loop = off_loop  # off_loop(fn, then): fn() on another thread, then(result) on the loop
-        self._resume_reading = resume_reading
+        self._host = host
         self._held = None  # frames received while an earlier request's ROS side is under way, in order
-        self.subscriptions = {}
-        self.advertised = set()
-        self._ids = {}  # (op, name) -> the id of the latest such request, for refusals that come later
+        self.subscriptions: dict[str, Subscription] = {}
+        self.advertised: set[str] = set()
+        # (op, name) -> the id of the latest such request, for refusals that come later
+        self._ids: dict[tuple[str, str], object] = {}
         self.level = STATUS_LEVELS.index("error")
         self.authenticated = not config.authenticate
-        self._auth_timer = None if self.authenticated else call_later(AUTH_TIMEOUT, self._auth_deadline)
+        self._auth_timer = None if self.authenticated else host.call_later(AUTH_TIMEOUT, self._auth_deadline)
         self.is_closed = False
-        self._outgoing = Outbox(config.max_queue, config.max_queue_bytes, clock, config.queue_pool)
+        self._outgoing = Outbox(config.max_queue, config.max_queue_bytes, host.clock, config.queue_pool)
         self._last_report = float("-inf")  # when the client was last told what its slow link skipped
-        self._reports = collections.deque()  # those status frames: they go first
+        self._reports: collections.deque[str] = collections.deque()  # those status frames: they go first
         self._woken = False
-        # its fragment ops' unfinished messages count with every client's (unfinished: a SharedBound, if given)
+        # its fragment ops' unfinished messages count with every client's
         self._fragments = Fragments(
-            config.max_message_size, config.fragment_timeout, unfinished, self._fragments_made_way
+            config.max_message_size, config.fragment_timeout, host.unfinished, self._fragments_made_way
         )
         self._fragments_timer = None  # when the next unfinished fragmented message expires
 
@@ -295,8 +279,8 @@ class Session:
                 held.extend(self._held)  # (nothing arrives meanwhile: this is one turn of the loop)
                 self._held = held
                 return
-        if self._resume_reading is not None and not self.is_closed:
-            self._resume_reading()
+        if not self.is_closed:
+            self._host.resume_reading()
 
     def _remember_id(self, op, name, request_id):
         ids = self._ids
@@ -356,11 +340,11 @@ class Session:
         if subscription is None:
             subscription = self.subscriptions[topic] = Subscription(
                 functools.partial(self._queue, topic),
-                self._clock,
-                self._call_later,
+                self._host.clock,
+                self._host.call_later,
                 self.config.max_queue_bytes,
                 backlogged=lambda: len(self._outgoing) > 0,
-                off_loop=self._off_loop,
+                off_loop=self._host.off_loop,
             )
         subscription.add(
             req.get("id"),
@@ -413,7 +397,7 @@ class Session:
         self.backend.service_response(self, req["service"], req.get("id"), req["result"], req.get("values"))
 
     def _op_fragment(self, req, depth):
-        text = self._fragments.add(req["id"], req["num"], req["total"], req["data"], self._clock())
+        text = self._fragments.add(req["id"], req["num"], req["total"], req["data"], self._host.clock())
         if text is not None:
             self.handle_text(text, depth + 1)
         elif self._fragments_timer is None:
@@ -425,7 +409,7 @@ class Session:
         self._fragments_timer = None
         if self.is_closed:
             return
-        now = self._clock()
+        now = self._host.clock()
         for frag_id, received, total in self._fragments.expire(now):
             self.status(
                 "warning",
@@ -434,7 +418,7 @@ class Session:
             )
         deadline = self._fragments.next_deadline()
         if deadline is not None:
-            self._fragments_timer = self._call_later(max(0.0, deadline - now), self._expire_fragments)
+            self._fragments_timer = self._host.call_later(max(0.0, deadline - now), self._expire_fragments)
 
     def _fragments_made_way(self, count):
         self.status(
@@ -451,7 +435,7 @@ class Session:
     def _op_auth(self, req, depth):
         if self.authenticated:
             return  # authentication is off, or done: the reference ignores auth then
-        if not mac_is_valid(req, self.config.auth_secret, self._clock(), self.config.auth_time_delta):
+        if not mac_is_valid(req, self.config.auth_secret, self._host.clock(), self.config.auth_time_delta):
             raise RequestError("auth: authentication failed (bad MAC, or t/end out of time)")
         self.authenticated = True
         self._cancel(self._auth_timer)
@@ -507,7 +491,7 @@ class Session:
         self._outgoing.push(topic, frames)
         if not self._woken:
             self._woken = True
-            self._wake()
+            self._host.wake()
 
     def backed_up(self, flag, in_flight=0):
         """The server says whether the client's socket has stopped taking frames (then each topic keeps only
@@ -520,8 +504,8 @@ class Session:
         outbox = self._outgoing
         if (
             outbox.skipped or outbox.dropped or outbox.refused
-        ) and self._clock() - self._last_report >= REPORT_INTERVAL:
-            self._last_report = self._clock()
+        ) and self._host.clock() - self._last_report >= REPORT_INTERVAL:
+            self._last_report = self._host.clock()
             self._reports.extend(
                 status_frame(level, text)
                 for level, text in _outbox_report(*outbox.take_report(), self.config)
@@ -535,7 +519,8 @@ class Session:
         return frame
 
     def close(self, reason):
-        self._close(reason)
+        """Closes the connection once what is queued is sent."""
+        self._host.close_after_sending(reason)
 
     def closed(self):
         """The connection is gone: release everything this client held on the ROS side."""
@@ -553,8 +538,8 @@ class Session:
         self.backend.release(self)
 
     def _cancel(self, timer):
-        if timer is not None and self._cancel_later is not None:
-            self._cancel_later(timer)
+        if timer is not None:
+            self._host.cancel_later(timer)
 
 
 def _outbox_report(skipped, dropped, refused, config):

@@ -165,19 +165,7 @@ class ClientConnection:
             evicted=self._made_way,
         )
         self.budget = ClientBudget(settings.max_frames_per_second, settings.max_bytes_per_second, time.monotonic)
-        self.session = protocol.Session(
-            bridge.backend,
-            bridge.config,
-            time.time,
-            self._loop.call_later,
-            self._wake,
-            self._close_after_sending,
-            name=peer,
-            resume_reading=self._resume,
-            off_loop=bridge.encoder.run,
-            cancel_later=self._loop.remove_timeout,
-            unfinished=bridge.unfinished,
-        )
+        self.session = protocol.Session(bridge.backend, bridge.config, self, name=peer)
         self._waiting = None  # what reading waits for: "read", "turn" (a timer), "session", or "end"
         self._turn_timer = None
         self._unfinished_timer = None  # when the message the client is sending must be whole (_check_unfinished)
@@ -237,11 +225,6 @@ class ClientConnection:
         (behind ROS work that may never end: its link may be dead meanwhile); 0 while the bridge holds its
         frames back for its budget (a client over its budget is not silent)."""
         return now - self._last_heard if self._waiting in ("read", "session") else 0.0
-
-    def _resume(self):
-        """The Session handles the client's requests again."""
-        if self._waiting == "session":
-            self._loop.add_callback(self._take_frames)
 
     def _take_frames(self):
         """Handles the frames received, one turn's worth at most; reads again once none is left."""
@@ -334,14 +317,38 @@ class ClientConnection:
             code, _ = payload
             self.close(None if code == ws.NO_STATUS else code, then_drop=True)
 
-    # ---- writing ---------------------------------------------------------------------------------
-    def _wake(self):
+    # ---- what its session may ask (contract.SessionHost) ------------------------------------------
+    def clock(self):
+        return time.time()
+
+    def call_later(self, delay, fn):
+        return self._loop.call_later(delay, fn)
+
+    def cancel_later(self, handle):
+        self._loop.remove_timeout(handle)
+
+    def wake(self):
+        """The session has frames queued: they are written once the current delivery ends (write_turns)."""
         self.bridge.writes.wake(self._flush)
 
-    def _close_after_sending(self, reason):
+    def close_after_sending(self, reason):
         self._close_reason = reason
-        self._wake()
+        self.wake()
 
+    def resume_reading(self):
+        """The session handles the client's requests again (it held them: _take_frames)."""
+        if self._waiting == "session":
+            self._loop.add_callback(self._take_frames)
+
+    def off_loop(self, fn, then):
+        self.bridge.encoder.run(fn, then)
+
+    @property
+    def unfinished(self):
+        """(the session's fragment ops count there too)"""
+        return self.bridge.unfinished
+
+    # ---- writing ---------------------------------------------------------------------------------
     def _flush(self):
         """Writes the Session's queued frames until the stream is backed up; _drained goes on from there (and
         _deflated, after a frame that had to be deflated off the loop)."""
