@@ -9,6 +9,7 @@ apart from the encoder so that a map's encoding never holds a slow client's next
 the frame's bytes and returns new ones; the loop keeps them on the frame and resumes each client waiting for
 them (its next frames wait meanwhile, and it counts as backed up)."""
 
+import enum
 import functools
 import time
 
@@ -128,6 +129,19 @@ def unfinished_bound(settings):
     return ws.SharedBound(frame_limit(settings))
 
 
+class Waiting(enum.Enum):
+    """What a ClientConnection's reading waits for (None: nothing, it is taking the client's frames)."""
+
+    READ = "read"
+    """The stream's next bytes: one read is asked."""
+    TURN = "turn"
+    """The client's next turn (a timer): it had a turn's worth of frames (budget.py)."""
+    SESSION = "session"
+    """The session, which holds the client's next requests (behind ROS work): resume_reading ends it."""
+    END = "end"
+    """Nothing more: the connection is ending, nothing more is read."""
+
+
 class ClientConnection:
     """One websocket client after the handshake.
 
@@ -166,7 +180,7 @@ class ClientConnection:
         )
         self.budget = ClientBudget(settings.max_frames_per_second, settings.max_bytes_per_second, time.monotonic)
         self.session = protocol.Session(bridge.backend, bridge.config, self, name=peer)
-        self._waiting = None  # what reading waits for: "read", "turn" (a timer), "session", or "end"
+        self._waiting = None  # what reading waits for: a Waiting, or None
         self._turn_timer = None
         self._unfinished_timer = None  # when the message the client is sending must be whole (_check_unfinished)
         self._closing = False  # our close frame is sent: nothing else goes out
@@ -201,15 +215,16 @@ class ClientConnection:
 
     # ---- reading ---------------------------------------------------------------------------------
     def _read(self):
-        self._waiting = "read"
+        self._waiting = Waiting.READ
         try:
             self._stream.read_bytes(READ_CHUNK, partial=True).add_done_callback(self._received)
         except tornado.iostream.StreamClosedError:
-            self._waiting = "end"
+            self._waiting = Waiting.END
 
     def _received(self, read):
-        if self._waiting == "end" or read.cancelled() or read.exception() is not None:  # (_on_stream_closed, close)
-            self._waiting = "end"
+        # (Waiting.END: by _on_stream_closed or close meanwhile)
+        if self._waiting is Waiting.END or read.cancelled() or read.exception() is not None:
+            self._waiting = Waiting.END
             return
         self._last_heard = time.monotonic()
         self._reader.receive(read.result())
@@ -224,7 +239,7 @@ class ClientConnection:
         """Seconds the client has not been heard while the bridge was ready to read it, or held its requests
         (behind ROS work that may never end: its link may be dead meanwhile); 0 while the bridge holds its
         frames back for its budget (a client over its budget is not silent)."""
-        return now - self._last_heard if self._waiting in ("read", "session") else 0.0
+        return now - self._last_heard if self._waiting in (Waiting.READ, Waiting.SESSION) else 0.0
 
     def _take_frames(self):
         """Handles the frames received, one turn's worth at most; reads again once none is left."""
@@ -233,11 +248,11 @@ class ClientConnection:
         try:
             while not self._stream.closed():
                 if session.holding:
-                    self._waiting = "session"
+                    self._waiting = Waiting.SESSION
                     return
                 event = reader.next_event()
                 if event is None:
-                    if self._waiting == "end":  # (its unfinished message made way for another's meanwhile)
+                    if self._waiting is Waiting.END:  # (its unfinished message made way for another's meanwhile)
                         return
                     self._read()
                     if self._unfinished_timer is None and reader.unfinished_since is not None:
@@ -249,14 +264,14 @@ class ClientConnection:
                         session.handle_text(payload)
                 elif kind != ws.PART:
                     self._handle_other(kind, payload)
-                    if self._waiting == "end":
+                    if self._waiting is Waiting.END:
                         return
                 delay = budget.after_frame(size)
                 if delay is not None:  # (0: the other clients' turn first)
-                    self._waiting, self._turn_timer = "turn", self._loop.call_later(delay, self._take_frames)
+                    self._waiting, self._turn_timer = Waiting.TURN, self._loop.call_later(delay, self._take_frames)
                     return
         except ws.ProtocolError as error:
-            self._waiting = "end"
+            self._waiting = Waiting.END
             if error.code == ws.TRY_AGAIN:
                 self.bridge.log_refusal(
                     "unfinished",
@@ -265,7 +280,7 @@ class ClientConnection:
                 )
             self.close(error.code, error.reason, then_drop=True)
         except Exception:  # a bug: this client is dropped, the others go on
-            self._waiting = "end"
+            self._waiting = Waiting.END
             log_bug("reading a websocket client's frames")
             self._stream.close()
 
@@ -273,7 +288,7 @@ class ClientConnection:
         """The message the client is sending must be whole within fragment_timeout of its first byte (a client
         that never ends one would hold it for good): checked then, and the connection closed if it is not."""
         self._unfinished_timer = None
-        since = self._reader.unfinished_since if self._waiting == "read" else None
+        since = self._reader.unfinished_since if self._waiting is Waiting.READ else None
         if since is None:  # (whole, or the bridge holds the client's frames back: read again later)
             return
         left = since + self.bridge.settings.fragment_timeout - time.monotonic()
@@ -302,7 +317,7 @@ class ClientConnection:
         if self._turn_timer is not None:
             self._loop.remove_timeout(self._turn_timer)
             self._turn_timer = None
-        self._waiting = "end"
+        self._waiting = Waiting.END
         self.close(code, reason, then_drop=True)
 
     def _handle_other(self, kind, payload):
@@ -337,7 +352,7 @@ class ClientConnection:
 
     def resume_reading(self):
         """The session handles the client's requests again (it held them: _take_frames)."""
-        if self._waiting == "session":
+        if self._waiting is Waiting.SESSION:
             self._loop.add_callback(self._take_frames)
 
     def off_loop(self, fn, then):
@@ -560,7 +575,7 @@ class ClientConnection:
         if stream.closed():
             return
         if then_drop:
-            self._waiting = "end"
+            self._waiting = Waiting.END
         if not self._closing:
             self._closing = True
             written = stream.write(ws.close_frame(code, reason))
@@ -578,7 +593,7 @@ class ClientConnection:
                 self._loop.remove_timeout(timer)
         if self._pinger is not None:
             self._pinger.stop()
-        self._waiting = "end"
+        self._waiting = Waiting.END
         self._reader.close()  # (what it holds goes now, not with the session: its share of the bound too)
         self._reader = None
         self.session.closed()
