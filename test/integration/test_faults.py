@@ -11,7 +11,8 @@ import pytest
 import roslibpy
 
 from bridge_client import RawWebSocket, WsClient, ping
-from harness import ProcStat, RosMaster, free_port, node_pid, start_bridge, wait_for
+from fixtures import bridge_fixture
+from harness import ProcStat, RosMaster, node_pid, start_bridge, wait_for
 
 pytestmark = pytest.mark.slow  # (deselect with -m 'not slow' for a quick run)
 
@@ -47,40 +48,40 @@ def publish_in_thread(publisher, make_msg, rate, count=None, stop=None):
     return thread
 
 
-def test_a_client_that_stops_reading_does_not_grow_the_bridge_or_starve_others(ros, node):
+stuck_bridge = bridge_fixture("bridge_stuck", scope="function", yields="bridge")
+
+
+def test_a_client_that_stops_reading_does_not_grow_the_bridge_or_starve_others(ros, node, stuck_bridge):
     from std_msgs.msg import String
 
-    proc, port = start_bridge(ros, node_name="bridge_stuck")
-    try:
-        pid = node_pid(ros, "/bridge_stuck")
-        pub = node.Publisher("/faults/flood", String, queue_size=1000)
-        stuck = RawWebSocket(port, recv_buffer=4096)
-        stuck.send_text('{"op":"subscribe","topic":"/faults/flood","type":"std_msgs/String"}')
-        got = []
-        reader = roslibpy.Ros(host="127.0.0.1", port=port)
-        reader.run(timeout=20)
-        topic = roslibpy.Topic(reader, "/faults/flood", "std_msgs/String")
-        topic.subscribe(lambda m: got.append(int(m["data"].split(":", 1)[0])))
-        wait_for(lambda: pub.get_num_connections() >= 1, 20, what="the bridge subscribing to the flood")
+    proc, port = stuck_bridge.proc, stuck_bridge.port
+    pid = node_pid(ros, "/bridge_stuck")
+    pub = node.Publisher("/faults/flood", String, queue_size=1000)
+    stuck = RawWebSocket(port, recv_buffer=4096)
+    stuck.send_text('{"op":"subscribe","topic":"/faults/flood","type":"std_msgs/String"}')
+    got = []
+    reader = roslibpy.Ros(host="127.0.0.1", port=port)
+    reader.run(timeout=20)
+    topic = roslibpy.Topic(reader, "/faults/flood", "std_msgs/String")
+    topic.subscribe(lambda m: got.append(int(m["data"].split(":", 1)[0])))
+    wait_for(lambda: pub.get_num_connections() >= 1, 20, what="the bridge subscribing to the flood")
 
-        count, filler = 10_000, "x" * 10_000  # 10 s at 1 kHz of 10 kB messages: 100 MB if nothing were dropped
-        flood = publish_in_thread(pub, lambda i: String(f"{i}:{filler}"), rate=1000, count=count)
-        time.sleep(3)
-        early = ProcStat(pid).rss_mb()
-        flood.join(60)
-        wait_for(lambda: got and got[-1] == count - 1, 60, what="the reading client to get the last message")
-        grown = ProcStat(pid).rss_mb() - early
-        topic.unsubscribe()
-        reader.close()
-        stuck.close()
-        pub.unregister()
+    count, filler = 10_000, "x" * 10_000  # 10 s at 1 kHz of 10 kB messages: 100 MB if nothing were dropped
+    flood = publish_in_thread(pub, lambda i: String(f"{i}:{filler}"), rate=1000, count=count)
+    time.sleep(3)
+    early = ProcStat(pid).rss_mb()
+    flood.join(60)
+    wait_for(lambda: got and got[-1] == count - 1, 60, what="the reading client to get the last message")
+    grown = ProcStat(pid).rss_mb() - early
+    topic.unsubscribe()
+    reader.close()
+    stuck.close()
+    pub.unregister()
 
-        assert grown < 40, f"bridge RSS grew {grown:.0f} MB while a client did not read"
-        seconds = {seq // 1000 for seq in got}  # the flood's seconds the reading client got messages from
-        assert len(seconds) >= count // 1000 // 2, f"the reading client only got messages of seconds {seconds}"
-        assert proc.alive()
-    finally:
-        proc.stop()
+    assert grown < 40, f"bridge RSS grew {grown:.0f} MB while a client did not read"
+    seconds = {seq // 1000 for seq in got}  # the flood's seconds the reading client got messages from
+    assert len(seconds) >= count // 1000 // 2, f"the reading client only got messages of seconds {seconds}"
+    assert proc.alive()
 
 
 @pytest.mark.parametrize("reset", [False, True], ids=["fin", "rst"])
@@ -113,11 +114,13 @@ def test_a_client_dying_mid_frame_is_cleaned_up(ros, reset):
         proc.stop()
 
 
-def test_bridge_killed_and_restarted_under_a_reconnecting_client(ros, node):
+restarted_bridge = bridge_fixture("bridge_restart", scope="function", yields="bridge")
+
+
+def test_bridge_killed_and_restarted_under_a_reconnecting_client(ros, node, restarted_bridge):
     from std_msgs.msg import Int32
 
-    port = free_port()
-    proc, _ = start_bridge(ros, node_name="bridge_restart", port=port)
+    port = restarted_bridge.port
     ticks = node.Publisher("/faults/ticks", Int32, queue_size=10)
     got_cmds = []
     sub = node.Subscriber("/faults/cmds", Int32, lambda m: got_cmds.append(m.data))
@@ -138,10 +141,10 @@ def test_bridge_killed_and_restarted_under_a_reconnecting_client(ros, node):
         )
 
         os.kill(node_pid(ros, "/bridge_restart"), signal.SIGKILL)  # (roslaunch runs it in a session of its own)
-        proc.stop()
+        restarted_bridge.proc.stop()
         wait_for(lambda: not client.is_connected, 20, what="the client to notice")
         before = len(got)
-        proc, _ = start_bridge(ros, node_name="bridge_restart", port=port)
+        restarted_bridge.start()  # (on the same port)
 
         wait_for(lambda: len(got) > before + 3, 60, what="ticks again after the restart")
         wait_for(
@@ -153,13 +156,15 @@ def test_bridge_killed_and_restarted_under_a_reconnecting_client(ros, node):
     finally:
         stop.set()
         client.close()
-        proc.stop()
         ticks.unregister()
         sub.unregister()
 
 
-def test_turtlesim_killed_and_restarted_while_a_client_drives(ros, node):
-    proc, port = start_bridge(ros, node_name="bridge_turtle_restart")
+turtle_restart_bridge = bridge_fixture("bridge_turtle_restart", scope="function")
+
+
+def test_turtlesim_killed_and_restarted_while_a_client_drives(ros, node, turtle_restart_bridge):
+    port = turtle_restart_bridge
     turtle = ros.spawn(["rosrun", "turtlesim", "turtlesim_node", "__name:=turtlesim_faults"], "turtlesim_faults")
     client = roslibpy.Ros(host="127.0.0.1", port=port)
     try:
@@ -187,7 +192,6 @@ def test_turtlesim_killed_and_restarted_while_a_client_drives(ros, node):
     finally:
         client.close()
         turtle.stop()
-        proc.stop()
 
 
 def test_roscore_restarted_under_the_bridge(tmp_path):

@@ -9,11 +9,13 @@ import threading
 import pytest
 from tornado.websocket import websocket_connect
 
-from harness import ProcStat, node_pid, start_bridge, wait_for
+from fixtures import bridge_fixture
+from harness import ProcStat, node_pid, wait_for
 
 pytestmark = pytest.mark.slow  # (deselect with -m 'not slow' for a quick run)
 
 CLIENTS_PER_ROUND = 250
+load_bridge = bridge_fixture("bridge_load", scope="function", yields="bridge", unregister_timeout=1)
 
 
 def registrations(ros, node_name):
@@ -54,10 +56,10 @@ async def crowd(url, n):
     await asyncio.sleep(0.5)
 
 
-def test_a_thousand_clients_coming_and_going_leave_no_trace(ros, node):
+def test_a_thousand_clients_coming_and_going_leave_no_trace(ros, node, load_bridge):
     from std_msgs.msg import Int32
 
-    proc, port = start_bridge(ros, node_name="bridge_load", unregister_timeout=1)
+    proc, port = load_bridge.proc, load_bridge.port
     tick = node.Publisher("/load/tick", Int32, queue_size=10)
     stop = threading.Event()
 
@@ -96,4 +98,3 @@ def test_a_thousand_clients_coming_and_going_leave_no_trace(ros, node):
         loop.close()
         count_sub.unregister()
         tick.unregister()
-        proc.stop()
