@@ -212,3 +212,36 @@ class Outbox:
         self._dead = self.frames = self.bytes = self._in_flight = 0
         if self._pool is not None:
             self._regrant()
+
+
+def outbox_report(skipped, dropped, refused, config):
+    """(level, text) of each status telling a client what its slow link cost it."""
+
+    def by_topic(counts):
+        return ", ".join(f"{topic or 'other messages'} {n}" for topic, n in counts.most_common())
+
+    if skipped:
+        yield (
+            "warning",
+            (
+                f"skipped {sum(skipped.values())} older message(s), the newest of each topic kept "
+                f"(the link is slower than the messages): {by_topic(skipped)}"
+            ),
+        )
+    if dropped:
+        yield (
+            "error",
+            (
+                f"dropped {sum(dropped.values())} whole message(s): client too slow (outgoing bound "
+                f"{config.max_queue} frames, {config.max_queue_bytes} bytes; beyond {OWN_QUEUE_BYTES} bytes "
+                f"each, {config.queue_pool.limit} bytes for all clients together): {by_topic(dropped)}"
+            ),
+        )
+    if refused:
+        yield (
+            "error",
+            (
+                f"refused {sum(refused.values())} message(s) larger than the client's whole outgoing bound "
+                f"({config.max_queue} frames, {config.max_queue_bytes} bytes): {by_topic(refused)}"
+            ),
+        )
