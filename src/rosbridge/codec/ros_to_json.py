@@ -371,7 +371,16 @@ class _Generator(Generator):
         reader.text("]")
 
 
+_readers: dict[type, Callable] = {}  # message class -> its reader: (bytes, offset, spliced) -> (text, end)
 _cache: dict[type, Callable] = {}  # message class -> its converter
+
+
+def _reader(cls):
+    read = _readers.get(cls)
+    if read is None:
+        generator = _Generator()
+        read = _readers[cls] = generator.namespace[generator.reader(cls, top=True)]
+    return read
 
 
 def json_parts(cls):
@@ -379,8 +388,7 @@ def json_parts(cls):
     SPLICE_MARK where each big base64 string goes, and those strings (bytes, ASCII) in order."""
     convert = _cache.get(cls)
     if convert is None:
-        generator = _Generator()
-        read = generator.namespace[generator.reader(cls, top=True)]
+        read = _reader(cls)
 
         def convert(data):
             spliced = []
@@ -388,6 +396,16 @@ def json_parts(cls):
 
         _cache[cls] = convert
     return convert
+
+
+def check_whole(cls, data):
+    """Raises ValueError unless `data` is exactly one serialized message of class cls (a client's bytes)."""
+    try:
+        end = _reader(cls)(data, 0, [])[1]
+    except (struct.error, IndexError, UnicodeDecodeError) as error:
+        raise ValueError(f"not a whole {cls._type} ({len(data)} bytes): {error}") from None
+    if end != len(data):
+        raise ValueError(f"{len(data)} bytes, but a {cls._type} of these fields takes {end}")
 
 
 def joined(text, spliced):
