@@ -10,8 +10,13 @@ text goes back to the client; any other exception is a bug. Work that can block 
 objects) is done off the loop: a refusal found out there comes later, through `Client.ros_refused`."""
 
 import abc
+import dataclasses
 import typing
 from collections.abc import Callable
+
+from rosbridge.globs import allowed
+
+DELETE = object()  # the value of a parameter to unset (Backend.set_parameters), or one that is gone
 
 DRIVE_TYPES = frozenset(("geometry_msgs/Twist", "geometry_msgs/TwistStamped"))  # velocity commands: a robot
 # goes on with the last one it got, so a driver that goes away is stopped (Backend.stop_driving)
@@ -108,6 +113,38 @@ class ProtocolSession(typing.Protocol):
         """The connection is gone: the session releases everything it held (on the ROS side too)."""
 
 
+@dataclasses.dataclass(frozen=True)
+class GraphState:
+    """The ROS graph as the master told it (Backend.watch_graph). Names map to frozensets of node names."""
+
+    topics: dict  # topic -> (type, its full definition as TCPROS sends it, or None: the type is not installed here)
+    publishers: dict  # topic -> nodes
+    subscribers: dict  # topic -> nodes
+    services: dict  # service -> (type, request definition, response definition); ("", None, None): not known
+    providers: dict  # service -> nodes
+
+    def filtered(self, globs):
+        """The same without the topics and services that the bridge's globs hide."""
+
+        def keep(names, patterns):
+            return {name: value for name, value in names.items() if allowed(name, patterns)}
+
+        return GraphState(
+            keep(self.topics, globs.topics),
+            keep(self.publishers, globs.topics),
+            keep(self.subscribers, globs.topics),
+            keep(self.services, globs.services),
+            keep(self.providers, globs.services),
+        )
+
+    def nodes_differ(self, other):
+        return (self.publishers, self.subscribers, self.providers) != (
+            other.publishers,
+            other.subscribers,
+            other.providers,
+        )
+
+
 class Backend(abc.ABC):
     @abc.abstractmethod
     def advertise(self, session, topic, type_name, latch, queue_size):
@@ -168,3 +205,35 @@ class Backend(abc.ABC):
     @abc.abstractmethod
     def release(self, session):
         """The client left: release everything it held."""
+
+    # ---- what the Foxglove protocol asks besides ------------------------------------------------
+    @abc.abstractmethod
+    def publish_bytes(self, session, topic, data):
+        """One message as its ROS bytes, on a topic the client advertised; RequestError if they are not one
+        whole message of the topic's type."""
+
+    @abc.abstractmethod
+    def call_service_bytes(self, session, service, type_name, data, reply):
+        """Calls a ROS service with a request's ROS bytes; reply(ok, the response's bytes or the failure's text)
+        later, on the loop, exactly once."""
+
+    @abc.abstractmethod
+    def get_parameters(self, session, names, reply):
+        """reply(ok, {name: value} or the failure's text) later, on the loop: these parameters (names None:
+        every one, by leaf name)."""
+
+    @abc.abstractmethod
+    def set_parameters(self, session, values, reply):
+        """Sets {name: value, or DELETE to unset}; reply(ok, {name: value} set, or the failure's text) later."""
+
+    @abc.abstractmethod
+    def fetch_asset(self, session, uri, reply):
+        """reply(ok, the bytes of the file a package:// URI names, or the refusal's text) later, on the loop."""
+
+    @abc.abstractmethod
+    def watch_graph(self, listener):
+        """listener(GraphState) on the loop, soon and then whenever the graph changes, until unwatch_graph."""
+
+    @abc.abstractmethod
+    def unwatch_graph(self, listener):
+        """Stops telling listener."""

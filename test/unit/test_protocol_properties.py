@@ -87,6 +87,28 @@ class MemoryBackend(Backend):
     def service_response(self, session, service, call_id, result, values):
         raise protocol.RequestError(f"service_response {service}: no call with id {call_id!r} is waiting")
 
+    # (what only the Foxglove protocol asks: a rosbridge session never calls these)
+    def publish_bytes(self, session, topic, data):
+        self._record("publish_bytes", topic, data)
+
+    def call_service_bytes(self, session, service, type_name, data, reply):
+        self._record("call_service_bytes", service, data)
+
+    def get_parameters(self, session, names, reply):
+        self._record("get_parameters", names)
+
+    def set_parameters(self, session, values, reply):
+        self._record("set_parameters", values)
+
+    def fetch_asset(self, session, uri, reply):
+        self._record("fetch_asset", uri)
+
+    def watch_graph(self, listener):
+        self._record("watch_graph")
+
+    def unwatch_graph(self, listener):
+        self._record("unwatch_graph")
+
 
 class Harness:
     """A session on the memory backend, with a manual clock and timers."""

@@ -2,14 +2,18 @@
 services, plus the bridge's own /client_count and the master look-ups they share."""
 
 import contextlib
+import functools
 
 import rospy
 
 from rosbridge.contract import Backend
 from rosbridge.message_types import message_class
+from rosbridge.ros_side import parameters
+from rosbridge.ros_side.assets import read_asset
+from rosbridge.ros_side.graph_watch import GraphWatch
 from rosbridge.ros_side.links import TopicLinks
 from rosbridge.ros_side.publishers import Publishers
-from rosbridge.ros_side.services import ProvidedServices, ServiceCalls
+from rosbridge.ros_side.services import ProvidedServices, ServiceCalls, call_raw_service
 from rosbridge.ros_side.subscribers import Subscribers
 from rosbridge.ros_side.worker import RosWorker
 
@@ -38,6 +42,7 @@ class RosBackend(Backend):
             loop, rosapi, MAX_CALLS_RUNNING_PER_CLIENT, MAX_CALLS_RUNNING, MAX_CALLS_PENDING_PER_CLIENT
         )
         self._provided = ProvidedServices(loop, worker, service_timeout)
+        self._graph = GraphWatch(loop)
         self._client_count = rospy.Publisher("/client_count", message_class("std_msgs/Int32"), latch=True, queue_size=1)
 
     def set_client_count(self, count):
@@ -73,6 +78,29 @@ class RosBackend(Backend):
 
     def service_response(self, session, service, call_id, result, values):
         self._provided.respond(session, self.resolve_name(service), call_id, result, values)
+
+    def publish_bytes(self, session, topic, data):
+        self._publishers.publish_bytes(session, topic, data)
+
+    def call_service_bytes(self, session, service, type_name, data, reply):
+        service = self.resolve_name(service)
+        work = functools.partial(call_raw_service, service, type_name, data)
+        self._calls.run(session, f"call_service {service}", work, reply)
+
+    def get_parameters(self, session, names, reply):
+        self._calls.run(session, "getParameters", functools.partial(parameters.get_parameters, names), reply)
+
+    def set_parameters(self, session, values, reply):
+        self._calls.run(session, "setParameters", functools.partial(parameters.set_parameters, values), reply)
+
+    def fetch_asset(self, session, uri, reply):
+        self._calls.run(session, "fetchAsset", functools.partial(read_asset, uri), reply)
+
+    def watch_graph(self, listener):
+        self._graph.watch(listener)
+
+    def unwatch_graph(self, listener):
+        self._graph.unwatch(listener)
 
     def after_pending(self, session, then):
         # (the worker runs every client's jobs in one order: waiting for all submitted so far is exact)

@@ -8,6 +8,7 @@ import warnings
 import rospy
 
 from rosbridge.codec.json_to_ros import packer
+from rosbridge.codec.ros_to_json import check_whole
 from rosbridge.contract import DRIVE_TYPES
 from rosbridge.errors import RequestError, refusal_text
 from rosbridge.message_types import message_class
@@ -194,11 +195,7 @@ class Publishers:
             if not self._holders.holds(topic, session):
                 self.advertise(session, topic, entry.type, latch, queue_size)
             entry.publisher.put(packer(entry.cls)(msg, now=rospy.Time.now))
-            if entry.type in DRIVE_TYPES:
-                driven = self._driven.get(session)
-                if driven is None:  # (not setdefault: no new set for every message of a topic driven at 1 kHz)
-                    driven = self._driven[session] = set()
-                driven.add(topic)
+            self._drove(session, entry, topic)
             return
         waiting = self._inferring.get(topic)
         if waiting is None:  # ask the master for the topic's type, off the loop
@@ -210,6 +207,25 @@ class Publishers:
         if len(waiting) >= INFERRING_LIMIT:
             raise RequestError(f"publish {topic}: {INFERRING_LIMIT} messages already wait for the topic's type")
         waiting.append((session, msg, latch, queue_size))
+
+    def publish_bytes(self, session, topic, data):
+        """A message's ROS bytes from a client that advertised `topic` (the Foxglove protocol's `ros1`)."""
+        entry = self._entries.get(topic)
+        if entry is None or not self._holders.holds(topic, session):
+            raise RequestError(f"publish {topic}: not advertised by this client")
+        try:
+            check_whole(entry.cls, data)
+        except ValueError as error:
+            raise RequestError(f"publish {topic}: {error}") from None
+        entry.publisher.put(data)
+        self._drove(session, entry, topic)
+
+    def _drove(self, session, entry, topic):
+        if entry.type in DRIVE_TYPES:
+            driven = self._driven.get(session)
+            if driven is None:  # (not setdefault: no new set for every message of a topic driven at 1 kHz)
+                driven = self._driven[session] = set()
+            driven.add(topic)
 
     def _inferred(self, topic, error, type_name):
         for session, msg, latch, queue_size in self._inferring.pop(topic, ()):

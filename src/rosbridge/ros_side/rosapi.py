@@ -224,7 +224,7 @@ class Rosapi:
             return ""
         known = self._probed_types.get((service, uri))
         if known is None:
-            known = _probe_service_type(service, uri)
+            known = probe_service_type(service, uri)
             if known:
                 if len(self._probed_types) >= PROBED_TYPES_LIMIT:
                     self._probed_types.clear()
@@ -359,7 +359,7 @@ class Rosapi:
             return ""
 
 
-def _probe_service_type(service, uri):
+def probe_service_type(service, uri):
     """The type a service provider states in its TCPROS header when probed (what rosservice reads), or "" when
     it does not answer within PROBE_TIMEOUT (gone, stopped, or not a service)."""
     try:

@@ -5,6 +5,7 @@ import concurrent.futures
 import functools
 import itertools
 
+import genpy
 import rosgraph
 import rospy
 import rosservice
@@ -32,21 +33,28 @@ class ServiceCalls:
         self._threads = CallThreads("service call")
 
     def call(self, session, service, args, type_name, timeout, reply):
-        running, waiting = self._running.get(session, 0), self._waiting.get(session, ())
-        if running + len(waiting) >= self._max_pending:
-            raise RequestError(
-                f"call_service {service}: refused, this client has {running + len(waiting)} calls "
-                f"pending (at most {self._max_pending})"
-            )
         if self._rosapi is not None and self._rosapi.handles(service):
             work = functools.partial(self._rosapi.call, service, args)
         else:
             work = functools.partial(_call_ros_service, service, args, type_name)
+        self.run(
+            session, f"call_service {service}", work, reply, timeout, f"Service {service} timed out after {timeout} s"
+        )
+
+    def run(self, session, what, work, reply, timeout=None, timeout_text=None):
+        """Runs work() (it may block: a service, the master) in the client's turn, within the bounds; reply(True,
+        its result) or reply(False, the text of what it raised, or timeout_text after timeout s) later, on the
+        loop."""
+        running, waiting = self._running.get(session, 0), self._waiting.get(session, ())
+        if running + len(waiting) >= self._max_pending:
+            raise RequestError(
+                f"{what}: refused, this client has {running + len(waiting)} calls pending (at most {self._max_pending})"
+            )
         answer = _Answer(self._loop, reply)
         if timeout is not None:
-            answer.time_out(timeout, f"Service {service} timed out after {timeout} s")
+            answer.time_out(timeout, timeout_text)
         self._waiting.setdefault(session, collections.deque()).append(
-            (functools.partial(self._start, session, service, work, answer), answer)
+            (functools.partial(self._start, session, work, answer), answer)
         )
         self._start_waiting()
 
@@ -66,7 +74,7 @@ class ServiceCalls:
                     self._waiting[session] = queue
                 start()
 
-    def _start(self, session, service, work, answer):
+    def _start(self, session, work, answer):
         self._running[session] = self._running.get(session, 0) + 1
         self._total += 1
 
@@ -130,6 +138,37 @@ def _call_ros_service(service, args, type_name):
     except rospy.ServiceException as error:
         raise RequestError(f"Service {service} failed: {error}") from None
     return to_json(response)
+
+
+class _RawMessage(genpy.Message):
+    """A request or response as its serialized bytes: what rospy writes and reads for a call whose bytes a
+    client gives (the Foxglove protocol's `ros1` encoding) and gets back as they are."""
+
+    __slots__ = ("data",)
+    _has_header = False
+    _full_text = ""
+
+    def __init__(self, data=b""):  # (not genpy's: there are no fields)
+        self.data = data
+
+    def serialize(self, buffer):
+        buffer.write(self.data)
+
+    def deserialize(self, data):
+        self.data = bytes(data)
+        return self
+
+
+def call_raw_service(service, type_name, data):
+    """On a call's thread: calls `service` with a request's ROS bytes; its response's ROS bytes."""
+    cls = service_class(type_name)
+    raw = type(cls.__name__, (), {"_type": cls._type, "_md5sum": cls._md5sum})
+    raw._request_class = type("Request", (_RawMessage,), {"_type": cls._request_class._type, "_md5sum": cls._md5sum})
+    raw._response_class = type("Response", (_RawMessage,), {"_type": cls._response_class._type, "_md5sum": cls._md5sum})
+    try:
+        return rospy.ServiceProxy(service, raw)(raw._request_class(data)).data
+    except rospy.ServiceException as error:
+        raise RequestError(f"Service {service} failed: {error}") from None
 
 
 class _ProvidedService:
