@@ -8,6 +8,7 @@ setup(
             "turtlesim",
             "rosbridge",
             "rosbridge.codec",
+            "rosbridge.foxglove",
             "rosbridge.http",
             "rosbridge.protocol",
             "rosbridge.ros_side",

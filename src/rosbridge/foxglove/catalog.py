@@ -1,0 +1,191 @@
+"""What every Foxglove client of the bridge is told about, kept once for all of them: the channels (one per topic
+in the graph, subscribed-only topics too), the services, the connection graph and the watched parameters.
+
+The ROS side polls the master while a Foxglove client is connected (contract.Backend.watch_graph) and hands each
+new contract.GraphState to `graph_changed`, on the loop; the catalog turns it into advertisements and graph
+updates for each session. Parameters are polled here (Backend.get_parameters) while a client subscribes to them.
+Pure: no rospy, no tornado; the loop's call_later and cancel_later are given."""
+
+import itertools
+
+from rosbridge.contract import DELETE
+from rosbridge.globs import allowed
+
+PARAMETER_POLL = 1.0  # s: how often the master's parameters are read while a client subscribes to updates
+
+
+def channel_entry(channel_id, topic, type_name, schema):
+    return {
+        "id": channel_id,
+        "topic": topic,
+        "encoding": "ros1",
+        "schemaName": type_name,
+        "schema": schema,
+        "schemaEncoding": "ros1msg",
+    }
+
+
+def service_entry(service_id, name, type_name, request_schema, response_schema):
+    def half(suffix, schema):
+        return {"encoding": "ros1", "schemaName": type_name + suffix, "schemaEncoding": "ros1msg", "schema": schema}
+
+    return {
+        "id": service_id,
+        "name": name,
+        "type": type_name,
+        "request": half("_Request", request_schema),
+        "response": half("_Response", response_schema),
+    }
+
+
+def graph_update(old, new):
+    """The connectionGraphUpdate that takes a client from `old` (a GraphState, or None: nothing) to `new`."""
+
+    def changed(before, after, key):
+        return [
+            {"name": name, key: sorted(nodes)} for name, nodes in sorted(after.items()) if before.get(name) != nodes
+        ]
+
+    empty = {}
+    old_pubs, old_subs, old_providers = (old.publishers, old.subscribers, old.providers) if old else (empty,) * 3
+    old_topics = set(old_pubs) | set(old_subs)
+    new_topics = set(new.publishers) | set(new.subscribers)
+    return {
+        "op": "connectionGraphUpdate",
+        "publishedTopics": changed(old_pubs, new.publishers, "publisherIds"),
+        "subscribedTopics": changed(old_subs, new.subscribers, "subscriberIds"),
+        "advertisedServices": changed(old_providers, new.providers, "providerIds"),
+        "removedTopics": sorted(old_topics - new_topics),
+        "removedServices": sorted(set(old_providers) - set(new.providers)),
+    }
+
+
+class Catalog:
+    def __init__(self, backend, globs, call_later, cancel_later):
+        self._backend, self._globs = backend, globs
+        self._call_later, self._cancel_later = call_later, cancel_later
+        self.sessions = set()
+        self.graph = None  # the latest GraphState (globs applied), None before the first poll
+        self.channels = {}  # id -> channel entry
+        self._channel_ids = {}  # (topic, type, schema) -> id: a channel keeps its id while it lasts
+        self.services = {}  # id -> service entry
+        self._service_ids = {}  # (name, type) -> id
+        self._ids = itertools.count(1)
+        self._polling = False  # while a client subscribes to parameters
+        self._parameter_timer = None  # the next poll, if not under way
+        self._parameters = None  # {name: value} of the last poll
+
+    # ---- sessions -------------------------------------------------------------------------------
+    def join(self, session):
+        first = not self.sessions
+        self.sessions.add(session)
+        if first:
+            self._backend.watch_graph(self.graph_changed)
+        elif self.graph is not None:
+            session.advertise(list(self.channels.values()), [])
+            session.advertise_services(list(self.services.values()), [])
+
+    def leave(self, session):
+        self.sessions.discard(session)
+        if not self.sessions:
+            self._backend.unwatch_graph(self.graph_changed)
+            self.graph = None  # (a client that comes later gets a fresh poll, not what was true then)
+            self.channels.clear()
+            self._channel_ids.clear()
+            self.services.clear()
+            self._service_ids.clear()
+        self.parameters_wanted()
+
+    def channel(self, channel_id):
+        return self.channels.get(channel_id)
+
+    def service(self, service_id):
+        return self.services.get(service_id)
+
+    # ---- the graph ------------------------------------------------------------------------------
+    def graph_changed(self, graph):
+        """A new GraphState from the ROS side (on the loop)."""
+        if not self.sessions:
+            return
+        graph = graph.filtered(self._globs)
+        old, self.graph = self.graph, graph
+        topics = {
+            (topic, type_name, schema) for topic, (type_name, schema) in graph.topics.items() if schema is not None
+        }
+        gone = [key for key in self._channel_ids if key not in topics]
+        removed = [self.channels.pop(self._channel_ids.pop(key)) for key in gone]
+        added = []
+        for key in sorted(topics - set(self._channel_ids)):
+            channel_id = self._channel_ids[key] = next(self._ids)
+            added.append(channel_entry(channel_id, *key))
+            self.channels[channel_id] = added[-1]
+        services = {(name, type_name): schemas for name, (type_name, *schemas) in graph.services.items() if type_name}
+        gone = [key for key in self._service_ids if key not in services]
+        removed_services = [self._service_ids.pop(key) for key in gone]
+        for service_id in removed_services:
+            del self.services[service_id]
+        added_services = []
+        for key in sorted(set(services) - set(self._service_ids)):
+            service_id = self._service_ids[key] = next(self._ids)
+            added_services.append(service_entry(service_id, *key, *services[key]))
+            self.services[service_id] = added_services[-1]
+        update = graph_update(old, graph) if old is None or old.nodes_differ(graph) else None
+        for session in list(self.sessions):
+            if old is None or added or removed:
+                session.advertise(added if old is not None else list(self.channels.values()), removed)
+            if old is None or added_services or removed_services:
+                session.advertise_services(
+                    added_services if old is not None else list(self.services.values()), removed_services
+                )
+            if update is not None and session.graph_subscribed:
+                session.send_json(update)
+
+    def full_graph(self):
+        """The connectionGraphUpdate a client gets when it subscribes."""
+        return graph_update(None, self.graph) if self.graph is not None else None
+
+    # ---- parameters ------------------------------------------------------------------------------
+    def parameter_allowed(self, name):
+        return allowed(name, self._globs.params)
+
+    def parameters_wanted(self):
+        """Starts or stops the poll as clients subscribe to parameters or stop."""
+        wanted = any(session.parameter_subscriptions for session in self.sessions)
+        if wanted and not self._polling:
+            self._polling = True
+            self._parameter_timer = self._call_later(0, self._poll_parameters)
+        elif not wanted and self._polling:
+            self._polling, self._parameters = False, None
+            if self._parameter_timer is not None:
+                self._cancel_later(self._parameter_timer)
+                self._parameter_timer = None
+
+    def _poll_parameters(self):
+        self._parameter_timer = None
+        self._backend.get_parameters(self, None, self._polled)
+
+    def _polled(self, ok, values):
+        if not self._polling:  # (stopped meanwhile)
+            return
+        self._parameter_timer = self._call_later(PARAMETER_POLL, self._poll_parameters)
+        if not ok:
+            return
+        values = {name: value for name, value in values.items() if self.parameter_allowed(name)}
+        before, self._parameters = self._parameters, values
+        if before is None:  # (the first poll is what later ones are compared with)
+            return
+        changed = [name for name, value in values.items() if before.get(name, DELETE) != value]
+        changed += [name for name in before if name not in values]
+        if changed:
+            self.parameters_changed({name: values.get(name, DELETE) for name in changed})
+
+    def parameters_changed(self, values):
+        """{name: value or DELETE} changed (by a poll, or by a client's setParameters): told to subscribers."""
+        if self._parameters is not None:
+            for name, value in values.items():
+                if value is DELETE:
+                    self._parameters.pop(name, None)
+                else:
+                    self._parameters[name] = value
+        for session in list(self.sessions):
+            session.parameters_updated(values)

@@ -1,0 +1,431 @@
+"""The Foxglove WebSocket protocol for one client (`foxglove.websocket.v1`, or its other name `foxglove.sdk.v1`),
+with ROS 1 data: channels carry each message's TCPROS bytes as they are (encoding `ros1`, schemas `ros1msg`).
+
+What the transport sees is the same as for a rosbridge Session (contract.ProtocolSession): text and binary frames
+in, frames out of an Outbox (small before big, each topic fresh on a slow link, bounded per client and for all).
+What it asks of ROS goes through contract.Backend, shared with rosbridge clients: one subscription per topic,
+one read. What all Foxglove clients are told alike (channels, services, the graph) is kept by the Catalog.
+Pure: no rospy, no tornado."""
+
+import json
+
+from rosbridge.codec.json_values import dumps
+from rosbridge.contract import DELETE
+from rosbridge.errors import ClientError, RequestError, log_bug
+from rosbridge.foxglove import parameters as params
+from rosbridge.foxglove import wire
+from rosbridge.globs import allowed
+from rosbridge.protocol.outbox import Outbox, outbox_report
+
+LEVELS = {"info": 0, "warning": 1, "error": 2}
+ENCODINGS = ("ros1", "json")  # what clients may publish and call services with
+CAPABILITIES = ("clientPublish", "parameters", "parametersSubscribe", "services", "connectionGraph", "assets")
+MAX_PARAMETER_NAMES = 10_000  # names in one request
+MAX_ASSETS_IN_FLIGHT = 4  # fetchAsset requests of one client being read at once; more are refused
+REPORT_INTERVAL = 1.0  # s: how often at most a client is told what its slow link skipped or dropped
+
+
+class FoxgloveSession:
+    """One Foxglove client. `host` is its connection (contract.SessionHost); `catalog` the bridge's Catalog."""
+
+    authenticated = True  # (the protocol has no authentication: with authenticate on, the handshake refuses it)
+    holding = False  # (nothing a client sends waits for ROS work: publishing after advertising is replayed)
+
+    def __init__(self, backend, config, host, catalog, name="client", session_id=""):
+        self.backend, self.config, self.name = backend, config, name
+        self._host, self._catalog = host, catalog
+        self.is_closed = False
+        self._outbox = Outbox(config.max_queue, config.max_queue_bytes, host.clock, config.queue_pool)
+        self._woken = False
+        self._last_report = float("-inf")
+        self._subscriptions = {}  # subscription id -> topic
+        self._topics = {}  # topic -> subscription id (one per channel)
+        self._client_channels = {}  # client channel id -> (topic, encoding, type)
+        self.parameter_subscriptions = set()  # names; params.ALL: every parameter
+        self.graph_subscribed = False
+        self._assets_in_flight = 0
+        self.send_json(
+            {
+                "op": "serverInfo",
+                "name": "turtlesim rosbridge (ROS 1)",
+                "capabilities": list(CAPABILITIES),
+                "supportedEncodings": list(ENCODINGS),
+                "metadata": {"ROS_DISTRO": "noetic-compatible"},
+                "sessionId": session_id,
+            }
+        )
+        catalog.join(self)
+
+    # ---- incoming -------------------------------------------------------------------------------
+    def handle_text(self, text):
+        limit = self.config.max_message_size
+        if limit and len(text) > limit:
+            self.status("error", f"message of {len(text)} bytes refused: over max_message_size ({limit} bytes)")
+            return
+        try:
+            request = json.loads(text)
+        except (ValueError, RecursionError) as error:
+            self.status("error", f"message is not valid JSON ({error}): {text[:60]!r}")
+            return
+        op = request.get("op") if isinstance(request, dict) else None
+        try:
+            handler = _OPS.get(op) if isinstance(op, str) else None
+            if handler is None:
+                raise RequestError(f"unknown op {str(op)[:60]!r}" if op is not None else "missing field 'op'")
+            handler(self, request)
+        except ClientError as error:
+            self.status("error", str(error))
+        except Exception:
+            log_bug(f"foxglove {op} failed")
+            self.status("error", f"{op}: internal error (logged by the bridge)")
+
+    def handle_binary(self, data):
+        try:
+            message = wire.client_message(data)
+            if message[0] == "publish":
+                self._publish(*message[1:])
+            else:
+                self._call(*message[1:])
+        except ClientError as error:
+            self.status("error", str(error))
+        except Exception:
+            log_bug("foxglove binary message failed")
+            self.status("error", "binary message: internal error (logged by the bridge)")
+
+    # ---- subscriptions ----------------------------------------------------------------------------
+    def _op_subscribe(self, req):
+        for entry in _list(req, "subscriptions"):
+            sub_id, channel_id = _u32(entry, "id"), _u32(entry, "channelId")
+            channel = self._catalog.channel(channel_id)
+            if sub_id in self._subscriptions:
+                self.status("error", f"subscribe: subscription id {sub_id} is already in use")
+                continue
+            if channel is None:
+                self.status("error", f"subscribe: no channel {channel_id}")
+                continue
+            topic = channel["topic"]
+            if topic in self._topics:
+                self.status("error", f"subscribe: channel {channel_id} ({topic}) is already subscribed")
+                continue
+            limit = self.config.max_topics_per_client
+            if len(self._topics) >= limit:
+                self.status("error", f"subscribe {topic}: refused, {limit} already (max_topics_per_client)")
+                continue
+            self._subscriptions[sub_id] = topic
+            self._topics[topic] = sub_id
+            self.backend.subscribe(self, topic, channel["schemaName"])
+
+    def _op_unsubscribe(self, req):
+        for sub_id in _list(req, "subscriptionIds"):
+            topic = self._subscriptions.pop(sub_id, None) if type(sub_id) is int else None
+            if topic is None:
+                self.status("warning", f"unsubscribe: no subscription {str(sub_id)[:20]}")
+                continue
+            del self._topics[topic]
+            self.backend.unsubscribe(self, topic)
+
+    # ---- client publishing ------------------------------------------------------------------------
+    def _op_advertise(self, req):
+        for entry in _list(req, "channels"):
+            channel_id = _u32(entry, "id")
+            topic, encoding, type_name = (_string(entry, key) for key in ("topic", "encoding", "schemaName"))
+            try:
+                if channel_id in self._client_channels:
+                    raise RequestError(f"advertise: client channel {channel_id} is already advertised")
+                if encoding not in ENCODINGS:
+                    raise RequestError(f"advertise {topic}: encoding must be one of {', '.join(ENCODINGS)}")
+                if not allowed(topic, self.config.globs.topics):
+                    raise RequestError(f"advertise {topic}: not allowed by topics_glob {self.config.globs.topics}")
+                limit = self.config.max_topics_per_client
+                if len(self._client_channels) >= limit:
+                    raise RequestError(f"advertise {topic}: refused, {limit} already (max_topics_per_client)")
+                self.backend.advertise(self, topic, type_name, False, 100)
+            except ClientError as error:
+                self.status("error", str(error))
+                continue
+            self._client_channels[channel_id] = (topic, encoding, type_name)
+
+    def _op_unadvertise(self, req):
+        for channel_id in _list(req, "channelIds"):
+            channel = self._client_channels.pop(channel_id, None) if isinstance(channel_id, int) else None
+            if channel is None:
+                self.status("warning", f"unadvertise: no client channel {str(channel_id)[:20]}")
+                continue
+            if not any(topic == channel[0] for topic, _, _ in self._client_channels.values()):
+                self.backend.unadvertise(self, channel[0])
+
+    def _publish(self, channel_id, payload):
+        channel = self._client_channels.get(channel_id)
+        if channel is None:
+            raise RequestError(f"message data for client channel {channel_id}, which is not advertised")
+        topic, encoding, type_name = channel
+        if encoding == "ros1":
+            self.backend.publish_bytes(self, topic, bytes(payload))
+            return
+        try:
+            msg = json.loads(bytes(payload))
+        except (ValueError, RecursionError) as error:
+            raise RequestError(f"message data for {topic}: not JSON ({error})") from None
+        if not isinstance(msg, dict):
+            raise RequestError(f"message data for {topic}: a JSON message must be an object")
+        self.backend.publish(self, topic, msg, False, 100)
+
+    # ---- services ---------------------------------------------------------------------------------
+    def _call(self, service_id, call_id, encoding, payload):
+        service = self._catalog.service(service_id)
+        if service is None:
+            self._call_failed(service_id, call_id, f"no service {service_id}")
+            return
+        if encoding not in ENCODINGS:
+            self._call_failed(service_id, call_id, f"encoding must be one of {', '.join(ENCODINGS)}")
+            return
+        name, type_name = service["name"], service["type"]
+
+        def reply(ok, values):
+            if self.is_closed:
+                return
+            if not ok:
+                self._call_failed(service_id, call_id, str(values))
+                return
+            body = dumps(values).encode() if encoding == "json" else values
+            self._queue(None, (wire.service_call_response(service_id, call_id, encoding, body),))
+
+        try:
+            if encoding == "ros1":
+                self.backend.call_service_bytes(self, name, type_name, bytes(payload), reply)
+                return
+            try:
+                args = json.loads(bytes(payload)) if len(payload) else {}
+            except (ValueError, RecursionError) as error:
+                raise RequestError(f"the request is not JSON ({error})") from None
+            self.backend.call_service(self, name, args, type_name, None, reply)
+        except ClientError as error:
+            self._call_failed(service_id, call_id, str(error))
+
+    def _call_failed(self, service_id, call_id, text):
+        self.send_json({"op": "serviceCallFailure", "serviceId": service_id, "callId": call_id, "message": text})
+
+    # ---- parameters -------------------------------------------------------------------------------
+    def _names(self, req):
+        names = req.get("parameterNames") or []
+        if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+            raise RequestError(f"{req['op']}: field 'parameterNames' must be a list of strings")
+        if len(names) > MAX_PARAMETER_NAMES:
+            raise RequestError(f"{req['op']}: at most {MAX_PARAMETER_NAMES} names")
+        return names
+
+    def _op_getParameters(self, req):  # noqa: N802 (the op's name)
+        names, request_id = self._names(req), _request_id(req)
+        for name in names:
+            if not self._catalog.parameter_allowed(name):
+                raise RequestError(f"getParameters {name}: not allowed by params_glob")
+
+        def reply(ok, values):
+            if self.is_closed:
+                return
+            if not ok:
+                self.status("error", f"getParameters: {values}")
+                return
+            self._parameter_values(values, request_id)
+
+        self.backend.get_parameters(self, names or None, reply)
+
+    def _op_setParameters(self, req):  # noqa: N802
+        request_id, updates = _request_id(req), {}
+        for entry in _list(req, "parameters"):
+            name, value = params.from_client(entry)
+            if not self._catalog.parameter_allowed(name):
+                raise RequestError(f"setParameters {name}: not allowed by params_glob")
+            updates[name] = value
+
+        def reply(ok, values):
+            if self.is_closed:
+                return
+            if not ok:
+                self.status("error", f"setParameters: {values}")
+                return
+            self._catalog.parameters_changed(values)
+            if request_id is not None:
+                self._parameter_values(values, request_id)
+
+        self.backend.set_parameters(self, updates, reply)
+
+    def _parameter_values(self, values, request_id=None):
+        entries = [
+            {"name": name} if value is DELETE else params.to_client(name, value)
+            for name, value in values.items()
+            if self._catalog.parameter_allowed(name)
+        ]
+        answer = {"op": "parameterValues", "parameters": entries}
+        if request_id is not None:
+            answer["id"] = request_id
+        self.send_json(answer)
+
+    def _op_subscribeParameterUpdates(self, req):  # noqa: N802
+        names = self._names(req)
+        self.parameter_subscriptions.update(names or [params.ALL])
+        self._catalog.parameters_wanted()
+
+    def _op_unsubscribeParameterUpdates(self, req):  # noqa: N802
+        names = self._names(req)
+        if names:
+            self.parameter_subscriptions.difference_update(names)
+        else:
+            self.parameter_subscriptions.clear()
+        self._catalog.parameters_wanted()
+
+    def parameters_updated(self, values):
+        """Parameters that changed ({name: value or DELETE}); those the client subscribes to are sent."""
+        subscribed = self.parameter_subscriptions
+        if not subscribed:
+            return
+        if params.ALL not in subscribed:
+            values = {name: value for name, value in values.items() if name in subscribed}
+        if values:
+            self._parameter_values(values)
+
+    # ---- the graph, assets ------------------------------------------------------------------------
+    def _op_subscribeConnectionGraph(self, req):  # noqa: N802
+        self.graph_subscribed = True
+        update = self._catalog.full_graph()
+        if update is not None:
+            self.send_json(update)
+
+    def _op_unsubscribeConnectionGraph(self, req):  # noqa: N802
+        self.graph_subscribed = False
+
+    def _op_fetchAsset(self, req):  # noqa: N802
+        request_id, uri = _u32(req, "requestId"), _string(req, "uri")
+        if self._assets_in_flight >= MAX_ASSETS_IN_FLIGHT:
+            self._queue(None, (wire.fetch_asset_response(request_id, error="busy: too many fetches at once"),))
+            return
+        self._assets_in_flight += 1
+
+        def reply(ok, result):
+            self._assets_in_flight -= 1
+            if self.is_closed:
+                return
+            answer = (
+                wire.fetch_asset_response(request_id, result)
+                if ok
+                else wire.fetch_asset_response(request_id, error=str(result))
+            )
+            self._queue(None, (answer,))
+
+        try:
+            self.backend.fetch_asset(self, uri, reply)
+        except ClientError as error:
+            reply(False, str(error))
+
+    # ---- from the ROS side (contract.Client) ------------------------------------------------------
+    def deliver(self, message):
+        sub_id = self._topics.get(message.topic)
+        if sub_id is not None:
+            frame = wire.message_data(sub_id, int(message.stamp * 1e9), message.data)
+            self._queue(message.topic, (frame,))
+
+    def ros_refused(self, op, name, text):
+        if op == "subscribe" and name in self._topics:
+            del self._subscriptions[self._topics.pop(name)]
+        self.status("error", text)
+
+    def request_service(self, call_id, service, args):
+        log_bug("a Foxglove client asked to serve a service", RuntimeError(service))
+
+    # ---- from the catalog ---------------------------------------------------------------------------
+    def advertise(self, channels, removed):
+        """New channels, and channels gone (their entries): the subscriptions of those end."""
+        for channel in removed:
+            sub_id = self._topics.pop(channel["topic"], None)
+            if sub_id is not None:
+                del self._subscriptions[sub_id]
+                self.backend.unsubscribe(self, channel["topic"])
+        if removed:
+            self.send_json({"op": "unadvertise", "channelIds": [channel["id"] for channel in removed]})
+        if channels or not removed:
+            self.send_json({"op": "advertise", "channels": channels})
+
+    def advertise_services(self, services, removed):
+        if removed:
+            self.send_json({"op": "unadvertiseServices", "serviceIds": removed})
+        if services:
+            self.send_json({"op": "advertiseServices", "services": services})
+
+    # ---- outgoing -------------------------------------------------------------------------------------
+    def status(self, level, msg, request_id=None, status_id=None):
+        frame = {"op": "status", "level": LEVELS[level], "message": msg}
+        if status_id is not None:
+            frame["id"] = status_id
+        self.send_json(frame)
+
+    def send_json(self, obj):
+        self._queue(None, (dumps(obj),))
+
+    def _queue(self, topic, frames):
+        if self.is_closed:
+            return
+        self._outbox.push(topic, frames)
+        if not self._woken:
+            self._woken = True
+            self._host.wake()
+
+    def backed_up(self, flag, in_flight=0):
+        self._outbox.set_backed_up(flag, in_flight)
+
+    def take_frame(self):
+        outbox = self._outbox
+        now = self._host.clock()
+        if (outbox.skipped or outbox.dropped or outbox.refused) and now - self._last_report >= REPORT_INTERVAL:
+            self._last_report = now
+            for level, text in outbox_report(*outbox.take_report(), self.config):
+                outbox.push(None, (dumps({"op": "status", "level": LEVELS[level], "message": text, "id": level}),))
+        frame = outbox.take()
+        if frame is None:
+            self._woken = False
+        return frame
+
+    def close(self, reason):
+        self._host.close_after_sending(reason)
+
+    def closed(self):
+        if self.is_closed:
+            return
+        self.is_closed = True
+        self._subscriptions.clear()
+        self._topics.clear()
+        self._client_channels.clear()
+        self.parameter_subscriptions.clear()
+        self._outbox.clear()
+        self._catalog.leave(self)
+        self.backend.release(self)
+
+
+_OPS = {name[len("_op_") :]: method for name, method in vars(FoxgloveSession).items() if name.startswith("_op_")}
+
+
+def _list(req, field):
+    value = req.get(field)
+    if not isinstance(value, list):
+        raise RequestError(f"{req.get('op')}: field {field!r} must be a list")
+    return value
+
+
+def _u32(entry, field):
+    value = entry.get(field) if isinstance(entry, dict) else None
+    if type(value) is not int or not 0 <= value <= wire.U32_MAX:
+        raise RequestError(f"field {field!r} must be an integer 0..{wire.U32_MAX}, got {str(value)[:40]}")
+    return value
+
+
+def _string(entry, field):
+    value = entry.get(field)
+    if not isinstance(value, str) or not value:
+        raise RequestError(f"field {field!r} must be a non-empty string")
+    return value
+
+
+def _request_id(req):
+    value = req.get("id")
+    if value is not None and not isinstance(value, str):
+        raise RequestError("field 'id' must be a string")
+    return value

@@ -1,0 +1,282 @@
+"""The Foxglove WebSocket protocol's pure parts: its binary messages, parameter values, the catalog of channels
+and services, and one client's session over a recording backend."""
+
+import json
+import struct
+import xmlrpc.client
+
+import pytest
+
+from rosbridge.contract import DELETE, GraphState
+from rosbridge.errors import RequestError
+from rosbridge.foxglove import parameters as params
+from rosbridge.foxglove import wire
+from rosbridge.foxglove.catalog import Catalog
+from rosbridge.foxglove.session import FoxgloveSession
+from rosbridge.globs import Globs
+from rosbridge.protocol import Config
+from rosbridge.protocol.encoded import SplicedFrame
+
+
+# ---- binary messages -------------------------------------------------------------------------------------
+def test_message_data_is_the_head_then_the_bytes_as_they_are():
+    frame = wire.message_data(7, 1_700_000_000_123_456_789, b"\x01\x02\x03")
+    assert frame == struct.pack("<BIQ", 1, 7, 1_700_000_000_123_456_789) + b"\x01\x02\x03"
+
+
+def test_a_big_message_is_not_copied_into_its_frame():
+    data = bytes(1 << 20)
+    frame = wire.message_data(1, 0, data)
+    assert isinstance(frame, SplicedFrame) and frame.parts[1] is data and len(frame) == 13 + len(data)
+
+
+def test_client_binary_messages_parse_and_bad_ones_are_named():
+    assert wire.client_message(b"\x01" + struct.pack("<I", 5) + b"abc")[:2] == ("publish", 5)
+    call = wire.client_message(b"\x02" + struct.pack("<III", 3, 9, 4) + b"ros1" + b"\x00\x01")
+    assert call[:4] == ("call", 3, 9, "ros1") and bytes(call[4]) == b"\x00\x01"
+    for data, words in [
+        (b"", "empty"),
+        (b"\x01\x00", "shorter than its 5-byte head"),
+        (b"\x02" + struct.pack("<III", 3, 9, 400) + b"ros1", "runs past"),
+        (b"\x02" + struct.pack("<III", 3, 9, 2) + b"\xff\xfe", "not UTF-8"),
+        (b"\x09abc", "unknown binary opcode 9"),
+    ]:
+        with pytest.raises(RequestError, match=words):
+            wire.client_message(data)
+
+
+def test_responses_carry_their_ids_and_encoding():
+    assert wire.service_call_response(2, 3, "ros1", b"xy") == struct.pack("<BIII", 3, 2, 3, 4) + b"ros1xy"
+    assert wire.fetch_asset_response(5, b"mesh") == struct.pack("<BIBI", 4, 5, 0, 0) + b"mesh"
+    assert wire.fetch_asset_response(5, error="no") == struct.pack("<BIBI", 4, 5, 1, 2) + b"no"
+
+
+# ---- parameters --------------------------------------------------------------------------------------
+def test_parameter_values_keep_their_types_both_ways():
+    assert params.to_client("/a", 1.0) == {"name": "/a", "value": 1.0, "type": "float64"}
+    assert params.to_client("/b", [1, 2.5]) == {"name": "/b", "value": [1, 2.5], "type": "float64_array"}
+    assert params.to_client("/c", [1, 2]) == {"name": "/c", "value": [1, 2]}
+    assert params.to_client("/d", xmlrpc.client.Binary(b"AB")) == {"name": "/d", "value": "QUI=", "type": "byte_array"}
+    assert params.to_client("/e", {"x": {"y": True}}) == {"name": "/e", "value": {"x": {"y": True}}}
+    assert params.to_client("/f", float("nan"))["value"] is None
+    assert params.from_client({"name": "/a", "value": 3, "type": "float64"}) == ("/a", 3.0)
+    assert params.from_client({"name": "/b", "value": [1, 2], "type": "float64_array"}) == ("/b", [1.0, 2.0])
+    assert params.from_client({"name": "/d", "value": "QUI=", "type": "byte_array"})[1].data == b"AB"
+    assert params.from_client({"name": "/n", "value": {"k": [1, "s"]}}) == ("/n", {"k": [1, "s"]})
+    assert params.from_client({"name": "/gone"}) == ("/gone", DELETE)
+
+
+@pytest.mark.parametrize(
+    "entry, words",
+    [
+        ({"value": 1}, "'name'"),
+        ({"name": "/a", "value": "x", "type": "float64"}, "must be a number"),
+        ({"name": "/a", "value": "!!", "type": "byte_array"}, "base64"),
+        ({"name": "/a", "value": 1, "type": "int"}, "'type'"),
+        ({"name": "/a", "value": 2**40}, "32 bits"),
+        ({"name": "/a", "value": json.loads("[" * 40 + "]" * 40)}, "deeper"),
+    ],
+)
+def test_bad_parameter_values_are_refused_naming_the_field(entry, words):
+    with pytest.raises(RequestError, match=words):
+        params.from_client(entry)
+
+
+# ---- a session over a recording backend ------------------------------------------------------------------
+class Host:
+    def __init__(self):
+        self.now, self.timers, self.closed_with = 1000.0, [], None
+
+    def clock(self):
+        return self.now
+
+    def call_later(self, delay, fn):
+        self.timers.append(fn)
+        return fn
+
+    def cancel_later(self, handle):
+        self.timers.remove(handle)
+
+    def wake(self):
+        pass
+
+    def close_after_sending(self, reason):
+        self.closed_with = reason
+
+
+class Backend:
+    """Records what a session asks; replies are kept for the test to give."""
+
+    def __init__(self):
+        self.calls, self.replies, self.watchers = [], [], []
+
+    def __getattr__(self, name):
+        def record(*args):
+            self.calls.append((name, *args[1:]))
+            if callable(args[-1]) and name not in ("watch_graph", "unwatch_graph"):
+                self.replies.append(args[-1])
+
+        return record
+
+    def watch_graph(self, listener):
+        self.watchers.append(listener)
+
+    def unwatch_graph(self, listener):
+        self.watchers.remove(listener)
+
+
+TWIST_DEF = "geometry_msgs/Vector3 linear\n..."
+GRAPH = GraphState(
+    topics={"/turtle1/cmd_vel": ("geometry_msgs/Twist", TWIST_DEF), "/odd": ("x/Unknown", None)},
+    publishers={},
+    subscribers={"/turtle1/cmd_vel": frozenset({"/turtlesim"})},
+    services={"/clear": ("std_srvs/Empty", "", ""), "/dead": ("", None, None)},
+    providers={"/clear": frozenset({"/turtlesim"}), "/dead": frozenset({"/gone"})},
+)
+
+
+class Client:
+    def __init__(self, catalog=None, backend=None, **config):
+        self.host, self.backend = Host(), backend or Backend()
+        self.catalog = catalog or Catalog(self.backend, Globs(), self.host.call_later, self.host.cancel_later)
+        self.session = FoxgloveSession(self.backend, Config(**config), self.host, self.catalog, session_id="s1")
+
+    def send(self, obj):
+        self.session.handle_text(json.dumps(obj))
+
+    def frames(self):
+        out = []
+        while (frame := self.session.take_frame()) is not None:
+            out.append(json.loads(frame) if isinstance(frame, str) else bytes(frame))
+        return out
+
+
+def test_a_client_gets_server_info_then_a_channel_for_every_topic_it_may_use():
+    client = Client()
+    info = client.frames()[0]
+    assert info["op"] == "serverInfo" and info["sessionId"] == "s1"
+    assert {"clientPublish", "parameters", "parametersSubscribe", "services", "connectionGraph", "assets"} <= set(
+        info["capabilities"]
+    )
+    client.backend.watchers[0](GRAPH)
+    advertise, services = client.frames()
+    assert advertise["op"] == "advertise"
+    (channel,) = advertise["channels"]  # (a type not installed here gets no channel)
+    assert channel["topic"] == "/turtle1/cmd_vel" and channel["encoding"] == "ros1"
+    assert (channel["schemaName"], channel["schema"], channel["schemaEncoding"]) == (
+        "geometry_msgs/Twist",
+        TWIST_DEF,
+        "ros1msg",
+    )
+    (service,) = services["services"]  # (a service whose type is unknown is not advertised)
+    assert service["name"] == "/clear" and service["request"]["schemaName"] == "std_srvs/Empty_Request"
+
+
+def test_channels_keep_their_ids_and_go_when_their_topic_goes():
+    client = Client()
+    client.backend.watchers[0](GRAPH)
+    client.frames()
+    channel_id = client.catalog.channels and next(iter(client.catalog.channels))
+    client.send({"op": "subscribe", "subscriptions": [{"id": 4, "channelId": channel_id}]})
+    assert ("subscribe", "/turtle1/cmd_vel", "geometry_msgs/Twist") in client.backend.calls
+    client.backend.watchers[0](GraphState({}, {}, {}, GRAPH.services, GRAPH.providers))
+    assert {"op": "unadvertise", "channelIds": [channel_id]} in client.frames()
+    assert ("unsubscribe", "/turtle1/cmd_vel") in client.backend.calls
+
+
+def test_a_second_client_gets_the_channels_already_known():
+    first = Client()
+    first.backend.watchers[0](GRAPH)
+    second = Client(catalog=first.catalog, backend=first.backend)
+    ops = [f["op"] for f in second.frames()]
+    assert ops == ["serverInfo", "advertise", "advertiseServices"]
+
+
+def test_bad_requests_get_a_status_error_and_the_session_goes_on():
+    client = Client()
+    client.backend.watchers[0](GRAPH)
+    client.frames()
+    for request, words in [
+        ("not json", "not valid JSON"),
+        ({"op": "nope"}, "unknown op"),
+        ({"op": "subscribe", "subscriptions": "x"}, "'subscriptions' must be a list"),
+        ({"op": "subscribe", "subscriptions": [{"id": -1, "channelId": 1}]}, "'id' must be an integer"),
+        ({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": 999}]}, "no channel 999"),
+        (
+            {"op": "advertise", "channels": [{"id": 1, "topic": "/x", "encoding": "cdr", "schemaName": "a/B"}]},
+            "encoding",
+        ),
+        ({"op": "setParameters", "parameters": [{"name": "/p", "value": 1, "type": "float"}]}, "'type'"),
+    ]:
+        client.session.handle_text(request if isinstance(request, str) else json.dumps(request))
+        (status,) = client.frames()
+        assert status["op"] == "status" and status["level"] == 2 and words in status["message"], request
+    for data, words in [(b"\x01" + struct.pack("<I", 77) + b"x", "not advertised"), (b"\x07", "opcode")]:
+        client.session.handle_binary(data)
+        (status,) = client.frames()
+        assert words in status["message"]
+
+
+def test_subscriptions_are_bounded_per_client():
+    many = {f"/t{i}": ("std_msgs/Empty", "") for i in range(10)}
+    client = Client(max_topics_per_client=3)
+    client.backend.watchers[0](GraphState(many, {}, {}, {}, {}))
+    client.frames()
+    client.send(
+        {"op": "subscribe", "subscriptions": [{"id": i, "channelId": c} for i, c in enumerate(client.catalog.channels)]}
+    )
+    assert sum(call[0] == "subscribe" for call in client.backend.calls) == 3
+    assert all("max_topics_per_client" in f["message"] for f in client.frames())
+
+
+def test_a_service_call_answers_with_the_response_bytes_or_a_failure():
+    client = Client()
+    client.backend.watchers[0](GRAPH)
+    client.frames()
+    service_id = next(iter(client.catalog.services))
+    client.session.handle_binary(b"\x02" + struct.pack("<III", service_id, 8, 4) + b"ros1" + b"req")
+    assert client.backend.calls[-1][:4] == ("call_service_bytes", "/clear", "std_srvs/Empty", b"req")
+    client.backend.replies.pop()(True, b"resp")
+    assert client.frames() == [struct.pack("<BIII", 3, service_id, 8, 4) + b"ros1resp"]
+    client.session.handle_binary(b"\x02" + struct.pack("<III", service_id, 9, 4) + b"ros1")
+    client.backend.replies.pop()(False, "Service /clear failed: boom")
+    assert client.frames() == [
+        {"op": "serviceCallFailure", "serviceId": service_id, "callId": 9, "message": "Service /clear failed: boom"}
+    ]
+
+
+def test_parameter_updates_reach_the_clients_that_subscribe_to_them():
+    client = Client()
+    client.frames()
+    client.send({"op": "subscribeParameterUpdates", "parameterNames": ["/speed"]})
+    poll = client.host.timers.pop()
+    poll()
+    client.backend.replies.pop()(True, {"/speed": 1.0, "/other": 1})  # (the first poll: what later ones compare to)
+    client.host.timers.pop()()
+    client.backend.replies.pop()(True, {"/speed": 2.5, "/other": 2})
+    assert client.frames() == [
+        {"op": "parameterValues", "parameters": [{"name": "/speed", "value": 2.5, "type": "float64"}]}
+    ]
+    client.send({"op": "unsubscribeParameterUpdates", "parameterNames": []})
+    assert client.host.timers == []  # (nobody subscribes: the poll stops)
+
+
+def test_params_glob_hides_parameters():
+    host, backend = Host(), Backend()
+    catalog = Catalog(backend, Globs.parse(params_glob="[/public/*]"), host.call_later, host.cancel_later)
+    client = Client(catalog=catalog, backend=backend)
+    client.frames()
+    client.send({"op": "getParameters", "parameterNames": ["/secret"]})
+    assert "params_glob" in client.frames()[0]["message"]
+    client.send({"op": "getParameters", "parameterNames": [], "id": "r1"})
+    backend.replies.pop()(True, {"/public/a": 1, "/secret": 2})
+    assert client.frames() == [{"op": "parameterValues", "parameters": [{"name": "/public/a", "value": 1}], "id": "r1"}]
+
+
+def test_too_many_asset_fetches_at_once_are_refused():
+    client = Client()
+    client.frames()
+    for request_id in range(6):
+        client.send({"op": "fetchAsset", "uri": "package://turtlesim/meshes/turtle.stl", "requestId": request_id})
+    refused = client.frames()
+    assert len(refused) == 2 and all(frame[:1] == b"\x04" and frame[5] == 1 for frame in refused)
