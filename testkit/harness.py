@@ -270,7 +270,7 @@ def start_bridge(ros, node_name="rosbridge_websocket", timeout=30.0, max_fds=Non
     master = ros.master()
     if master.hasParam(f"/{node_name}"):  # (what an earlier bridge of this name was given)
         master.deleteParam(f"/{node_name}")
-    for name, value in {"port": 0, "address": "127.0.0.1", **settings}.items():
+    for name, value in {"port": 0, "foxglove_port": -1, "address": "127.0.0.1", **settings}.items():
         master.setParam(f"/{node_name}/{name}", str(value))
     command = ["rosrun", "turtlesim", "rosbridge_websocket", f"__name:={node_name}"]
     if max_fds is not None:
@@ -282,7 +282,7 @@ def start_bridge(ros, node_name="rosbridge_websocket", timeout=30.0, max_fds=Non
 def launch_bridge(ros, node_name="rosbridge_websocket", timeout=30.0, **launch_args):
     """Runs `roslaunch turtlesim rosbridge_websocket.launch` (launch args may override the free port of
     127.0.0.1), as a user starts it; returns (Proc, port) once the server listens."""
-    args = {"port": 0, "address": "127.0.0.1", "node_name": node_name, **launch_args}
+    args = {"port": 0, "foxglove_port": -1, "address": "127.0.0.1", "node_name": node_name, **launch_args}
     if ros.master().hasParam(f"/{node_name}/actual_port"):  # (an earlier bridge's)
         ros.master().deleteParam(f"/{node_name}/actual_port")
     proc = ros.spawn(

@@ -20,6 +20,16 @@ ABOVE_ZERO, NOT_NEGATIVE = (lambda value: value > 0, "above 0"), (lambda value: 
 
 SETTINGS = (
     Setting("port", int, 9090, "0 = pick a free port, written to the `~actual_port` param"),
+    Setting(
+        "foxglove_port",
+        int,
+        8765,
+        "a second port of the same server, for Foxglove WebSocket clients (Lichtblick's default address); every "
+        "port speaks both protocols, by the subprotocol a client offers. 0 = a free port (`~actual_foxglove_port`), "
+        "-1 = none",
+        ours=True,
+        check=(lambda value: value >= -1, "-1 or more"),
+    ),
     Setting("address", str, "", "interface to bind, e.g. `127.0.0.1`; empty = all interfaces"),
     Setting("ssl", bool, False, "serve `wss://` (and `https://` for the page)"),
     Setting("certfile", str, "", "TLS certificate file, with `ssl`"),

@@ -11,6 +11,7 @@ them (its next frames wait meanwhile, and it counts as backed up)."""
 
 import enum
 import functools
+import json
 import time
 
 import tornado.ioloop
@@ -20,6 +21,7 @@ import tornado.web
 from rosbridge import borrowed, protocol
 from rosbridge.codec import BIG_BYTES
 from rosbridge.errors import log_bug
+from rosbridge.foxglove import SUBPROTOCOLS, FoxgloveSession
 from rosbridge.origins import SECURITY_HEADERS, origin_allowed
 from rosbridge.protocol.encoded import SplicedFrame, Utf8Text
 from rosbridge.transport import rfc6455 as ws
@@ -67,6 +69,7 @@ class BridgeSocket(tornado.web.RequestHandler):
         extensions, window_bits = None, None
         if self.bridge.settings.use_compression or self.bridge.settings.compress_slow_links:
             extensions, window_bits = ws.negotiate_deflate(headers.get("Sec-WebSocket-Extensions", ""))
+        subprotocol = ws.choose_subprotocol(headers.get("Sec-WebSocket-Protocol", ""), SUBPROTOCOLS)
         answer = [
             "HTTP/1.1 101 Switching Protocols",
             "Upgrade: websocket",
@@ -75,8 +78,27 @@ class BridgeSocket(tornado.web.RequestHandler):
         ]
         if extensions:
             answer.append("Sec-WebSocket-Extensions: " + extensions)
-        connection = ClientConnection(self.bridge, self.detach(), self.request.remote_ip, window_bits)
-        connection.start(("\r\n".join(answer) + "\r\n\r\n").encode())
+        if subprotocol is not None:
+            answer.append("Sec-WebSocket-Protocol: " + subprotocol)
+        handshake = ("\r\n".join(answer) + "\r\n\r\n").encode()
+        if subprotocol is not None and self.bridge.settings.authenticate:
+            self._refuse_unauthenticated(handshake)
+            return
+        connection = ClientConnection(self.bridge, self.detach(), self.request.remote_ip, window_bits, subprotocol)
+        connection.start(handshake)
+
+    def _refuse_unauthenticated(self, handshake):
+        """The Foxglove protocol has no way to authenticate: with authenticate on, its client is told why (a
+        status it shows, and the close frame's reason) and the connection ends."""
+        reason = "this bridge requires rosauth authentication, which the Foxglove protocol cannot do"
+        self.bridge.log_refusal("foxglove auth", f"a Foxglove client refused: {reason}")
+        status = json.dumps({"op": "status", "level": 2, "message": reason}).encode()
+        stream = self.detach()
+        try:
+            stream.write(handshake + ws.frame_header(len(status), ws.TEXT) + status + ws.close_frame(ws.POLICY, reason))
+            stream.close()
+        except tornado.iostream.StreamClosedError:
+            pass
 
     def head(self):
         if self.index_page is None:
@@ -165,7 +187,7 @@ class ClientConnection:
     are deflated once for every such client (slow_link.deflated_payload), on the deflate thread; a small one (only
     with use_compression) on the loop. RSV1 marks each compressed frame; the others go as they are."""
 
-    def __init__(self, bridge, stream, peer, window_bits):
+    def __init__(self, bridge, stream, peer, window_bits, subprotocol=None):
         self.bridge, self._stream, self._window_bits = bridge, stream, window_bits
         self._send_direct = type(stream) is tornado.iostream.IOStream  # (not TLS: _send)
         settings = bridge.settings
@@ -179,7 +201,12 @@ class ClientConnection:
             evicted=self._made_way,
         )
         self.budget = ClientBudget(settings.max_frames_per_second, settings.max_bytes_per_second, time.monotonic)
-        self.session = protocol.Session(bridge.backend, bridge.config, self, name=peer)
+        if subprotocol is not None:
+            self.session = FoxgloveSession(
+                bridge.backend, bridge.config, self, bridge.foxglove, name=peer, session_id=bridge.session_id
+            )
+        else:
+            self.session = protocol.Session(bridge.backend, bridge.config, self, name=peer)
         self._waiting = None  # what reading waits for: a Waiting, or None
         self._turn_timer = None
         self._unfinished_timer = None  # when the message the client is sending must be whole (_check_unfinished)

@@ -68,6 +68,15 @@ def handshake_error(headers):
     return None
 
 
+def choose_subprotocol(offers, ours):
+    """The subprotocol to answer a client's Sec-WebSocket-Protocol header with: the first it offers that is one of
+    `ours`, or None (then the header is not answered, and the client gets the default protocol)."""
+    for offer in offers.split(","):
+        if offer.strip() in ours:
+            return offer.strip()
+    return None
+
+
 def negotiate_deflate(offers):
     """The answer to a client's Sec-WebSocket-Extensions header: (our Sec-WebSocket-Extensions value, the largest
     window, in bits, our messages may use), or (None, None) if no permessage-deflate offer can be taken. Neither
