@@ -1,9 +1,12 @@
 """The demo TF node (`rosrun turtlesim turtle_tf`): a transform world -> <turtle> on /tf for every pose a turtle
 publishes, and on /tf_static (latched) where the demo camera and each turtle's laser sit: something for the
-console's TF viewer to show with turtlesim alone. turtlesim_node itself stays exactly the reference's."""
+console's TF viewer to show with turtlesim alone. It also sets /robot_description to urdf/turtle.urdf (turtle1 as a
+model with a mesh, for 3D viewers such as Lichtblick). turtlesim_node itself stays exactly the reference's."""
 
 import math
+from pathlib import Path
 
+import rospkg
 import rospy
 from geometry_msgs.msg import TransformStamped
 from tf2_msgs.msg import TFMessage
@@ -28,6 +31,8 @@ def transform(parent, child, x, y, z, yaw=0.0, roll=0.0, stamp=None):
 
 def main():
     rospy.init_node("turtle_tf")
+    package = Path(rospkg.RosPack().get_path("turtlesim"))
+    rospy.set_param("/robot_description", (package / "urdf" / "turtle.urdf").read_text())
     dynamic = rospy.Publisher("/tf", TFMessage, queue_size=100)
     static = rospy.Publisher("/tf_static", TFMessage, queue_size=1, latch=True)
     static_frames = {
