@@ -13,7 +13,8 @@ from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
 
 from chromium import CHROMIUM_FLAGS
-from harness import start_bridge, wait_for
+from fixtures import bridge_fixture
+from harness import wait_for
 from sensor_messages import CAMERA
 
 SCREENS = {
@@ -192,12 +193,8 @@ def camera(ros, sim):
         proc.stop()
 
 
-@pytest.fixture(scope="module")
-def bridge_url(ros, sim):
-    """The page's URL on a bridge shared by the module's tests."""
-    proc, port = start_bridge(ros)
-    yield f"http://127.0.0.1:{port}/"
-    proc.stop()
+# the page's URL on a bridge shared by the module's tests
+bridge_url = bridge_fixture(yields="url", needs=("sim",))
 
 
 @pytest.fixture

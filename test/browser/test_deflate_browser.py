@@ -5,9 +5,8 @@ whole."""
 import hashlib
 import random
 
-import pytest
-
-from harness import start_bridge, wait_for
+from fixtures import bridge_fixture
+from harness import wait_for
 
 ANSWER = "permessage-deflate; server_no_context_takeover; client_no_context_takeover"
 
@@ -22,12 +21,8 @@ ws.onmessage = (event) => window.got.push(JSON.parse(event.data));
 """
 
 
-@pytest.fixture(scope="module")
-def compressing_bridge(ros):
-    """A bridge that deflates every message (use_compression), as it does a slow link's big ones."""
-    proc, port = start_bridge(ros, node_name="deflate_browser_bridge", use_compression="true")
-    yield f"http://127.0.0.1:{port}/"
-    proc.stop()
+# a bridge that deflates every message (use_compression), as it does a slow link's big ones
+compressing_bridge = bridge_fixture("deflate_browser_bridge", yields="url", use_compression="true")
 
 
 def test_chromium_is_answered_with_no_context_either_way(open_browser, bridge_url):

@@ -17,7 +17,8 @@ from turtlesim.node import CATCH_UP_LIMIT
 from turtlesim.sim import COMMAND_TIMEOUT, DT
 from turtlesim.srv import Spawn, TeleportAbsolute
 
-from harness import ARTIFACTS, start_bridge, wait_for, wait_publisher_connected
+from fixtures import bridge_fixture
+from harness import ARTIFACTS, wait_for, wait_publisher_connected
 
 CENTRE = 5.544444561004639
 BACKGROUND = (69, 86, 255)
@@ -346,24 +347,23 @@ def test_topic_list_shows_topics_with_their_types(open_page):
     assert rows == sorted(rows)
 
 
-def test_reconnects_by_itself_after_the_bridge_restarts(ros, open_page, world, node):
-    bridge, port = start_bridge(ros, node_name="restarted_bridge")  # beside the module's bridge
-    try:
-        page = open_page(url=f"http://127.0.0.1:{port}/")
-        wait_for(lambda: page.pose(), 15, what="turtle1 in the world view")
-        bridge.stop()
-        page.wait_state("closed")
-        assert "closed" in page.feedback()
-        assert "offline" in page.js("return document.body.className")
-        bridge, _ = start_bridge(ros, node_name="restarted_bridge", port=port)
-        page.wait_state("connected")
-        # re-subscribed: the view follows a move made while it was disconnected and after
-        ros_call(node, "/turtle1/teleport_absolute", TeleportAbsolute, 7.0, 7.0, 0.0)
-        wait_for(lambda: (p := page.pose()) and abs(p["x"] - 7.0) < 1e-3, 15, what="the page to follow turtle1")
-        page.el("publish").click()  # and publishing works on the new connection
-        assert settled(world).x > 7.0
-    finally:
-        bridge.stop()
+restarted_bridge = bridge_fixture("restarted_bridge", scope="function", yields="bridge")  # beside the module's
+
+
+def test_reconnects_by_itself_after_the_bridge_restarts(open_page, world, node, restarted_bridge):
+    page = open_page(url=restarted_bridge.url)
+    wait_for(lambda: page.pose(), 15, what="turtle1 in the world view")
+    restarted_bridge.proc.stop()
+    page.wait_state("closed")
+    assert "closed" in page.feedback()
+    assert "offline" in page.js("return document.body.className")
+    restarted_bridge.start()  # (on the same port)
+    page.wait_state("connected")
+    # re-subscribed: the view follows a move made while it was disconnected and after
+    ros_call(node, "/turtle1/teleport_absolute", TeleportAbsolute, 7.0, 7.0, 0.0)
+    wait_for(lambda: (p := page.pose()) and abs(p["x"] - 7.0) < 1e-3, 15, what="the page to follow turtle1")
+    page.el("publish").click()  # and publishing works on the new connection
+    assert settled(world).x > 7.0
 
 
 def test_screenshots_desktop_and_phone(open_page, world, node, ros):

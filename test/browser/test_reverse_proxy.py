@@ -17,7 +17,8 @@ from std_srvs.srv import Empty
 
 from turtlesim.msg import Pose
 
-from harness import ARTIFACTS, REPO, Proc, free_port, start_bridge, wait_for
+from fixtures import From, bridge_fixture
+from harness import ARTIFACTS, REPO, Proc, free_port, wait_for
 from sensor_messages import CAMERA
 
 CENTRE = 5.544444561004639
@@ -63,18 +64,15 @@ def bag_folder(tmp_path_factory):
     return tmp_path_factory.mktemp("bags")
 
 
-@pytest.fixture(scope="module")
-def bridge_url(ros, sim, bag_folder):
-    """This module's bridge records bags (the shared one of conftest.py does not), and allows the public name's
-    pages (README: behind a reverse proxy)."""
-    proc, port = start_bridge(
-        ros,
-        node_name="rosbridge_proxied",
-        bag_folder=str(bag_folder),
-        allowed_origins=f"[http://{PUBLIC}:*, https://{PUBLIC}:*]",
-    )
-    yield f"http://127.0.0.1:{port}/"
-    proc.stop()
+# this module's bridge records bags (the shared one of conftest.py does not), and allows the public name's pages
+# (README: behind a reverse proxy)
+bridge_url = bridge_fixture(
+    "rosbridge_proxied",
+    yields="url",
+    needs=("sim",),
+    bag_folder=From("bag_folder"),
+    allowed_origins=f"[http://{PUBLIC}:*, https://{PUBLIC}:*]",
+)
 
 
 @pytest.fixture(scope="module")

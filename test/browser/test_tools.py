@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 from selenium.webdriver.common.by import By
 
-from harness import ARTIFACTS, start_bridge, wait_for, wait_publisher_connected
+from fixtures import From, bridge_fixture
+from harness import ARTIFACTS, wait_for, wait_publisher_connected
 
 NODES = Path(__file__).resolve().parent.parent / "nodes"
 
@@ -18,12 +19,8 @@ def bag_folder(tmp_path_factory):
     return tmp_path_factory.mktemp("bags")
 
 
-@pytest.fixture(scope="module")
-def bridge_url(ros, sim, bag_folder):
-    """This module's bridge records bags (the shared one of conftest.py does not)."""
-    proc, port = start_bridge(ros, node_name="rosbridge_tools", bag_folder=str(bag_folder))
-    yield f"http://127.0.0.1:{port}/"
-    proc.stop()
+# this module's bridge records bags (the shared one of conftest.py does not)
+bridge_url = bridge_fixture("rosbridge_tools", yields="url", needs=("sim",), bag_folder=From("bag_folder"))
 
 
 def text_of(page, selector):
@@ -124,28 +121,28 @@ def test_black_box_save_and_delete_with_confirm(open_page, bag_folder):
     wait_for(lambda: saved["name"] not in {r["name"] for r in bag_rows(page)}, 10, what="the bag gone from the list")
 
 
-def test_a_bridge_without_recorder_says_how_to_turn_it_on(ros, open_page):
-    proc, port = start_bridge(ros, node_name="rosbridge_nobags")
-    try:
-        page = open_page(url=f"http://127.0.0.1:{port}/?tab=bags")
-        wait_for(lambda: "bag_folder" in text_of(page, "#tab-bags .bag-off"), 10, what="the recorder off, said")
-        assert not page.el("tab-bags").find_element(By.CSS_SELECTOR, ".bag-tools").is_displayed()
-    finally:
-        proc.stop()
+nobags_bridge = bridge_fixture("rosbridge_nobags", scope="function", yields="url")
 
 
-def test_a_recording_that_stops_by_itself_says_why(ros, open_page, tmp_path):
-    # 15,000 bytes: a bag's header and records (about 5 kB, bag_bounds.py) and about 2 s of poses (78 bytes each)
-    proc, port = start_bridge(ros, node_name="rosbridge_smallbags", bag_folder=str(tmp_path), bag_max_bytes=15_000)
-    try:
-        page = open_page(url=f"http://127.0.0.1:{port}/?tab=bags&bag=/turtle1/pose")
-        wait_for(lambda: "Folder:" in text_of(page, "#tab-bags .bag-used"), 10, what="the recorder's state")
-        page.click("#tab-bags .bag-start")
-        wait_for(lambda: "reached its bound" in text_of(page, "#tab-bags .bag-last"), 15, what="why it stopped")
-        assert "error" in page.js("return document.querySelector('#tab-bags .bag-last').className")
-        assert not page.el("tab-bags").find_element(By.CSS_SELECTOR, ".bag-stop").is_displayed()
-    finally:
-        proc.stop()
+def test_a_bridge_without_recorder_says_how_to_turn_it_on(open_page, nobags_bridge):
+    page = open_page(url=f"{nobags_bridge}?tab=bags")
+    wait_for(lambda: "bag_folder" in text_of(page, "#tab-bags .bag-off"), 10, what="the recorder off, said")
+    assert not page.el("tab-bags").find_element(By.CSS_SELECTOR, ".bag-tools").is_displayed()
+
+
+# 15,000 bytes: a bag's header and records (about 5 kB, bag_bounds.py) and about 2 s of poses (78 bytes each)
+smallbags_bridge = bridge_fixture(
+    "rosbridge_smallbags", scope="function", yields="url", bag_folder=From("tmp_path"), bag_max_bytes=15_000
+)
+
+
+def test_a_recording_that_stops_by_itself_says_why(open_page, smallbags_bridge):
+    page = open_page(url=f"{smallbags_bridge}?tab=bags&bag=/turtle1/pose")
+    wait_for(lambda: "Folder:" in text_of(page, "#tab-bags .bag-used"), 10, what="the recorder's state")
+    page.click("#tab-bags .bag-start")
+    wait_for(lambda: "reached its bound" in text_of(page, "#tab-bags .bag-last"), 15, what="why it stopped")
+    assert "error" in page.js("return document.querySelector('#tab-bags .bag-last').className")
+    assert not page.el("tab-bags").find_element(By.CSS_SELECTOR, ".bag-stop").is_displayed()
 
 
 @pytest.mark.parametrize("screen", ["desktop", "phone"])

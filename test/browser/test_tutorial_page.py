@@ -10,7 +10,8 @@ import threading
 
 import pytest
 
-from harness import REPO, start_bridge, wait_for
+from fixtures import bridge_fixture
+from harness import REPO, wait_for
 
 ROSLIB = REPO / "web" / "node_modules" / "roslib" / "build" / "roslib.min.js"
 
@@ -62,15 +63,16 @@ TUTORIAL_PAGE = """<!DOCTYPE html>
 """
 
 
+tutorial_bridge = bridge_fixture("tutorial_bridge", needs=("sim",))
+
+
 @pytest.fixture(scope="module")
-def tutorial_dir(ros, sim, tmp_path_factory):
+def tutorial_dir(tutorial_bridge, tmp_path_factory):
     """The page and roslib.min.js in a folder of their own, the page pointing at a bridge with default settings."""
-    proc, port = start_bridge(ros, node_name="tutorial_bridge")
     folder = tmp_path_factory.mktemp("tutorial")
-    (folder / "index.html").write_text(TUTORIAL_PAGE.replace("PORT", str(port)))
+    (folder / "index.html").write_text(TUTORIAL_PAGE.replace("PORT", str(tutorial_bridge)))
     shutil.copy(ROSLIB, folder / "roslib.min.js")
-    yield folder
-    proc.stop()
+    return folder
 
 
 @pytest.fixture
