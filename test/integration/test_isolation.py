@@ -15,6 +15,7 @@ from rosbridge.protocol import session as protocol
 
 import hostile
 from bridge_client import RawWebSocket, WsClient, ping
+from fixtures import From, bridge_fixture
 from harness import ProcStat, node_pid, start_bridge, wait_for
 
 pytestmark = pytest.mark.slow  # (deselect with -m 'not slow' for a quick run)
@@ -46,14 +47,20 @@ def turtlesim(ros):
         yield
 
 
+@pytest.fixture
+def secret(tmp_path):
+    """A secret file holding SECRET."""
+    path = tmp_path / "secret"
+    path.write_text(SECRET)
+    return path
+
+
 @pytest.mark.alone  # (the victim's gaps are times: beside two workers, load 10.7 on 2 cores, the bridge's loop waited
 # 0.71 s for a CPU, runnable, by its thread's /proc schedstat, and the victim went 0.73 s without a pose)
 @pytest.mark.parametrize("abuse", hostile.ABUSES)
-def test_a_hostile_client_does_not_hurt_a_well_behaved_one(ros, turtlesim, abuse, tmp_path):
+def test_a_hostile_client_does_not_hurt_a_well_behaved_one(ros, turtlesim, abuse, secret):
     args = {}
     if abuse == "auth_flood":  # the attacker is not authenticated, the victim is
-        secret = tmp_path / "secret"
-        secret.write_text(SECRET)
         args = {"authenticate": "true", "secret_file": secret}
     proc, port = start_bridge(ros, node_name=f"isolation_{abuse}", unregister_timeout=1, **args)
     try:
@@ -89,14 +96,18 @@ def test_a_hostile_client_does_not_hurt_a_well_behaved_one(ros, turtlesim, abuse
         proc.stop()
 
 
-def test_unfinished_messages_are_dropped_after_fragment_timeout_and_their_memory_with_them(ros):
+UNFINISHED_TIMEOUT = 3.0  # s: its bridge's fragment_timeout
+unfinished_bridge = bridge_fixture("isolation_unfinished", scope="function", fragment_timeout=UNFINISHED_TIMEOUT)
+
+
+def test_unfinished_messages_are_dropped_after_fragment_timeout_and_their_memory_with_them(ros, unfinished_bridge):
     """Three clients each begin a 10 MB message and stop: a fragmented one (FIN=0 frames), or one frame cut short
     (30 MB in all: within what unfinished messages may hold together). fragment_timeout after its first byte each
     is closed (1008, naming the setting) and the bridge lets go of what they held: three more clients doing the
     same then take no more memory (before, each one's message stayed until it left). A client whose message takes
     a while but ends in time keeps its connection."""
-    timeout = 3.0
-    proc, port = start_bridge(ros, node_name="isolation_unfinished", fragment_timeout=timeout)
+    timeout = UNFINISHED_TIMEOUT
+    port = unfinished_bridge
     stat = ProcStat(node_pid(ros, "/isolation_unfinished"))
     part = bytes(1_000_000)
     fragmented = (
@@ -126,31 +137,31 @@ def test_unfinished_messages_are_dropped_after_fragment_timeout_and_their_memory
             holder.close()
         return held, time.monotonic() - started
 
-    try:
-        time.sleep(1)
-        before = stat.rss_mb()
-        slow = RawWebSocket(port)
-        held, closed = unfinished_by_three(slow)
-        opcode, payload = slow.recv_frame()
-        assert opcode == 0x1 and b"bogus" in payload, payload  # (its status: still served)
-        slow.close()
-        held_again, closed_again = unfinished_by_three()
-        print(
-            f"held +{held:.0f} MB, closed after {closed:.1f} s; again +{held_again:.0f} MB, closed after "
-            f"{closed_again:.1f} s; then +{stat.rss_mb() - before:.0f} MB"
-        )
-        # (their memory served the next ones, but for what malloc kept of the first ones' heap: 8 MB seen; kept,
-        # the first 30 MB would come on top)
-        assert held > 25 and held_again < held + 15
-        assert timeout <= closed < timeout + 2 and timeout <= closed_again < timeout + 2
-    finally:
-        proc.stop()
+    time.sleep(1)
+    before = stat.rss_mb()
+    slow = RawWebSocket(port)
+    held, closed = unfinished_by_three(slow)
+    opcode, payload = slow.recv_frame()
+    assert opcode == 0x1 and b"bogus" in payload, payload  # (its status: still served)
+    slow.close()
+    held_again, closed_again = unfinished_by_three()
+    print(
+        f"held +{held:.0f} MB, closed after {closed:.1f} s; again +{held_again:.0f} MB, closed after "
+        f"{closed_again:.1f} s; then +{stat.rss_mb() - before:.0f} MB"
+    )
+    # (their memory served the next ones, but for what malloc kept of the first ones' heap: 8 MB seen; kept,
+    # the first 30 MB would come on top)
+    assert held > 25 and held_again < held + 15
+    assert timeout <= closed < timeout + 2 and timeout <= closed_again < timeout + 2
 
 
-def test_idle_connections_beyond_the_descriptor_limit_neither_spin_nor_lock_clients_out(ros, turtlesim):
+fds_bridge = bridge_fixture("isolation_fds", scope="function", yields="bridge", max_fds=256)
+
+
+def test_idle_connections_beyond_the_descriptor_limit_neither_spin_nor_lock_clients_out(ros, turtlesim, fds_bridge):
     """Under `ulimit -n 256`, 400 idle TCP connections: the bridge stops accepting for a while instead of failing
     accept() in a loop (little CPU, a few log lines), closes the idle ones, and then takes new clients again."""
-    proc, port = start_bridge(ros, "isolation_fds", max_fds=256)
+    proc, port = fds_bridge.proc, fds_bridge.port
     stat = ProcStat(node_pid(ros, "/isolation_fds"))
     idle = []
     for _ in range(400):
@@ -166,7 +177,6 @@ def test_idle_connections_beyond_the_descriptor_limit_neither_spin_nor_lock_clie
         sock.close()
     client = wait_for(lambda: connects(f"ws://127.0.0.1:{port}/"), 30, what="a new client after the idle ones left")
     client.close()
-    proc.stop()
 
 
 def connects(url):
@@ -176,38 +186,41 @@ def connects(url):
         return None
 
 
-def test_a_departed_clients_type_does_not_bind_the_topic(ros, node):
+squat_bridge = bridge_fixture("isolation_squat", scope="function", unregister_timeout=1)
+
+
+def test_a_departed_clients_type_does_not_bind_the_topic(ros, node, squat_bridge):
     """A client subscribes to /squat/cmd_vel as std_msgs/String and leaves; the master still remembers that type,
     but nobody uses the topic any more: another client may advertise it as a Twist (a turtle spawned there)."""
     from geometry_msgs.msg import Twist
 
-    proc, port = start_bridge(ros, node_name="isolation_squat", unregister_timeout=1)
-    try:
-        squatter = WsClient(f"ws://127.0.0.1:{port}/")
-        squatter.send({"op": "subscribe", "topic": "/squat/cmd_vel", "type": "std_msgs/String"})
-        wait_for(lambda: "/squat/cmd_vel" in dict(ros.master().getTopicTypes()), 10, what="the squatted type")
-        squatter.close()
-        wait_for(
-            lambda: not any(t == "/squat/cmd_vel" for t, _ in ros.master().getSystemState()[1]),
-            10,
-            what="the squatter's subscription gone",
-        )
-        got = []
-        sub = node.Subscriber("/squat/cmd_vel", Twist, got.append)
-        driver = WsClient(f"ws://127.0.0.1:{port}/")
-        driver.send({"op": "advertise", "topic": "/squat/cmd_vel", "type": "geometry_msgs/Twist", "id": "adv"})
-        forward = {"op": "publish", "topic": "/squat/cmd_vel", "msg": {"linear": {"x": 1.0}}}
-        wait_for(lambda: (driver.send(forward), got)[1], 10, interval=0.2, what="the Twist through the topic")
-        with pytest.raises(TimeoutError):  # and no refusal came
-            driver.recv_until(lambda f: f.get("op") == "status", timeout=1)
-        driver.close()
-        sub.unregister()
-    finally:
-        proc.stop()
+    port = squat_bridge
+    squatter = WsClient(f"ws://127.0.0.1:{port}/")
+    squatter.send({"op": "subscribe", "topic": "/squat/cmd_vel", "type": "std_msgs/String"})
+    wait_for(lambda: "/squat/cmd_vel" in dict(ros.master().getTopicTypes()), 10, what="the squatted type")
+    squatter.close()
+    wait_for(
+        lambda: not any(t == "/squat/cmd_vel" for t, _ in ros.master().getSystemState()[1]),
+        10,
+        what="the squatter's subscription gone",
+    )
+    got = []
+    sub = node.Subscriber("/squat/cmd_vel", Twist, got.append)
+    driver = WsClient(f"ws://127.0.0.1:{port}/")
+    driver.send({"op": "advertise", "topic": "/squat/cmd_vel", "type": "geometry_msgs/Twist", "id": "adv"})
+    forward = {"op": "publish", "topic": "/squat/cmd_vel", "msg": {"linear": {"x": 1.0}}}
+    wait_for(lambda: (driver.send(forward), got)[1], 10, interval=0.2, what="the Twist through the topic")
+    with pytest.raises(TimeoutError):  # and no refusal came
+        driver.recv_until(lambda f: f.get("op") == "status", timeout=1)
+    driver.close()
+    sub.unregister()
 
 
-def test_a_client_leaving_releases_its_descriptors(ros):
-    proc, port = start_bridge(ros, node_name="isolation_fds_release")
+fds_release_bridge = bridge_fixture("isolation_fds_release", scope="function")
+
+
+def test_a_client_leaving_releases_its_descriptors(ros, fds_release_bridge):
+    port = fds_release_bridge
     pid = node_pid(ros, "/isolation_fds_release")
     count = lambda: len(list(Path(f"/proc/{pid}/fd").iterdir()))  # noqa: E731
     client = WsClient(f"ws://127.0.0.1:{port}/")
@@ -223,39 +236,41 @@ def test_a_client_leaving_releases_its_descriptors(ros):
     assert count() > before
     client.close()
     wait_for(lambda: count() <= before + 5, 30, what=f"the descriptors back to {before} (now {count()})")
-    proc.stop()
 
 
-def test_a_client_stalled_in_a_big_message_does_not_lock_the_others_out(ros):
+stalled_bridge = bridge_fixture("isolation_stalled", scope="function")
+
+
+def test_a_client_stalled_in_a_big_message_does_not_lock_the_others_out(stalled_bridge):
     """A client sends 31.8 MB of a 31.9 MB message (all that unfinished messages may hold together) and stops.
     Another client publishing 1 MB, which needs part of that bound, is served: the stalled one makes way (closed
     with 1013, try again) for the one whose bytes keep coming. Before, the one arriving was refused with 1013
     while the stalled one could hold the bound for fragment_timeout (600 s), and start again."""
-    proc, port = start_bridge(ros, node_name="isolation_stalled")
-    try:
-        hog = RawWebSocket(port, recv_buffer=4096)
-        size = 31_900_000
-        hog.sock.sendall(RawWebSocket.header(size) + bytes(4) + b" " * (size - 100_000))
-        time.sleep(3)  # (its bytes stopped coming)
-        client = WsClient(f"ws://127.0.0.1:{port}/")
-        client.send({"op": "advertise", "topic": "/isolation/big", "type": "std_msgs/String"})
-        client.send({"op": "publish", "topic": "/isolation/big", "msg": {"data": "x" * 1_000_000}})
-        reply = client.request({"op": "call_service", "service": "/rosapi/get_time", "id": "after"})
-        assert reply["op"] == "service_response" and reply["result"], reply
-        client.close()
-        opcode, payload = hog.recv_frame()
-        assert (opcode, payload[:2]) == (0x8, struct.pack("!H", 1013)), payload
-        hog.close()
-    finally:
-        proc.stop()
+    port = stalled_bridge
+    hog = RawWebSocket(port, recv_buffer=4096)
+    size = 31_900_000
+    hog.sock.sendall(RawWebSocket.header(size) + bytes(4) + b" " * (size - 100_000))
+    time.sleep(3)  # (its bytes stopped coming)
+    client = WsClient(f"ws://127.0.0.1:{port}/")
+    client.send({"op": "advertise", "topic": "/isolation/big", "type": "std_msgs/String"})
+    client.send({"op": "publish", "topic": "/isolation/big", "msg": {"data": "x" * 1_000_000}})
+    reply = client.request({"op": "call_service", "service": "/rosapi/get_time", "id": "after"})
+    assert reply["op"] == "service_response" and reply["result"], reply
+    client.close()
+    opcode, payload = hog.recv_frame()
+    assert (opcode, payload[:2]) == (0x8, struct.pack("!H", 1013)), payload
+    hog.close()
 
 
-def test_a_client_that_never_reads_is_closed_after_websocket_ping_timeout(ros):
+never_reads_bridge = bridge_fixture("isolation_never_reads", scope="function", websocket_ping_timeout=2)
+
+
+def test_a_client_that_never_reads_is_closed_after_websocket_ping_timeout(ros, never_reads_bridge):
     """A client that reads nothing while the bridge has answers for it (three of 3 MB) is closed once nothing of
     them has left for websocket_ping_timeout, and what waited for it is let go; a client that reads slowly, but
     reads, gets all of a 3 MB answer that takes longer than that to go. Before, the one that never read was kept
     (with up to 64 MB waiting for it) until it left."""
-    proc, port = start_bridge(ros, node_name="isolation_never_reads", websocket_ping_timeout=2)
+    port = never_reads_bridge
     pid = node_pid(ros, "/isolation_never_reads")
     descriptors = lambda: len(list(Path(f"/proc/{pid}/fd").iterdir()))  # noqa: E731
     call = json.dumps(
@@ -266,29 +281,26 @@ def test_a_client_that_never_reads_is_closed_after_websocket_ping_timeout(ros):
             "args": {"name": "/isolation/unset", "default": json.dumps("B" * 3_000_000)},
         }
     ).encode()
-    try:
-        time.sleep(1)
-        before = descriptors()
-        idle = RawWebSocket(port, recv_buffer=4096)
-        for _ in range(3):
-            idle.sock.sendall(RawWebSocket.frame(call))
-        slow = RawWebSocket(port, recv_buffer=65536)
-        slow.sock.sendall(RawWebSocket.frame(call))
-        started, got = time.monotonic(), 0
-        wait_for(lambda: descriptors() == before + 2, 10, what="both clients connected")
-        while got < 3_000_000:  # (at most 800 kB/s: 3.75 s for the answer)
-            data = slow.sock.recv(8192)
-            assert data, f"the slow client was closed after {got} bytes"
-            got += len(data)
-            time.sleep(0.01)
-        taken = time.monotonic() - started
-        assert taken > 3, taken  # (the slow client's answer took longer than websocket_ping_timeout)
-        assert descriptors() == before + 1, "the client that never reads is still connected"
-        ping_raw(slow)
-        slow.close()
-        idle.close()
-    finally:
-        proc.stop()
+    time.sleep(1)
+    before = descriptors()
+    idle = RawWebSocket(port, recv_buffer=4096)
+    for _ in range(3):
+        idle.sock.sendall(RawWebSocket.frame(call))
+    slow = RawWebSocket(port, recv_buffer=65536)
+    slow.sock.sendall(RawWebSocket.frame(call))
+    started, got = time.monotonic(), 0
+    wait_for(lambda: descriptors() == before + 2, 10, what="both clients connected")
+    while got < 3_000_000:  # (at most 800 kB/s: 3.75 s for the answer)
+        data = slow.sock.recv(8192)
+        assert data, f"the slow client was closed after {got} bytes"
+        got += len(data)
+        time.sleep(0.01)
+    taken = time.monotonic() - started
+    assert taken > 3, taken  # (the slow client's answer took longer than websocket_ping_timeout)
+    assert descriptors() == before + 1, "the client that never reads is still connected"
+    ping_raw(slow)
+    slow.close()
+    idle.close()
 
 
 def ping_raw(client):
@@ -301,31 +313,29 @@ def ping_raw(client):
             return
 
 
-def test_clients_that_do_not_authenticate_make_way_for_one_that_does(ros, tmp_path):
+no_auth_bridge = bridge_fixture(
+    "isolation_no_auth", scope="function", authenticate="true", secret_file=From("secret"), max_clients=5
+)
+
+
+def test_clients_that_do_not_authenticate_make_way_for_one_that_does(no_auth_bridge):
     """With authenticate, idle clients that never authenticate fill max_clients. One more client is let in,
     the longest waiting of them making way (closed), and the others are closed protocol.AUTH_TIMEOUT after they came.
     Before, the client that came to authenticate got 503 for as long as they stayed."""
-    secret = tmp_path / "secret"
-    secret.write_text(SECRET)
-    proc, port = start_bridge(
-        ros, node_name="isolation_no_auth", authenticate="true", secret_file=secret, max_clients=5
-    )
-    try:
-        idle = [RawWebSocket(port) for _ in range(5)]
-        time.sleep(0.5)
-        started = time.monotonic()
-        client = WsClient(f"ws://127.0.0.1:{port}/")
-        client.send(auth_frame(rand="isolation-no-auth"))
-        reply = client.request({"op": "call_service", "service": "/rosapi/get_time", "id": "t"})
-        assert reply["op"] == "service_response" and reply["result"], reply
-        opcode, payload = idle[0].recv_frame()  # (the first one came first)
-        assert opcode == 0x8 and payload[:2] == struct.pack("!H", 1013), payload
-        for waiting in idle[1:]:
-            opcode, payload = waiting.recv_frame()
-            assert opcode == 0x8 and b"authenticate" in payload, payload
-        closed = time.monotonic() - started
-        assert protocol.AUTH_TIMEOUT - 1 < closed < protocol.AUTH_TIMEOUT + 2, closed
-        ping(client)
-        client.close()
-    finally:
-        proc.stop()
+    port = no_auth_bridge
+    idle = [RawWebSocket(port) for _ in range(5)]
+    time.sleep(0.5)
+    started = time.monotonic()
+    client = WsClient(f"ws://127.0.0.1:{port}/")
+    client.send(auth_frame(rand="isolation-no-auth"))
+    reply = client.request({"op": "call_service", "service": "/rosapi/get_time", "id": "t"})
+    assert reply["op"] == "service_response" and reply["result"], reply
+    opcode, payload = idle[0].recv_frame()  # (the first one came first)
+    assert opcode == 0x8 and payload[:2] == struct.pack("!H", 1013), payload
+    for waiting in idle[1:]:
+        opcode, payload = waiting.recv_frame()
+        assert opcode == 0x8 and b"authenticate" in payload, payload
+    closed = time.monotonic() - started
+    assert protocol.AUTH_TIMEOUT - 1 < closed < protocol.AUTH_TIMEOUT + 2, closed
+    ping(client)
+    client.close()
