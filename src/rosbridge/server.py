@@ -42,10 +42,11 @@ IDLE_TIMEOUT = 10.0  # seconds
 
 
 class Bridge:
-    """What every connection shares: the ROS side, the protocol settings and the connection policy."""
+    """What every connection shares: the ROS side, the settings and the connection policy."""
 
-    def __init__(self, backend, config, settings, writes, allowed_origins=None, allowed_hosts=None):
-        self.backend, self.config, self.settings = backend, config, settings
+    def __init__(self, backend, config, writes, allowed_origins=None, allowed_hosts=None):
+        self.backend, self.config = backend, config  # config: a protocol.Config, what is derived from the settings
+        self.settings = config.settings  # the one Settings object, which every layer reads
         self.writes = writes  # when the clients' queued frames are written (write_turns.py)
         self.encoder = EncodingThread(tornado.ioloop.IOLoop.current())  # big messages are encoded off the loop
         # big messages deflated for the clients whose link is slow (transport/slow_link.py): a thread apart from the
@@ -53,9 +54,9 @@ class Bridge:
         self.deflater = EncodingThread(tornado.ioloop.IOLoop.current(), name="rosbridge-deflate")
         self.allowed_origins = allowed_origins  # None: same host only (and clients that send no Origin)
         self.allowed_hosts = allowed_hosts  # None: this machine's names (and allowed_origins' sites)
-        self.url_macs = UrlMacs(config.auth_time_delta)  # the HTTP endpoints' rosauth (access.py)
+        self.url_macs = UrlMacs(self.settings.auth_time_delta)  # the HTTP endpoints' rosauth (access.py)
         self.clients = set()
-        self.unfinished = unfinished_bound(settings)  # what the messages clients have not finished hold, together
+        self.unfinished = unfinished_bound(self.settings)  # what the messages clients have not finished hold, together
         self._logged = {}
 
     def client_opened(self, handler):
@@ -148,7 +149,7 @@ def main():
         stop_drivers_leaving=current.deadman_timeout > 0,
         deliveries=writes.delivering,
     )
-    bridge = Bridge(backend, config, current, writes, allowed_origins=origins, allowed_hosts=hosts)
+    bridge = Bridge(backend, config, writes, allowed_origins=origins, allowed_hosts=hosts)
     backend.set_client_count(0)
     if current.deadman_timeout > 0:
         DriverLeases(bridge, current.deadman_timeout).start()

@@ -14,6 +14,7 @@ from rosbridge.contract import Backend
 from rosbridge.globs import Globs
 from rosbridge.protocol import session as protocol
 from rosbridge.protocol.encoded import SplicedFrame, TopicMessage, Utf8Text
+from rosbridge.settings import Settings
 
 from fakes import Host, OffLoop
 
@@ -102,6 +103,19 @@ def message(topic="/t", data=1, stamp=1.5):
 @pytest.fixture
 def h():
     return Harness()
+
+
+def test_the_config_reads_the_one_settings_object_through():
+    current = Settings()
+    config = protocol.Config(current)
+    assert config.settings is current and config.max_queue == current.max_queue == 1000
+    current.max_queue = 7
+    assert config.max_queue == 7  # (not a copy)
+    assert protocol.Config(max_queue=3, authenticate=True).settings.max_queue == 3
+    with pytest.raises(TypeError, match="max_queu"):
+        protocol.Config(max_queu=3)
+    with pytest.raises(AttributeError, match="max_queu"):
+        config.max_queu
 
 
 def test_check_fields_names_the_problem():

@@ -10,6 +10,7 @@ import collections
 import functools
 import json
 import math
+import operator
 
 from rosbridge import globs as globs_module
 from rosbridge import settings
@@ -36,25 +37,17 @@ AUTH_TIMEOUT = 10.0  # s: with authenticate, a client that has not authenticated
 
 
 class Config:
-    """The settings the protocol needs, taken from the server's Settings (settings.py says what each means);
-    keyword arguments override single ones (the unit tests')."""
-
-    FROM_SETTINGS = (
-        "max_message_size",
-        "fragment_timeout",
-        "max_queue",
-        "authenticate",
-        "auth_time_delta",
-        "max_topics_per_client",
-    )
+    """What a protocol session needs of the bridge's settings: the one Settings object (`settings`: the server's,
+    which every layer reads; settings.py says what each means), whose values it reads through, never copies
+    (config.max_queue is config.settings.max_queue), and what is derived from them once for every client.
+    Keyword arguments override single settings (the unit tests': Config(max_queue=3))."""
 
     def __init__(self, current=None, globs=None, auth_secret=None, **overrides):
-        current = current or settings.Settings()
-        unknown = set(overrides) - set(self.FROM_SETTINGS)
+        unknown = set(overrides) - set(settings.BY_NAME)
         if unknown:
             raise TypeError(f"Config: unknown settings {sorted(unknown)}")
-        for name in self.FROM_SETTINGS:
-            setattr(self, name, overrides.get(name, getattr(current, name)))
+        base = current or settings.Settings()
+        self.settings = settings.Settings(lambda name: overrides.get(name, getattr(base, name))) if overrides else base
         # what may wait for one slow client before the oldest whole messages are dropped: frames (max_queue), and
         # bytes: enough for a 16 MB occupancy grid as JSON (about 47 MB)
         self.max_queue_bytes = max(64_000_000, 2 * self.max_message_size)
@@ -62,6 +55,11 @@ class Config:
         self.queue_pool = QueuePool(2 * self.max_queue_bytes)
         self.globs = globs or globs_module.Globs()
         self.auth_secret = auth_secret
+
+
+# each setting reads through to the one Settings object: config.max_queue is config.settings.max_queue
+for _setting in settings.SETTINGS:
+    setattr(Config, _setting.name, property(operator.attrgetter("settings." + _setting.name), doc=_setting.meaning))
 
 
 # JSON types of the fields of each op: (python types, name shown to the client)
