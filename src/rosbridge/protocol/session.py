@@ -19,7 +19,7 @@ from rosbridge.codec.json_values import dumps
 from rosbridge.contract import SessionHost
 from rosbridge.errors import ClientError, RequestError, log_bug
 from rosbridge.protocol.encoded import COMPRESSIONS, service_response_frames, status_frame
-from rosbridge.protocol.outbox import OWN_QUEUE_BYTES, Outbox, QueuePool
+from rosbridge.protocol.outbox import Outbox, QueuePool, outbox_report
 from rosbridge.protocol.reassembly import Fragments, unpack_png
 from rosbridge.protocol.subscription import MAX_THROTTLE_RATE, Subscription
 
@@ -506,7 +506,7 @@ class Session:
             self._last_report = self._host.clock()
             self._reports.extend(
                 status_frame(level, text)
-                for level, text in _outbox_report(*outbox.take_report(), self.config)
+                for level, text in outbox_report(*outbox.take_report(), self.config)
                 if STATUS_LEVELS.index(level) >= self.level
             )
         if self._reports:
@@ -538,39 +538,6 @@ class Session:
     def _cancel(self, timer):
         if timer is not None:
             self._host.cancel_later(timer)
-
-
-def _outbox_report(skipped, dropped, refused, config):
-    """(level, text) of each status telling a client what its slow link cost it."""
-
-    def by_topic(counts):
-        return ", ".join(f"{topic or 'other messages'} {n}" for topic, n in counts.most_common())
-
-    if skipped:
-        yield (
-            "warning",
-            (
-                f"skipped {sum(skipped.values())} older message(s), the newest of each topic kept "
-                f"(the link is slower than the messages): {by_topic(skipped)}"
-            ),
-        )
-    if dropped:
-        yield (
-            "error",
-            (
-                f"dropped {sum(dropped.values())} whole message(s): client too slow (outgoing bound "
-                f"{config.max_queue} frames, {config.max_queue_bytes} bytes; beyond {OWN_QUEUE_BYTES} bytes "
-                f"each, {config.queue_pool.limit} bytes for all clients together): {by_topic(dropped)}"
-            ),
-        )
-    if refused:
-        yield (
-            "error",
-            (
-                f"refused {sum(refused.values())} message(s) larger than the client's whole outgoing bound "
-                f"({config.max_queue} frames, {config.max_queue_bytes} bytes): {by_topic(refused)}"
-            ),
-        )
 
 
 def _positive(req, name, default):
