@@ -20,6 +20,7 @@ from rosbridge import protocol
 from rosbridge.accepting import BoundedHTTPServer, accept_connections
 from rosbridge.auth import UrlMacs
 from rosbridge.borrowed import handle_connection
+from rosbridge.foxglove import Catalog
 from rosbridge.globs import Globs, parse_globs
 from rosbridge.heap import reuse_big_buffers
 from rosbridge.http.access import host_checked
@@ -57,6 +58,9 @@ class Bridge:
         self.url_macs = UrlMacs(self.settings.auth_time_delta)  # the HTTP endpoints' rosauth (access.py)
         self.clients = set()
         self.unfinished = unfinished_bound(self.settings)  # what the messages clients have not finished hold, together
+        loop = tornado.ioloop.IOLoop.current()
+        self.foxglove = Catalog(backend, config.globs, loop.call_later, loop.remove_timeout)  # (Foxglove clients')
+        self.session_id = str(time.time_ns())  # tells a Foxglove client whether it reconnects to the same bridge
         self._logged = {}
 
     def client_opened(self, handler):
@@ -112,6 +116,24 @@ def routes(bridge, web_root, recorder=None):
     if web_root:
         table.append((r"/(.+)", PageFiles, {"path": str(web_root)}))
     return host_checked(bridge, table)  # every request, by its Host (DNS rebinding)
+
+
+def bind_foxglove_port(current):
+    """The sockets of the second port (foxglove_port), or none: -1, the same as `port`, or taken (another
+    Foxglove server runs here: a warning, and the bridge goes on with its own port, where Foxglove clients
+    are served as well)."""
+    if current.foxglove_port < 0 or (current.foxglove_port == current.port and current.port):
+        return []
+    try:
+        return tornado.netutil.bind_sockets(current.foxglove_port, current.address or None)
+    except OSError as error:
+        rospy.logwarn(
+            "foxglove_port %d: %s; Foxglove clients can still connect on port %d",
+            current.foxglove_port,
+            error.strerror,
+            current.port,
+        )
+        return []
 
 
 def raise_fd_limit():
@@ -178,6 +200,7 @@ def main():
     app = tornado.web.Application(routes(bridge, web_root, recorder))
     ssl_options = {"certfile": current.certfile, "keyfile": current.keyfile} if current.ssl else None
     sockets = tornado.netutil.bind_sockets(current.port, current.address or None)
+    foxglove_sockets = bind_foxglove_port(current)
     # a connection that sends no request within IDLE_TIMEOUT is closed: idle sockets must not hold descriptors
     server = BoundedHTTPServer(
         app,
@@ -187,17 +210,28 @@ def main():
         ssl_options=ssl_options,
         idle_connection_timeout=IDLE_TIMEOUT,
     )
-    accept_connections(handle_connection(server), sockets, lambda text: bridge.log_refusal("fds", text), loop)
+    accept_connections(
+        handle_connection(server), sockets + foxglove_sockets, lambda text: bridge.log_refusal("fds", text), loop
+    )
     port = sockets[0].getsockname()[1]
-    rospy.set_param("~actual_port", port)
-    MasterWatch(after_recovery=lambda: rospy.set_param("~actual_port", port))
+    ports = {"~actual_port": port}
+    if foxglove_sockets:
+        ports["~actual_foxglove_port"] = foxglove_sockets[0].getsockname()[1]
+
+    def say_ports():
+        for name, value in ports.items():
+            rospy.set_param(name, value)
+
+    say_ports()
+    MasterWatch(after_recovery=say_ports)
     scheme = "wss" if ssl_options else "ws"
     rospy.loginfo(
-        "Rosbridge WebSocket server started at %s://%s:%d (page: %s)",
+        "Rosbridge WebSocket server started at %s://%s:%d (page: %s)%s",
         scheme,
         current.address or "0.0.0.0",
         port,
         web_root or "off",
+        f"; Foxglove WebSocket clients also on port {ports['~actual_foxglove_port']}" if foxglove_sockets else "",
     )
 
     # The kernel may deliver SIGINT to one of rospy's threads, which leaves the loop asleep in epoll: wake it
@@ -211,7 +245,7 @@ def main():
     except KeyboardInterrupt:
         pass
     finally:
-        for sock in sockets:
+        for sock in sockets + foxglove_sockets:
             sock.close()
 
 
