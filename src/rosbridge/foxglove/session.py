@@ -50,7 +50,9 @@ class FoxgloveSession:
                 "name": "turtlesim rosbridge (ROS 1)",
                 "capabilities": list(CAPABILITIES),
                 "supportedEncodings": list(ENCODINGS),
-                "metadata": {"ROS_DISTRO": "noetic-compatible"},
+                # (Debian's ROS 1 is noetic's: Lichtblick takes ROS 1's common message definitions by this name,
+                # and ROS 2's, whose Header differs, by any other)
+                "metadata": {"ROS_DISTRO": "noetic"},
                 "sessionId": session_id,
             }
         )
