@@ -162,6 +162,19 @@ def test_call_service_reply_is_routed_by_id(h):
     ]
 
 
+def test_an_id_that_json_cannot_write_is_left_out_of_every_answer(h):
+    # (Python's json reads NaN and Infinity; no JSON writer may send them back: the answer would fail)
+    h.session.handle_text('{"op": "call_service", "service": "/s", "id": NaN}')
+    reply = h.backend.calls[0][-1]
+    reply(True, {})
+    h.session.handle_text('{"op": "subscribe", "topic": "/a", "type": "std_msgs/String", "id": Infinity}')
+    h.session.handle_text('{"op": "unadvertise", "topic": 5, "id": -Infinity}')
+    assert h.replies() == [
+        {"op": "service_response", "service": "/s", "values": {}, "result": True},
+        {"op": "status", "level": "error", "msg": "unadvertise: field 'topic' must be a string, got 5"},
+    ]
+
+
 def test_backend_refusal_becomes_a_status_error_with_the_id(h):
     h.backend.refuse["advertise"] = "advertise /a: the topic already has type x/Y"
     h.send({"op": "advertise", "topic": "/a", "type": "std_msgs/String", "id": "adv-1"})

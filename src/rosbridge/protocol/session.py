@@ -225,11 +225,12 @@ class Session:
 
     def handle_request(self, request, depth=0):
         request_id = request.get("id") if isinstance(request, dict) else None
-        if (
-            not isinstance(request_id, ID[0])
-            or isinstance(request_id, bool)
-            or (isinstance(request_id, float) and not math.isfinite(request_id))
-        ):  # NaN/Infinity: not JSON
+        if isinstance(request_id, float) and not math.isfinite(request_id):
+            # NaN/Infinity, which Python's json reads but no JSON writer may send back: left out of every answer
+            # (the ops echo the request's id), as an absent id is
+            del request["id"]
+            request_id = None
+        elif not isinstance(request_id, ID[0]) or isinstance(request_id, bool):
             request_id = None
         op = request.get("op") if isinstance(request, dict) else None
         try:
