@@ -10,22 +10,18 @@ import urllib.request
 import pytest
 
 import hostile
-from harness import start_bridge, wait_for
+from fixtures import From, bridge_fixture
+from harness import wait_for
 
 
 @pytest.fixture(scope="module")
-def bridge(ros, tmp_path_factory):
-    folder = tmp_path_factory.mktemp("bags")
-    proc, port = start_bridge(
-        ros,
-        node_name="bags_bridge",
-        bag_folder=str(folder),
-        bag_max_bytes=3_000_000,
-        blackbox_seconds=2,
-        topics_glob="[/bags_test/*]",
-    )
-    yield port, folder
-    proc.stop()
+def folder(tmp_path_factory):
+    return tmp_path_factory.mktemp("bags")
+
+
+bridge = bridge_fixture(
+    "bags_bridge", bag_folder=From("folder"), bag_max_bytes=3_000_000, blackbox_seconds=2, topics_glob="[/bags_test/*]"
+)
 
 
 def call(port, method, path, body=None, headers=None, content_type="application/json"):
@@ -75,7 +71,7 @@ def talker(node):
 
 
 def test_record_stop_download_and_rosbag_reads_it(bridge, talker, ros, tmp_path):
-    port, _ = bridge
+    port = bridge
     status, state = call(port, "POST", "/bags/record", {"topics": ["/bags_test/count"], "name": "run1.bag"})
     assert status == 200 and state["recording"]["name"] == "run1.bag", state
     wait_for(lambda: call(port, "GET", "/bags")[1]["recording"]["messages"] >= 50, 20, what="50 messages recorded")
@@ -97,7 +93,7 @@ def test_record_stop_download_and_rosbag_reads_it(bridge, talker, ros, tmp_path)
 
 
 def test_the_black_box_keeps_the_last_seconds_and_saves_them(bridge, talker, ros, tmp_path):
-    port, _ = bridge
+    port = bridge
     assert call(port, "POST", "/bags/blackbox", {"topics": ["/bags_test/count"]})[0] == 200
     time.sleep(3.5)
     state = call(port, "GET", "/bags")[1]["blackbox"]
@@ -129,14 +125,14 @@ def test_the_black_box_keeps_the_last_seconds_and_saves_them(bridge, talker, ros
     ],
 )
 def test_bad_requests_get_a_clear_error(bridge, request_, status, text):
-    port, _ = bridge
-    got, answer = call(bridge[0], *request_)
+    port = bridge
+    got, answer = call(port, *request_)
     assert got == status, answer
     assert text in (answer["error"] if isinstance(answer, dict) else answer.decode())
 
 
 def test_a_page_of_another_site_and_a_form_post_are_refused(bridge):
-    port, _ = bridge
+    port = bridge
     status, answer = call(
         port, "POST", "/bags/record", {"topics": ["/bags_test/count"]}, headers={"Origin": "http://evil.example"}
     )
@@ -151,7 +147,7 @@ def test_a_page_of_another_site_and_a_form_post_are_refused(bridge):
 def test_a_recording_stops_at_the_folder_bound_and_says_why(bridge, node):
     from std_msgs.msg import String
 
-    port, _ = bridge
+    port = bridge
     pub = node.Publisher("/bags_test/big", String, queue_size=100)
     try:
         assert call(port, "POST", "/bags/record", {"topics": ["/bags_test/big"], "name": "big.bag"})[0] == 200
@@ -167,8 +163,8 @@ def test_a_recording_stops_at_the_folder_bound_and_says_why(bridge, node):
         call(port, "DELETE", "/bags/big.bag")
 
 
-def test_a_symlink_in_the_folder_is_neither_served_listed_nor_deleted(bridge, tmp_path):
-    port, folder = bridge
+def test_a_symlink_in_the_folder_is_neither_served_listed_nor_deleted(bridge, folder, tmp_path):
+    port = bridge
     secret = tmp_path / "secret.txt"
     secret.write_text("outside the bag folder")
     (folder / "x.bag").symlink_to(secret)
@@ -190,19 +186,18 @@ EMPTY_RECORD = 58  # an empty message's record and index entry in a bag: its lea
 
 
 @pytest.fixture(scope="module")
-def small(ros, tmp_path_factory):
-    folder = tmp_path_factory.mktemp("small_bags")
-    proc, port = start_bridge(
-        ros,
-        node_name="small_bags_bridge",
-        bag_folder=str(folder),
-        bag_max_bytes=SMALL_FOLDER,
-        blackbox_seconds=60,
-        blackbox_max_bytes=SMALL_BOX,
-        topics_glob="[/bags_test/*]",
-    )
-    yield port, folder
-    proc.stop()
+def small_folder(tmp_path_factory):
+    return tmp_path_factory.mktemp("small_bags")
+
+
+small = bridge_fixture(
+    "small_bags_bridge",
+    bag_folder=From("small_folder"),
+    bag_max_bytes=SMALL_FOLDER,
+    blackbox_seconds=60,
+    blackbox_max_bytes=SMALL_BOX,
+    topics_glob="[/bags_test/*]",
+)
 
 
 def on_disk(folder):
@@ -242,8 +237,8 @@ def closed_bag_info(ros, path):
     return infos[-1].stdout
 
 
-def test_empty_messages_at_full_rate_keep_the_folder_within_its_bound(small, node, ros):
-    port, folder = small
+def test_empty_messages_at_full_rate_keep_the_folder_within_its_bound(small, small_folder, node, ros):
+    port, folder = small, small_folder
     pub = empty_publisher(node, "/bags_test/empty")
     assert call(port, "POST", "/bags/record", {"topics": ["/bags_test/empty"], "name": "empty.bag"})[0] == 200
     try:
@@ -264,7 +259,7 @@ def test_empty_messages_at_full_rate_keep_the_folder_within_its_bound(small, nod
 
 
 def test_the_black_box_bound_counts_each_message_not_only_its_bytes(small, node):
-    port, _ = small
+    port = small
     pub = empty_publisher(node, "/bags_test/box")
     assert call(port, "POST", "/bags/blackbox", {"topics": ["/bags_test/box"]})[0] == 200
     try:
@@ -295,8 +290,8 @@ def saves_at_once(port, count, prefix="save"):
     return answers
 
 
-def test_saves_reserve_their_room_before_they_are_accepted(small, node):
-    port, folder = small
+def test_saves_reserve_their_room_before_they_are_accepted(small, small_folder, node):
+    port, folder = small, small_folder
     pub = empty_publisher(node, "/bags_test/box")
     assert call(port, "POST", "/bags/blackbox", {"topics": ["/bags_test/box"]})[0] == 200
     answers = []
@@ -315,28 +310,27 @@ def test_saves_reserve_their_room_before_they_are_accepted(small, node):
 
 
 @pytest.fixture(scope="module")
-def big_box(ros, tmp_path_factory):
-    """A bridge whose black box keeps 10 minutes, within the default 64 MB (400,000 empty messages)."""
-    folder = tmp_path_factory.mktemp("big_box")
-    proc, port = start_bridge(
-        ros,
-        node_name="big_box_bags_bridge",
-        bag_folder=str(folder),
-        blackbox_seconds=600,
-        topics_glob="[/bags_test/*, /turtle1/*, /rosapi/*]",
-    )
-    yield port, folder
-    proc.stop()
+def big_box_folder(tmp_path_factory):
+    return tmp_path_factory.mktemp("big_box")
+
+
+# a bridge whose black box keeps 10 minutes, within the default 64 MB (400,000 empty messages)
+big_box = bridge_fixture(
+    "big_box_bags_bridge",
+    bag_folder=From("big_box_folder"),
+    blackbox_seconds=600,
+    topics_glob="[/bags_test/*, /turtle1/*, /rosapi/*]",
+)
 
 
 @pytest.mark.alone  # (the other client's round trips are times)
-def test_one_save_at_a_time_and_other_clients_hardly_wait_for_it(big_box, node, turtlesim):
+def test_one_save_at_a_time_and_other_clients_hardly_wait_for_it(big_box, big_box_folder, node, turtlesim):
     """Before: every save was accepted, each holding a copy of the box and queued for the writer (42 saves of
     400,000 entries: the writer busy 190 s, 924 MB reserved), and a client's round trips took 97-137 ms (p95)
     meanwhile; the writer's allocations set off full collections over the box's entries, a tuple each (517 ms
     stalls). Here five saves at once of a full box (400,000 entries): all five were written, and the pings of
     another client took up to 83 ms; now one is written, four are refused (409), and the pings take 5-35 ms."""
-    port, folder = big_box
+    port, folder = big_box, big_box_folder
     pub = empty_publisher(node, "/bags_test/flood")
     assert call(port, "POST", "/bags/blackbox", {"topics": ["/bags_test/flood"]})[0] == 200
     try:
@@ -368,10 +362,10 @@ def test_one_save_at_a_time_and_other_clients_hardly_wait_for_it(big_box, node, 
         call(port, "DELETE", f"/bags/{path.name}")
 
 
-def test_a_running_recording_counts_the_saves_made_after_it_started(small, node, ros):
+def test_a_running_recording_counts_the_saves_made_after_it_started(small, small_folder, node, ros):
     from std_msgs.msg import String
 
-    port, folder = small
+    port, folder = small, small_folder
     pub = node.Publisher("/bags_test/text", String, queue_size=100)
     box = empty_publisher(node, "/bags_test/box")
     assert call(port, "POST", "/bags/blackbox", {"topics": ["/bags_test/box"]})[0] == 200

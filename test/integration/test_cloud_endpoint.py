@@ -20,7 +20,8 @@ import pytest
 from rosbridge.http.cloud_routes import MAX_TOPICS
 
 import hostile
-from harness import ProcStat, node_pid, start_bridge, wait_for
+from fixtures import bridge_fixture
+from harness import ProcStat, node_pid, wait_for
 from sensor_messages import Publishing, big_cloud
 
 VICTIM_MAX_GAP = 0.25  # seconds without a pose (62.5 Hz)
@@ -54,11 +55,7 @@ def padded_cloud(points, width=1, padding=1):
     )
 
 
-@pytest.fixture(scope="module")
-def bridge_proc(ros):
-    proc, port = start_bridge(ros, node_name="cloud_bridge")
-    yield proc, port
-    proc.stop()
+bridge_proc = bridge_fixture("cloud_bridge", yields="bridge")
 
 
 @pytest.fixture(scope="module")
@@ -82,7 +79,7 @@ def latched(node):
 def test_distinct_max_points_against_a_big_cloud_keep_the_memory_bounded(ros, bridge_proc, latched):
     """300 requests, each with its own max_points, of one latched 300k-point cloud: before, each answer was kept
     until the next cloud (RSS +580 MB in the finding; +331 MB here, +11 MB now)."""
-    port = bridge_proc[1]
+    port = bridge_proc.port
     topic = latched("/cloud_test/big", big_cloud())
     assert get(port, f"topic={topic}")[0] == 200
     stat = ProcStat(node_pid(ros, "/cloud_bridge"))
@@ -101,7 +98,7 @@ def test_requests_that_leave_before_their_answer_cost_nothing_after(ros, bridge_
     """60 requests of a cloud of a million padded rows, each for a stride of its own (about 10 ms of CPU each),
     closed while their answers wait to be made: the answers nobody waits for are not made (0.7 s of the bridge's
     CPU when they were, 0.1 s now), and the next request is answered."""
-    proc, port = bridge_proc
+    proc, port = bridge_proc.proc, bridge_proc.port
     points = 1_000_000
     topic = latched("/cloud_test/left", padded_cloud(points))
     assert get(port, f"topic={topic}")[0] == 200
@@ -149,7 +146,7 @@ def test_decimating_padded_rows_does_not_hold_other_clients(ros, node, bridge_pr
     get_time calls go on meanwhile."""
     from sensor_msgs.msg import PointCloud2
 
-    port, topic = bridge_proc[1], "/cloud_test/padded"
+    port, topic = bridge_proc.port, "/cloud_test/padded"
     cloud = padded_cloud(1_000_000)
     publishing = Publishing(node, topic, PointCloud2, lambda n: cloud, 2)
     stat = ProcStat(node_pid(ros, "/cloud_bridge"))
@@ -182,7 +179,7 @@ def test_a_frame_id_no_header_can_carry_is_percent_encoded(bridge_proc, latched)
     frame = "caf\u00e9 \u96f7\u9054/x%41\r\nX-Injected: 1\x01"
     cloud.header.frame_id = frame
     topic = latched("/cloud_test/odd_frame", cloud)
-    status, headers, body = get(bridge_proc[1], f"topic={topic}")
+    status, headers, body = get(bridge_proc.port, f"topic={topic}")
     assert status == 200, body
     assert "X-Injected" not in headers
     assert headers["X-Frame-Id"] == "caf%C3%A9%20%E9%9B%B7%E9%81%94/x%2541%0D%0AX-Injected%3A%201%01"
@@ -239,7 +236,7 @@ def test_names_nobody_publishes_are_not_subscribed(ros, bridge_proc):
     kept 5 s after its 204 (the master listed 200 of them at once, the bridge's descriptors 16 -> 317); now none is
     (descriptors +100, the requests' own): a request waits for the master to list its topic (a look every
     WAIT_POLL seconds) and answers 204 if it never did."""
-    proc, port = bridge_proc
+    proc, port = bridge_proc.proc, bridge_proc.port
     pid, prefix, concurrency = node_pid(ros, "/cloud_bridge"), "/cloud_test/nobody_", 100
     fds = open_fds(pid)
     attack = unpublished_names(port, prefix, concurrency, 7.0)
@@ -263,7 +260,7 @@ def test_names_nobody_publishes_do_not_hold_other_clients(ros, bridge_proc, turt
     and graph updates of each name's subscription held a websocket client's get_time (p95 0.9-1.9 s, slowest
     1.7-2.5 s; the finding: 4.5 s) and its poses (0.7-1.2 s); now no name is subscribed, the requests waiting share
     one look at the master a second, and their ends are spread: p95 0.04-0.06 s, slowest 0.03-0.29 s."""
-    port = bridge_proc[1]
+    port = bridge_proc.port
     victim = hostile.Victim(f"ws://127.0.0.1:{port}/")
     try:
         time.sleep(1.0)
@@ -287,7 +284,7 @@ def test_names_nobody_publishes_do_not_hold_other_clients(ros, bridge_proc, turt
 def test_a_topic_published_while_its_request_waits_is_answered(bridge_proc, latched):
     """A request for a topic nobody publishes yet waits for it (looking every WAIT_POLL seconds) and gets its
     first cloud."""
-    port, answered = bridge_proc[1], []
+    port, answered = bridge_proc.port, []
     asking = threading.Thread(target=lambda: answered.append(get(port, "topic=/cloud_test/later")))
     asking.start()
     time.sleep(1.5)
@@ -300,7 +297,7 @@ def test_a_topic_published_while_its_request_waits_is_answered(bridge_proc, latc
 def test_at_most_max_topics_are_watched_at_once(ros, bridge_proc, latched):
     """MAX_TOPICS cloud topics are watched at once (each kept 5 s after its last request); one more is refused
     with a 503 saying so until one of them is let go."""
-    port = bridge_proc[1]
+    port = bridge_proc.port
     wait_for(lambda: cloud_subscriptions(ros, "/cloud_test/") == 0, 20, what="the other tests' topics let go")
     topics = [latched(f"/cloud_test/many{i}", big_cloud(10)) for i in range(MAX_TOPICS + 1)]
     assert [get(port, f"topic={topic}")[0] for topic in topics[:-1]] == [200] * MAX_TOPICS
