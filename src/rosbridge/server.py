@@ -59,7 +59,8 @@ class Bridge:
         self.clients = set()
         self.unfinished = unfinished_bound(self.settings)  # what the messages clients have not finished hold, together
         loop = tornado.ioloop.IOLoop.current()
-        self.foxglove = Catalog(backend, config.globs, loop.call_later, loop.remove_timeout)  # (Foxglove clients')
+        sim_now_ns = (lambda: rospy.Time.now().to_nsec()) if rospy.get_param("/use_sim_time", False) else None
+        self.foxglove = Catalog(backend, config.globs, loop.call_later, loop.remove_timeout, sim_now_ns)
         self.session_id = str(time.time_ns())  # tells a Foxglove client whether it reconnects to the same bridge
         self._logged = {}
 

@@ -14,7 +14,7 @@ import rosgraph.network
 
 from bridge_client import WsClient
 from fixtures import bridge_fixture
-from harness import REPO, wait_for
+from harness import REPO, start_bridge, wait_for
 
 CLIENTS = REPO / "test" / "js"
 SCRIPT = CLIENTS / "foxglove_client.mjs"
@@ -286,3 +286,26 @@ def test_a_rosbridge_client_is_served_beside_foxglove_clients(ros, bridge):
     client.send({"op": "subscribe", "topic": "/fg/point"})
     assert client.recv_until(lambda f: f.get("op") == "publish")["msg"] == {"x": 1.5, "y": -2.0, "z": 3.0}
     assert proc.popen.wait(30) == 0, proc.output()
+
+
+def test_with_use_sim_time_clients_get_the_clock_and_messages_stamped_by_it(ros, world):
+    master = ros.master()
+    master.setParam("/use_sim_time", True)
+    try:
+        with ros.spawn(
+            ["rostopic", "pub", "-r", "20", "/clock", "rosgraph_msgs/Clock", "{clock: {secs: 42, nsecs: 7}}"]
+        ):
+            proc, port = start_bridge(ros, node_name="foxglove_sim_time")
+            with proc:
+                results = run(
+                    ros,
+                    f"ws://127.0.0.1:{port}",
+                    {"do": "info"},
+                    {"do": "time"},
+                    {"do": "messages", "topic": "/fg/point"},
+                )
+    finally:
+        master.deleteParam("/use_sim_time")
+    assert "time" in results["info"]["info"]["capabilities"]
+    assert results["time"]["time"] == str(42 * 10**9 + 7)
+    assert results["messages"]["messages"][0]["timestamp"] == str(42 * 10**9 + 7)

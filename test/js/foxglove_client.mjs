@@ -136,6 +136,7 @@ const STEPS = {
     const answer = await kindOf('fetchAssetResponse', (r) => r.requestId === requestId);
     return answer.status === 0 ? {data: b64(answer.data)} : {error: answer.error};
   },
+  time: async () => ({time: String((await kindOf('time')).timestamp)}),
   wait: async ({seconds}) => { await new Promise((r) => setTimeout(r, seconds * 1000)); return {}; },
 };
 

@@ -15,7 +15,7 @@ from rosbridge.foxglove.catalog import Catalog
 from rosbridge.foxglove.session import FoxgloveSession
 from rosbridge.globs import Globs
 from rosbridge.protocol import Config
-from rosbridge.protocol.encoded import SplicedFrame
+from rosbridge.protocol.encoded import SplicedFrame, TopicMessage
 
 
 # ---- binary messages -------------------------------------------------------------------------------------
@@ -280,3 +280,24 @@ def test_too_many_asset_fetches_at_once_are_refused():
         client.send({"op": "fetchAsset", "uri": "package://turtlesim/meshes/turtle.stl", "requestId": request_id})
     refused = client.frames()
     assert len(refused) == 2 and all(frame[:1] == b"\x04" and frame[5] == 1 for frame in refused)
+
+
+def test_with_sim_time_the_clock_is_sent_and_stamps_the_messages():
+    host, backend, ros_now = Host(), Backend(), [0]
+    catalog = Catalog(backend, Globs(), host.call_later, host.cancel_later, sim_now_ns=lambda: ros_now[0])
+    client = Client(catalog=catalog, backend=backend)
+    assert "time" in client.frames()[0]["capabilities"]
+    client.backend.watchers[0](GraphState({"/a": ("std_msgs/Empty", "")}, {}, {}, {}, {}))
+    client.frames()
+    client.send({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": next(iter(catalog.channels))}]})
+    ros_now[0] = 12_000_000_500
+    host.timers.pop()()  # (the clock's tick)
+    client.session.deliver(TopicMessage("/a", None, b"", 1_700_000_000.0))
+    assert client.frames() == [
+        struct.pack("<BQ", 2, 12_000_000_500),
+        struct.pack("<BIQ", 1, 1, 12_000_000_500),  # (stamped by the simulated clock, not the wall's)
+    ]
+    host.timers.pop()()  # (the time did not move: nothing sent)
+    assert client.frames() == []
+    client.session.closed()
+    assert host.timers == []  # (the last client left: the tick stops)

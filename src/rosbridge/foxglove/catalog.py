@@ -9,6 +9,7 @@ Pure: no rospy, no tornado; the loop's call_later and cancel_later are given."""
 import itertools
 
 from rosbridge.contract import DELETE
+from rosbridge.foxglove.sim_clock import SimClock
 from rosbridge.globs import allowed
 
 PARAMETER_POLL = 1.0  # s: how often the master's parameters are read while a client subscribes to updates
@@ -61,10 +62,12 @@ def graph_update(old, new):
 
 
 class Catalog:
-    def __init__(self, backend, globs, call_later, cancel_later):
+    def __init__(self, backend, globs, call_later, cancel_later, sim_now_ns=None):
+        """sim_now_ns: the ROS time in ns, with /use_sim_time (else None: the `time` capability is off)."""
         self._backend, self._globs = backend, globs
         self._call_later, self._cancel_later = call_later, cancel_later
         self.sessions = set()
+        self.sim_clock = None if sim_now_ns is None else SimClock(sim_now_ns, call_later, cancel_later, self.sessions)
         self.graph = None  # the latest GraphState (globs applied), None before the first poll
         self.channels = {}  # id -> channel entry
         self._channel_ids = {}  # (topic, type, schema) -> id: a channel keeps its id while it lasts
@@ -81,6 +84,8 @@ class Catalog:
         self.sessions.add(session)
         if first:
             self._backend.watch_graph(self.graph_changed)
+            if self.sim_clock is not None:
+                self.sim_clock.start()
         elif self.graph is not None:
             session.advertise(list(self.channels.values()), [])
             session.advertise_services(list(self.services.values()), [])
@@ -89,6 +94,8 @@ class Catalog:
         self.sessions.discard(session)
         if not self.sessions:
             self._backend.unwatch_graph(self.graph_changed)
+            if self.sim_clock is not None:
+                self.sim_clock.stop()
             self.graph = None  # (a client that comes later gets a fresh poll, not what was true then)
             self.channels.clear()
             self._channel_ids.clear()

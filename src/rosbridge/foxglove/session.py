@@ -48,7 +48,7 @@ class FoxgloveSession:
             {
                 "op": "serverInfo",
                 "name": "turtlesim rosbridge (ROS 1)",
-                "capabilities": list(CAPABILITIES),
+                "capabilities": list(CAPABILITIES) + (["time"] if catalog.sim_clock is not None else []),
                 "supportedEncodings": list(ENCODINGS),
                 # (Debian's ROS 1 is noetic's: Lichtblick takes ROS 1's common message definitions by this name,
                 # and ROS 2's, whose Header differs, by any other)
@@ -323,7 +323,9 @@ class FoxgloveSession:
     def deliver(self, message):
         sub_id = self._topics.get(message.topic)
         if sub_id is not None:
-            frame = wire.message_data(sub_id, int(message.stamp * 1e9), message.data)
+            clock = self._catalog.sim_clock
+            stamp = clock.now_ns() if clock is not None else int(message.stamp * 1e9)
+            frame = wire.message_data(sub_id, stamp, message.data)
             self._queue(message.topic, (frame,))
 
     def ros_refused(self, op, name, text):
@@ -352,6 +354,10 @@ class FoxgloveSession:
             self.send_json({"op": "unadvertiseServices", "serviceIds": removed})
         if services:
             self.send_json({"op": "advertiseServices", "services": services})
+
+    def send_time(self, frame):
+        """The simulated time (sim_clock.py), kept fresh on a slow link as a topic's messages are."""
+        self._queue("/clock", (frame,))
 
     # ---- outgoing -------------------------------------------------------------------------------------
     def status(self, level, msg, request_id=None, status_id=None):
