@@ -309,3 +309,15 @@ def test_with_use_sim_time_clients_get_the_clock_and_messages_stamped_by_it(ros,
     assert "time" in results["info"]["info"]["capabilities"]
     assert results["time"]["time"] == str(42 * 10**9 + 7)
     assert results["messages"]["messages"][0]["timestamp"] == str(42 * 10**9 + 7)
+
+
+def test_a_foxglove_client_that_drives_and_leaves_is_stopped(ros, bridge):
+    twist = base64.b64encode(struct.pack("<6d", 0.7, 0, 0, 0, 0, 0)).decode()
+    step = {"do": "publish", "topic": "/fg/drive", "type": "geometry_msgs/Twist", "data": twist, "count": 40}
+    client = ros.spawn(["node", str(SCRIPT), ws_url(bridge), json.dumps(step)], "foxglove-client")
+    wait_for(lambda: any(name == "/fg/drive" for name, _ in ros.master().getSystemState()[0]), 20, what="/fg/drive")
+    with ros.spawn(["rostopic", "echo", "/fg/drive/linear/x"], "echo-drive") as echo:
+        wait_for(lambda: "0.7" in echo.output(), 20, what="the client's Twists")
+        assert client.popen.wait(30) == 0, client.output()
+        # (the client left: the dead-man stop sends one zero Twist on what it drove)
+        wait_for(lambda: echo.output().split()[-2:] == ["0.0", "---"], 10, what=lambda: echo.output()[-200:])
