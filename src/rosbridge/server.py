@@ -40,6 +40,7 @@ from rosbridge.transport.write_turns import WriteTurns
 
 MAX_LOGGED_KINDS = 1000  # kinds of refusal remembered for rate limiting (refused origins are kinds)
 IDLE_TIMEOUT = 10.0  # seconds
+CLIENT_LINES_PER_SECOND = 20
 
 
 class Bridge:
@@ -63,15 +64,34 @@ class Bridge:
         self.foxglove = Catalog(backend, config.globs, loop.call_later, loop.remove_timeout, sim_now_ns)
         self.session_id = str(time.time_ns())  # tells a Foxglove client whether it reconnects to the same bridge
         self._logged = {}
+        self._lines_since, self._lines, self._unlogged = float("-inf"), 0, 0  # (_log_client)
 
     def client_opened(self, handler):
         self.clients.add(handler)
         self.backend.set_client_count(len(self.clients))
+        self._log_client("connected", handler)
 
     def client_closed(self, handler):
         if handler in self.clients:
             self.clients.discard(handler)
             self.backend.set_client_count(len(self.clients))
+            self._log_client("disconnected", handler)
+
+    def _log_client(self, what, handler):
+        """The reference's line for each client that comes and goes, with its protocol and address; at most
+        CLIENT_LINES_PER_SECOND, then one line saying how many were not logged (a flood must not fill the disk)."""
+        now = time.monotonic()
+        if now - self._lines_since >= 1.0:
+            if self._unlogged:
+                rospy.loginfo("(%d client connections and disconnections not logged)", self._unlogged)
+            self._lines_since, self._lines, self._unlogged = now, 0, 0
+        if self._lines >= CLIENT_LINES_PER_SECOND:
+            self._unlogged += 1
+            return
+        self._lines += 1
+        rospy.loginfo(
+            "Client %s (%s, %s). %d clients total.", what, handler.protocol_name, handler.peer, len(self.clients)
+        )
 
     def log_refusal(self, kind, text, every=60.0):
         """Logs a refusal at most once a minute per kind (and of at most MAX_LOGGED_KINDS kinds)."""

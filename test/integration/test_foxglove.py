@@ -321,3 +321,17 @@ def test_a_foxglove_client_that_drives_and_leaves_is_stopped(ros, bridge):
         assert client.popen.wait(30) == 0, client.output()
         # (the client left: the dead-man stop sends one zero Twist on what it drove)
         wait_for(lambda: echo.output().split()[-2:] == ["0.0", "---"], 10, what=lambda: echo.output()[-200:])
+
+
+def test_clients_coming_and_going_are_logged_with_their_protocol(ros, bridge):
+    run(ros, ws_url(bridge), {"do": "info"})
+    wait_for(
+        lambda: "Client disconnected (foxglove.websocket.v1, 127.0.0.1)" in bridge.proc.output(),
+        10,
+        what=lambda: bridge.proc.output()[-500:],
+    )
+    assert "Client connected (foxglove.websocket.v1, 127.0.0.1)" in bridge.proc.output()
+    client = WsClient(ws_url(bridge))
+    client.send({"op": "subscribe", "topic": "/fg/point"})
+    client.recv_until(lambda f: f.get("op") == "publish")
+    assert "Client connected (rosbridge, 127.0.0.1)" in bridge.proc.output()

@@ -189,6 +189,7 @@ class ClientConnection:
 
     def __init__(self, bridge, stream, peer, window_bits, subprotocol=None):
         self.bridge, self._stream, self._window_bits = bridge, stream, window_bits
+        self.peer, self.protocol_name = peer, subprotocol or "rosbridge"
         self._send_direct = type(stream) is tornado.iostream.IOStream  # (not TLS: _send)
         settings = bridge.settings
         self._loop = tornado.ioloop.IOLoop.current()
