@@ -70,10 +70,9 @@ const STEPS = {
     for (const name of names) await serviceOf(name);
     return {services: [...services.values()]};
   },
-  gone: async ({topic}) => { // the topic's channel is unadvertised
-    const channel = await channelOf(topic);
-    await next(() => (channels.has(channel.id) ? undefined : true), 10);
-    return {gone: channel.id};
+  gone: async ({topic}) => { // no channel of the topic is advertised (any more)
+    await next(() => ([...channels.values()].some((c) => c.topic === topic) ? undefined : true));
+    return {gone: topic};
   },
   messages: async ({topic, count = 1}) => {
     const channel = await channelOf(topic);
