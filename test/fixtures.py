@@ -7,8 +7,9 @@ from harness import start_bridge
 
 
 class From:
-    """A setting whose value is a fixture's, set up before the bridge: bag_folder=From("bag_folder"); with a file
-    name, that file of the fixture's folder: certfile=From("tls_folder", "cert.pem")."""
+    """A setting whose value is a fixture's (or the test's parameter's), set up before the bridge:
+    bag_folder=From("bag_folder"), address=From("address"); with a file name, that file of the fixture's folder:
+    certfile=From("tls_folder", "cert.pem")."""
 
     def __init__(self, fixture, file=None):
         self.fixture, self.file = fixture, file
@@ -54,7 +55,7 @@ def bridge_fixture(node_name="rosbridge_websocket", *, scope="module", yields="p
         running = Bridge(ros, node_name, values)
         try:
             yield running if yields == "bridge" else getattr(running, yields)
-        finally:  # (the Proc of a restart, if the test made one)
+        finally:  # (the Proc running now: a restart's, if the test made one)
             running.proc.stop()
 
     return bridge

@@ -12,6 +12,7 @@ import pytest
 from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import Select
 
+from fixtures import bridge_fixture
 from harness import ARTIFACTS, wait_for
 from sensor_messages import Publishing, big_cloud, moving_frames, quaternion, tf_message, wide_scan
 
@@ -763,22 +764,19 @@ def test_the_cloud_endpoint_decimates_on_the_bridge_to_a_bounded_size(bridge_url
     assert get(f"{bridge_url}cloud?topic=bad%20name")[0] == 400
 
 
-def test_the_cloud_endpoint_keeps_the_websockets_rules(ros, sim):
-    from harness import start_bridge
+cloud_rules_bridge = bridge_fixture("cloud_rules_bridge", scope="function", yields="url", topics_glob="[/allowed/*]")
 
-    proc, port = start_bridge(ros, node_name="cloud_rules_bridge", topics_glob="[/allowed/*]")
+
+def test_the_cloud_endpoint_keeps_the_websockets_rules(sim, cloud_rules_bridge):
+    url = f"{cloud_rules_bridge}cloud?topic="
+    assert get(url + "/test/cloud")[0] == 403
+    request = urllib.request.Request(url + "/allowed/cloud", headers={"Origin": "http://evil.example"})
     try:
-        url = f"http://127.0.0.1:{port}/cloud?topic="
-        assert get(url + "/test/cloud")[0] == 403
-        request = urllib.request.Request(url + "/allowed/cloud", headers={"Origin": "http://evil.example"})
-        try:
-            urllib.request.urlopen(request, timeout=10)
-            refused = None
-        except urllib.error.HTTPError as error:
-            refused = error.code
-        assert refused == 403
-    finally:
-        proc.stop()
+        urllib.request.urlopen(request, timeout=10)
+        refused = None
+    except urllib.error.HTTPError as error:
+        refused = error.code
+    assert refused == 403
 
 
 def test_the_cloud_viewer_draws_the_decimated_cloud_from_above(open_page, cloud_topic):

@@ -17,11 +17,13 @@ import urllib.request
 import pytest
 from PIL import Image
 
-from harness import ProcStat, make_workdir, start_bridge, wait_for
+from fixtures import From, bridge_fixture
+from harness import ProcStat, make_workdir, wait_for
 
 BOUNDARY = b"--boundarydonotcross"
 GLOB = "[/streams_test/*]"
 STALLED = 12.0  # the module bridge's websocket_ping_timeout: how long a frame may take to leave (default 30 s)
+SOON_STALLED = 3.0  # the websocket_ping_timeout of the bridges of a test's own that check it
 
 
 # ---- publishing -------------------------------------------------------------------------------------------------
@@ -178,16 +180,12 @@ def jpeg_size(body):
 
 
 # ---- fixtures ---------------------------------------------------------------------------------------------------
-@pytest.fixture(scope="module")
-def bridge_proc(ros):
-    proc, port = start_bridge(ros, node_name="streams_bridge", topics_glob=GLOB, websocket_ping_timeout=STALLED)
-    yield proc, port
-    proc.stop()
+bridge_proc = bridge_fixture("streams_bridge", yields="bridge", topics_glob=GLOB, websocket_ping_timeout=STALLED)
 
 
 @pytest.fixture(scope="module")
 def bridge(bridge_proc):
-    return bridge_proc[1]
+    return bridge_proc.port
 
 
 @pytest.fixture(scope="module")
@@ -396,7 +394,7 @@ def test_a_slow_reader_gets_fresh_frames_never_a_backlog_and_memory_stays_bounde
     """A viewer that reads 4 kB/s (a frame is ~100 kB) for 10 s, then reads at full speed: what it gets next
     is at most the frame it was in and one fresh frame, not the 10 s of frames in between. Meanwhile a fast viewer
     keeps the topic's rate and the bridge's memory stays flat."""
-    proc, port = bridge_proc
+    proc, port = bridge_proc.proc, bridge_proc.port
     cam = Camera(node, "/streams_test/busy", 20, image_maker(camera_pictures(640, 480, noise=0.5)))
     stat = ProcStat(proc.pid)
     try:
@@ -447,7 +445,7 @@ def test_viewers_of_the_same_size_and_quality_share_one_encode(bridge_proc, node
     """The bridge's CPU above a baseline (the topic received, one viewer of a tiny picture): six viewers of six
     qualities cost six encodes of every 1280x720 frame; six viewers of one quality cost about one, so far less.
     If each viewer encoded its own, both would cost the same."""
-    proc, port = bridge_proc
+    proc, port = bridge_proc.proc, bridge_proc.port
     cam = Camera(node, "/streams_test/hd", 15, image_maker(camera_pictures(1280, 720)))
     stat = ProcStat(proc.pid)
 
@@ -556,28 +554,30 @@ def closed_by_the_server(server_port, client_port):
     return True
 
 
-def test_a_viewer_that_stops_reading_is_dropped(ros, camera):
+stall_bridge = bridge_fixture(
+    "streams_stall_bridge", scope="function", topics_glob=GLOB, websocket_ping_timeout=SOON_STALLED
+)
+
+
+def test_a_viewer_that_stops_reading_is_dropped(camera, stall_bridge):
     """A link that died without a FIN: the frame being written never leaves; after websocket_ping_timeout (not
     before) the viewer is dropped. (A bridge of its own, with a timeout shorter than the module bridge's.)"""
-    timeout = 3.0
-    proc, port = start_bridge(ros, node_name="streams_stall_bridge", topics_glob=GLOB, websocket_ping_timeout=timeout)
-    try:
-        wait_streaming(port, "/streams_test/cam")
-        connected = time.monotonic()
-        stream = Http(port, "/stream?topic=/streams_test/cam", rcvbuf=4096)
-        wait_for(
-            lambda: closed_by_the_server(port, stream.sock.getsockname()[1]),
-            4 * timeout,
-            interval=0.1,
-            what="the bridge to close the stalled viewer",
-        )
-        assert time.monotonic() - connected > timeout, "dropped before its frame stalled for the timeout"
-        with pytest.raises((EOFError, ConnectionError)):
-            while True:  # what was sent, then the end
-                stream.fill()
-        stream.close()
-    finally:
-        proc.stop()
+    timeout = SOON_STALLED
+    port = stall_bridge
+    wait_streaming(port, "/streams_test/cam")
+    connected = time.monotonic()
+    stream = Http(port, "/stream?topic=/streams_test/cam", rcvbuf=4096)
+    wait_for(
+        lambda: closed_by_the_server(port, stream.sock.getsockname()[1]),
+        4 * timeout,
+        interval=0.1,
+        what="the bridge to close the stalled viewer",
+    )
+    assert time.monotonic() - connected > timeout, "dropped before its frame stalled for the timeout"
+    with pytest.raises((EOFError, ConnectionError)):
+        while True:  # what was sent, then the end
+            stream.fill()
+    stream.close()
 
 
 # ---- bounds ------------------------------------------------------------------------------------------------------
@@ -614,7 +614,7 @@ def test_a_tall_image_asked_wide_is_scaled_within_the_output_bounds(bridge_proc,
     """A 4x300 mono8 image (1.2 kB) asked 4096 px wide: its aspect alone would make it 4096x307,200 (1.2 GB of
     pixels: the bridge's memory peaked 1.24 GB higher, then it answered 415). It is scaled to fit 4096 px a side
     instead, and the bridge's peak memory barely moves."""
-    proc, port = bridge_proc
+    proc, port = bridge_proc.proc, bridge_proc.port
     cam = Camera(node, "/streams_test/tall", 10, image_maker([Image.new("L", (4, 300), 128)], "mono8"))
     stat = ProcStat(proc.pid)
     try:
@@ -638,7 +638,7 @@ def test_the_variants_a_latched_frame_keeps_are_bounded_in_bytes(bridge_proc, no
     """14 snapshots at once of a latched picture, at 14 sizes of 8.4 Mpx (the largest allowed), quality 100: each
     is made, and the frame keeps at most streams.MAX_VARIANT_BYTES of them while its topic is watched (the bridge
     grew by 370 MB of such snapshots before)."""
-    proc, port = bridge_proc
+    proc, port = bridge_proc.proc, bridge_proc.port
     stat = ProcStat(proc.pid)
     sizes = [(4096 - 16 * index, 2048) for index in range(14)]
     pub = latched_image(node, "/streams_test/latched", camera_pictures(640, 480, 1, noise=0.5)[0])
@@ -739,15 +739,17 @@ def noise_camera(node):
     cam.close()
 
 
+# a bridge of the test's own, its memory measured alone (websocket_ping_timeout the default 30 s)
+held = bridge_fixture(
+    "streams_held_bridge", scope="function", yields="bridge", needs=("noise_camera",), topics_glob=GLOB
+)
+
+
 @pytest.fixture
-def held_bridge(ros, noise_camera):
-    """A bridge of its own, its memory measured alone (websocket_ping_timeout the default 30 s)."""
-    proc, port = start_bridge(ros, node_name="streams_held_bridge", topics_glob=GLOB)
-    try:
-        wait_streaming(port, "/streams_test/noise")
-        yield proc, port
-    finally:
-        proc.stop()
+def held_bridge(held):
+    """The held bridge, once it streams the noise camera."""
+    wait_streaming(held.port, "/streams_test/noise")
+    return held
 
 
 @pytest.mark.slow
@@ -757,7 +759,7 @@ def test_snapshots_to_stalled_readers_are_bounded_in_memory_and_others_still_ans
     bridge grew 2 GB for 40 of them). Now the pictures being written to viewers are bounded in bytes
     (streams.MAX_SENDING_BYTES): beyond it a snapshot is refused (503), or makes room by dropping a reader whose
     picture has not left for streams.CROWDED_STALL; and a normal snapshot is answered meanwhile."""
-    proc, port = held_bridge
+    proc, port = held_bridge.proc, held_bridge.port
     stat = ProcStat(proc.pid)
     rss = stat.rss_mb()
     stat.reset_peak_rss()
@@ -795,7 +797,7 @@ def test_stalled_stream_viewers_of_many_sizes_are_bounded_in_memory_and_a_normal
     MB picture until websocket_ping_timeout (80 of them took the bridge from 52 MB to 1.19 GB). Now they share
     streams.MAX_SENDING_BYTES (a viewer beyond it waits, and makes room by dropping one whose picture has not left
     for streams.CROWDED_STALL), and a normal viewer gets the camera's frames meanwhile."""
-    proc, port = held_bridge
+    proc, port = held_bridge.proc, held_bridge.port
     stat = ProcStat(proc.pid)
     rss = stat.rss_mb()
     stat.reset_peak_rss()
@@ -828,36 +830,36 @@ def test_stalled_stream_viewers_of_many_sizes_are_bounded_in_memory_and_a_normal
     assert held < 175 and peak < 275, (held, peak)
 
 
-def test_a_snapshot_counts_in_max_clients_until_sent_and_is_dropped_if_it_stalls(ros, camera):
+snapshot_bridge = bridge_fixture(
+    "streams_snapshot_bridge", scope="function", topics_glob=GLOB, max_clients=2, websocket_ping_timeout=SOON_STALLED
+)
+
+
+def test_a_snapshot_counts_in_max_clients_until_sent_and_is_dropped_if_it_stalls(camera, snapshot_bridge):
     """A snapshot is a viewer until its picture has left: it counts in max_clients (it stopped counting once answered,
     so readers that never read could hold any number of pictures), and one not gone after websocket_ping_timeout is
     dropped, as a stream's is (it was held for good)."""
-    timeout = 3.0
-    proc, port = start_bridge(
-        ros, node_name="streams_snapshot_bridge", topics_glob=GLOB, max_clients=2, websocket_ping_timeout=timeout
-    )
-    try:
-        wait_streaming(port, "/streams_test/cam")
-        time.sleep(0.5)  # (that snapshot's place given back)
-        connected = time.monotonic()
-        readers = stalled_readers(port, ["/snapshot?topic=/streams_test/cam&width=1920&height=1440&quality=100"] * 2, 0)
-        for sock in readers:
-            assert sock.recv(12, socket.MSG_PEEK) == b"HTTP/1.1 200"  # (answered: its picture is being sent)
-        status, _, body = get(port, "/snapshot?topic=/streams_test/cam&width=32")
-        assert status == 503 and b"too many camera stream viewers" in body
-        for sock in readers:
-            wait_for(
-                lambda: closed_by_the_server(port, sock.getsockname()[1]),
-                4 * timeout,
-                interval=0.1,
-                what="the bridge to close the stalled snapshot",
-            )
-        assert time.monotonic() - connected > timeout, "dropped before its picture stalled for the timeout"
-        for sock in readers:
-            sock.close()
-        wait_for(lambda: get(port, "/snapshot?topic=/streams_test/cam&width=32")[0] == 200, 10, what="room again")
-    finally:
-        proc.stop()
+    timeout = SOON_STALLED
+    port = snapshot_bridge
+    wait_streaming(port, "/streams_test/cam")
+    time.sleep(0.5)  # (that snapshot's place given back)
+    connected = time.monotonic()
+    readers = stalled_readers(port, ["/snapshot?topic=/streams_test/cam&width=1920&height=1440&quality=100"] * 2, 0)
+    for sock in readers:
+        assert sock.recv(12, socket.MSG_PEEK) == b"HTTP/1.1 200"  # (answered: its picture is being sent)
+    status, _, body = get(port, "/snapshot?topic=/streams_test/cam&width=32")
+    assert status == 503 and b"too many camera stream viewers" in body
+    for sock in readers:
+        wait_for(
+            lambda: closed_by_the_server(port, sock.getsockname()[1]),
+            4 * timeout,
+            interval=0.1,
+            what="the bridge to close the stalled snapshot",
+        )
+    assert time.monotonic() - connected > timeout, "dropped before its picture stalled for the timeout"
+    for sock in readers:
+        sock.close()
+    wait_for(lambda: get(port, "/snapshot?topic=/streams_test/cam&width=32")[0] == 200, 10, what="room again")
 
 
 # ---- the list, the viewer page, bad requests ----------------------------------------------------------------------
@@ -980,15 +982,16 @@ def auth_query(secret=SECRET, **changes):
 
 
 @pytest.fixture(scope="module")
-def auth_bridge(ros):
-    """The port of a bridge with authenticate on (secret SECRET)."""
-    secret_file = make_workdir("streams-auth") / "secret"
-    secret_file.write_text(SECRET)
-    proc, port = start_bridge(
-        ros, node_name="streams_auth_bridge", authenticate="true", secret_file=str(secret_file), topics_glob=GLOB
-    )
-    yield port
-    proc.stop()
+def secret_file():
+    path = make_workdir("streams-auth") / "secret"
+    path.write_text(SECRET)
+    return path
+
+
+# the port of a bridge with authenticate on (secret SECRET)
+auth_bridge = bridge_fixture(
+    "streams_auth_bridge", authenticate="true", secret_file=From("secret_file"), topics_glob=GLOB
+)
 
 
 def test_authenticate_requires_the_rosauth_fields(auth_bridge, camera):
@@ -1040,21 +1043,21 @@ def test_a_stream_ends_at_its_authentications_end(auth_bridge, camera):
     assert len(parts) > 10  # (the frames until then)
 
 
-def test_viewers_are_bounded_by_max_clients(ros, camera):
-    proc, port = start_bridge(ros, node_name="streams_small_bridge", max_clients=3)
-    try:
-        wait_streaming(port, "/streams_test/cam")
-        streams = [Http(port, "/stream?topic=/streams_test/cam&width=32") for _ in range(3)]
-        assert [s.status for s in streams] == [200] * 3
-        status, _, body = get(port, "/stream?topic=/streams_test/cam")
-        assert status == 503 and b"too many camera stream viewers" in body
-        assert get(port, "/snapshot?topic=/streams_test/cam")[0] == 503
-        streams.pop().close()
-        wait_for(lambda: get(port, "/snapshot?topic=/streams_test/cam")[0] == 200, 10, what="room again")
-        for stream in streams:
-            stream.close()
-    finally:
-        proc.stop()
+small_bridge = bridge_fixture("streams_small_bridge", scope="function", max_clients=3)
+
+
+def test_viewers_are_bounded_by_max_clients(camera, small_bridge):
+    port = small_bridge
+    wait_streaming(port, "/streams_test/cam")
+    streams = [Http(port, "/stream?topic=/streams_test/cam&width=32") for _ in range(3)]
+    assert [s.status for s in streams] == [200] * 3
+    status, _, body = get(port, "/stream?topic=/streams_test/cam")
+    assert status == 503 and b"too many camera stream viewers" in body
+    assert get(port, "/snapshot?topic=/streams_test/cam")[0] == 503
+    streams.pop().close()
+    wait_for(lambda: get(port, "/snapshot?topic=/streams_test/cam")[0] == 200, 10, what="room again")
+    for stream in streams:
+        stream.close()
 
 
 # ---- no leak ----------------------------------------------------------------------------------------------------
@@ -1071,7 +1074,7 @@ def bridge_subscribes(ros, topic, node_name="/streams_bridge"):
 
 @pytest.mark.slow
 def test_a_thousand_viewers_coming_and_going_leave_nothing(ros, bridge_proc, node):
-    proc, port = bridge_proc
+    proc, port = bridge_proc.proc, bridge_proc.port
     cam = Camera(node, "/streams_test/churn", 30, image_maker(camera_pictures(320, 240)))
     stat = ProcStat(proc.pid)
     try:
