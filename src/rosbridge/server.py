@@ -34,8 +34,9 @@ from rosbridge.ros_side import RosBackend
 from rosbridge.ros_side.recovery import MasterWatch
 from rosbridge.ros_side.rosapi import Rosapi
 from rosbridge.settings import Settings
-from rosbridge.transport.connection import BridgeSocket, unfinished_bound
+from rosbridge.transport.connection import unfinished_bound
 from rosbridge.transport.deadman import DriverLeases
+from rosbridge.transport.handshake import BridgeSocket
 from rosbridge.transport.write_turns import WriteTurns
 
 MAX_LOGGED_KINDS = 1000  # kinds of refusal remembered for rate limiting (refused origins are kinds)
