@@ -335,3 +335,11 @@ def test_clients_coming_and_going_are_logged_with_their_protocol(ros, bridge):
     client.send({"op": "subscribe", "topic": "/fg/point"})
     client.recv_until(lambda f: f.get("op") == "publish")
     assert "Client connected (rosbridge, 127.0.0.1)" in bridge.proc.output()
+
+
+def test_with_authenticate_a_foxglove_client_is_refused_with_a_reason_it_shows(ros):
+    proc, port = start_bridge(ros, node_name="foxglove_auth", authenticate="true")
+    with proc:
+        results = run(ros, f"ws://127.0.0.1:{port}", {"do": "info"}, check=False)
+    assert results["closed"]["code"] == 1008 and "rosauth" in results["closed"]["reason"]
+    assert "a Foxglove client refused" in proc.output()
