@@ -15,14 +15,13 @@ from rosbridge.errors import ClientError, RequestError, log_bug
 from rosbridge.foxglove import parameters as params
 from rosbridge.foxglove import wire
 from rosbridge.globs import allowed
-from rosbridge.protocol.outbox import Outbox, outbox_report
+from rosbridge.protocol.outbox import Outbox
 
 LEVELS = {"info": 0, "warning": 1, "error": 2}
 ENCODINGS = ("ros1", "json")  # what clients may publish and call services with
 CAPABILITIES = ("clientPublish", "parameters", "parametersSubscribe", "services", "connectionGraph", "assets")
 MAX_PARAMETER_NAMES = 10_000  # names in one request
 MAX_ASSETS_IN_FLIGHT = 4  # fetchAsset requests of one client being read at once; more are refused
-REPORT_INTERVAL = 1.0  # s: how often at most a client is told what its slow link skipped or dropped
 
 
 class FoxgloveSession:
@@ -37,7 +36,6 @@ class FoxgloveSession:
         self.is_closed = False
         self._outbox = Outbox(config.max_queue, config.max_queue_bytes, host.clock, config.queue_pool)
         self._woken = False
-        self._last_report = float("-inf")
         self._subscriptions = {}  # subscription id -> topic
         self._topics = {}  # topic -> subscription id (one per channel)
         self._client_channels = {}  # client channel id -> (topic, encoding, type)
@@ -382,11 +380,8 @@ class FoxgloveSession:
 
     def take_frame(self):
         outbox = self._outbox
-        now = self._host.clock()
-        if (outbox.skipped or outbox.dropped or outbox.refused) and now - self._last_report >= REPORT_INTERVAL:
-            self._last_report = now
-            for level, text in outbox_report(*outbox.take_report(), self.config):
-                outbox.push(None, (dumps({"op": "status", "level": LEVELS[level], "message": text, "id": level}),))
+        for level, text in outbox.reports_due(self.config):  # (by id: a newer report replaces the older)
+            outbox.push(None, (dumps({"op": "status", "level": LEVELS[level], "message": text, "id": level}),))
         frame = outbox.take()
         if frame is None:
             self._woken = False

@@ -8,6 +8,7 @@ OWN_QUEUE_BYTES = 1 << 18  # what one client's outbox may hold before it draws o
 # (QueuePool): the small backlogs of many clients never do
 TOPIC_BACKLOG_BYTES = 16 * 1024  # what one topic may have waiting while the socket is backed up (but its newest)...
 FRESH_HORIZON = 0.5  # ...and for how long (s): older messages of a topic that has a newer one waiting are skipped
+REPORT_INTERVAL = 1.0  # s: how often at most a client is told what its slow link skipped or dropped
 
 
 class _Unit:
@@ -74,6 +75,7 @@ class Outbox:
         self.bytes = 0
         self.backed_up = False
         self.skipped, self.dropped, self.refused = collections.Counter(), collections.Counter(), collections.Counter()
+        self._reported_at = float("-inf")
 
     def __len__(self):
         return self.frames
@@ -196,6 +198,15 @@ class Outbox:
                 return unit
             self._dead -= 1
         return None
+
+    def reports_due(self, config):
+        """(level, text) of what the client's slow link cost it since it was last told (outbox_report), if there
+        is something to tell and REPORT_INTERVAL has passed; else nothing."""
+        now = self._clock()
+        if not (self.skipped or self.dropped or self.refused) or now - self._reported_at < REPORT_INTERVAL:
+            return ()
+        self._reported_at = now
+        return tuple(outbox_report(*self.take_report(), config))
 
     def take_report(self):
         """(skipped, dropped, refused) since the last report: Counters of messages by topic."""

@@ -19,11 +19,10 @@ from rosbridge.codec.json_values import dumps
 from rosbridge.contract import SessionHost
 from rosbridge.errors import ClientError, RequestError, log_bug
 from rosbridge.protocol.encoded import COMPRESSIONS, service_response_frames, status_frame
-from rosbridge.protocol.outbox import Outbox, QueuePool, outbox_report
+from rosbridge.protocol.outbox import Outbox, QueuePool
 from rosbridge.protocol.reassembly import Fragments, unpack_png
 from rosbridge.protocol.subscription import MAX_THROTTLE_RATE, Subscription
 
-REPORT_INTERVAL = 1.0  # s: how often at most a client is told what its slow link skipped or dropped
 STATUS_LEVELS = ("info", "warning", "error", "none")
 # ops the ROS side may refuse later, off the loop (see Session.ros_refused), and the field naming what they ask
 LATER_REFUSALS = {"subscribe": "topic", "advertise": "topic", "publish": "topic", "advertise_service": "service"}
@@ -184,7 +183,6 @@ class Session:
         self._auth_timer = None if self.authenticated else host.call_later(AUTH_TIMEOUT, self._auth_deadline)
         self.is_closed = False
         self._outgoing = Outbox(config.max_queue, config.max_queue_bytes, host.clock, config.queue_pool)
-        self._last_report = float("-inf")  # when the client was last told what its slow link skipped
         self._reports: collections.deque[str] = collections.deque()  # those status frames: they go first
         self._woken = False
         # its fragment ops' unfinished messages count with every client's
@@ -500,19 +498,14 @@ class Session:
     def take_frame(self):
         """The next frame to write, or None when the queue is empty (the next send wakes the server again).
         What a slow link made the bridge skip, drop or refuse is told first, at most once a REPORT_INTERVAL."""
-        outbox = self._outgoing
-        if (
-            outbox.skipped or outbox.dropped or outbox.refused
-        ) and self._host.clock() - self._last_report >= REPORT_INTERVAL:
-            self._last_report = self._host.clock()
-            self._reports.extend(
-                status_frame(level, text)
-                for level, text in outbox_report(*outbox.take_report(), self.config)
-                if STATUS_LEVELS.index(level) >= self.level
-            )
+        self._reports.extend(
+            status_frame(level, text)
+            for level, text in self._outgoing.reports_due(self.config)
+            if STATUS_LEVELS.index(level) >= self.level
+        )
         if self._reports:
             return self._reports.popleft()
-        frame = outbox.take()
+        frame = self._outgoing.take()
         if frame is None:
             self._woken = False
         return frame
