@@ -140,7 +140,7 @@ def routes(bridge, web_root, recorder=None):
     return host_checked(bridge, table)  # every request, by its Host (DNS rebinding)
 
 
-def bind_foxglove_port(current):
+def bind_foxglove_port(current, port):
     """The sockets of the second port (foxglove_port), or none: -1, the same as `port`, or taken (another
     Foxglove server runs here: a warning, and the bridge goes on with its own port, where Foxglove clients
     are served as well)."""
@@ -153,7 +153,7 @@ def bind_foxglove_port(current):
             "foxglove_port %d: %s; Foxglove clients can still connect on port %d",
             current.foxglove_port,
             error.strerror,
-            current.port,
+            port,
         )
         return []
 
@@ -222,7 +222,7 @@ def main():
     app = tornado.web.Application(routes(bridge, web_root, recorder))
     ssl_options = {"certfile": current.certfile, "keyfile": current.keyfile} if current.ssl else None
     sockets = tornado.netutil.bind_sockets(current.port, current.address or None)
-    foxglove_sockets = bind_foxglove_port(current)
+    foxglove_sockets = bind_foxglove_port(current, sockets[0].getsockname()[1])
     # a connection that sends no request within IDLE_TIMEOUT is closed: idle sockets must not hold descriptors
     server = BoundedHTTPServer(
         app,

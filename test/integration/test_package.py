@@ -63,6 +63,9 @@ def test_installed_messages_nodes_launch_file_and_page(ros, install_space):
     assert (install_space / "share" / "turtlesim" / "web" / "index.html").is_file()
     assert (install_space / "share" / "turtlesim" / "web" / "vendor" / "roslib.min.js").is_file()
     assert not (install_space / "share" / "turtlesim" / "web" / "node_modules").exists()
+    # the demo's robot description and the mesh it names (turtle_tf reads one, Foxglove clients fetch the other)
+    assert (install_space / "share" / "turtlesim" / "urdf" / "turtle.urdf").is_file()
+    assert (install_space / "share" / "turtlesim" / "meshes" / "turtle_shell.stl").is_file()
 
     show = subprocess.run(
         installed(ros, install_space, "rosmsg show turtlesim/Pose"), capture_output=True, text=True, timeout=60
