@@ -99,54 +99,17 @@ class Newest:
         return self.made[max_points]
 
 
-def publisher_address(topic, callerid, timeout):
-    """(host, port) of the TCPROS server of topic's first publisher, once the master knows one."""
-    import xmlrpc.client
-
-    import rosgraph
-
-    master = rosgraph.Master(callerid)
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        publishers = dict(master.getSystemState()[0]).get(topic)
-        if publishers:
-            code, message, protocol = xmlrpc.client.ServerProxy(master.lookupNode(publishers[0])).requestTopic(
-                callerid, topic, [["TCPROS"]]
-            )
-            if code == 1:
-                return protocol[1], protocol[2]
-        time.sleep(0.1)
-    raise SystemExit(f"no publisher of {topic} in {timeout} s")
-
-
 def receive(topic, deliver, timeout):
     """Subscribes to topic's publisher over TCPROS and calls deliver(message bytes) for each message (a thread)."""
-    import socket
-
+    import bare_tcpros
     from sensor_msgs.msg import PointCloud2
 
     from rosbridge.ros_side import tcpros
 
-    callerid = "/cloud_ceiling"
-    sock = socket.create_connection(publisher_address(topic, callerid, timeout))
-    sock.sendall(tcpros.encode_header(tcpros.subscriber_header(topic, PointCloud2, callerid)))
-
-    def exactly(size):
-        buffer = bytearray(size)
-        view, got = memoryview(buffer), 0
-        while got < size:
-            count = sock.recv_into(view[got:])
-            if not count:
-                raise SystemExit("the publisher left")
-            got += count
-        return buffer
-
-    reply = tcpros.decode_header(bytes(exactly(tcpros.header_size(exactly(4)))))
-    if "error" in reply:
-        raise SystemExit(f"the publisher refused: {reply['error']}")
+    sock = bare_tcpros.subscribe(topic, PointCloud2, "/cloud_ceiling", timeout)
     while True:
-        (size,) = tcpros.LENGTH.unpack(exactly(4))
-        deliver(exactly(size))
+        (size,) = tcpros.LENGTH.unpack(bare_tcpros.read_exactly(sock, 4))
+        deliver(bare_tcpros.read_exactly(sock, size))
 
 
 async def serve(a):
