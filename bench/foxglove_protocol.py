@@ -1,9 +1,12 @@
-"""A small client of foxglove_bridge's websocket protocol (`foxglove.websocket.v1`), for the benchmarks that
-measure it beside this bridge (bench/peers.py starts it). The server sends `serverInfo`, then `advertise`s its
-channels (id, topic, encoding `ros1`, schemaName, schema), polling the master for new topics every few seconds; a
-client subscribes with {"op": "subscribe", "subscriptions": [{"id": N, "channelId": C}]} and gets each message as
-a binary frame: opcode 0x01, the subscription id (u32 LE), the receive time (u64 LE, ns), the message's ROS 1
-bytes."""
+"""A small client of the Foxglove WebSocket protocol (`foxglove.websocket.v1`), for the benchmarks that measure
+foxglove_bridge (bench/peers.py starts it), the bridge's own Foxglove path (src/rosbridge/foxglove/, on the
+bridge's port) and their ceiling (foxglove_ceiling.py) beside each other. The server sends `serverInfo`, then
+`advertise`s its channels (id, topic, encoding `ros1`, schemaName, schema), and new ones as topics appear (the
+master polled every few seconds by foxglove_bridge, twice a second by the bridge); a client subscribes with
+{"op": "subscribe", "subscriptions": [{"id": N, "channelId": C}]} and gets each message as a binary frame: opcode
+0x01, the subscription id (u32 LE), the receive time (u64 LE, ns), the message's ROS 1 bytes. A client publishes
+by advertising a channel of its own ({"op": "advertise", "channels": [{"id": N, "topic", "encoding": "ros1",
+"schemaName"}]}), then sending binary frames: opcode 0x01, the channel id (u32 LE), the message's ROS 1 bytes."""
 
 import asyncio
 import json
@@ -13,6 +16,7 @@ import time
 SUBPROTOCOL = "foxglove.websocket.v1"
 MESSAGE_DATA = 0x01
 _HEAD = struct.Struct("<BIQ")
+_CLIENT_HEAD = struct.Struct("<BI")  # a client's message: opcode 0x01, its channel id
 
 
 def message_data(frame):
@@ -22,6 +26,11 @@ def message_data(frame):
         return None
     _, subscription, receive_ns = _HEAD.unpack_from(frame)
     return subscription, receive_ns, memoryview(frame)[_HEAD.size :]
+
+
+def client_message(channel_id, payload):
+    """A client's message on its channel `channel_id`: the binary frame, payload its ROS 1 bytes."""
+    return _CLIENT_HEAD.pack(MESSAGE_DATA, channel_id) + payload
 
 
 class Client:
@@ -85,6 +94,11 @@ class Client:
             self.topic_of[subscription] = topic
             subscriptions.append({"id": subscription, "channelId": self.channels[topic]})
         await self.ws.write_message(json.dumps({"op": "subscribe", "subscriptions": subscriptions}))
+
+    async def advertise(self, topic, schema_name, channel_id=1):
+        """Advertises a client channel (encoding ros1) to publish on with client_message(channel_id, ...)."""
+        channel = {"id": channel_id, "topic": topic, "encoding": "ros1", "schemaName": schema_name}
+        await self.ws.write_message(json.dumps({"op": "advertise", "channels": [channel]}))
 
     def close(self):
         if self.ws is not None:

@@ -85,6 +85,14 @@ def cbor_frame(kind, topic, seq=0):
     return cbor2.dumps({"op": "publish", "topic": topic, "msg": msg})
 
 
+def ros_bytes(kind, seq=0):
+    """The message's ROS 1 bytes, as TCPROS carries it and a Foxglove client publishes it (`ros1`); made here
+    without ROS imports, so for a Twist only (six float64s)."""
+    if kind != "twist":
+        raise ValueError(f"no ROS bytes made here for {kind!r}")
+    return struct.pack("<6d", float(seq), 0.0, 0.0, 0.0, 0.0, 1.5)
+
+
 def ros_msg(kind, seq=0):
     """The same message as a rospy message object (imports ROS message packages, so only in ROS processes)."""
     if kind == "twist":
@@ -158,7 +166,15 @@ def _cached(key, make):
 
 
 def stamp_of(kind, msg):
-    """The header stamp (seconds) of a received image or cloud, as seq_of takes it; None for the others."""
+    """The header stamp (seconds) of a received image or cloud, or the send time a Twist carries in angular.y
+    (ros_roles.py pub --stamp: its ROS bytes keep their 48), as seq_of takes it; None for the others."""
+    if kind == "twist":
+        msg = _ros_bytes(msg)
+        if isinstance(msg, (bytes, memoryview)):
+            stamp = struct.unpack_from("<d", msg, 32)[0]  # (linear x, y, z, angular x, then y)
+        else:
+            stamp = msg["angular"]["y"] if isinstance(msg, dict) else msg.angular.y
+        return stamp or None
     if kind not in ("image", "cloud"):
         return None
     msg = _ros_bytes(msg)

@@ -39,6 +39,11 @@ def main():
         action="store_true",
         help="pub: publish seq -1 at --rate until told to go (lets websocket clients see the topic live)",
     )
+    p.add_argument(
+        "--stamp",
+        action="store_true",
+        help="pub: a Twist carries its send time in angular.y (its age at a client: payloads.stamp_of)",
+    )
     p.add_argument("--idle", type=float, default=2.0, help="count: stop this long after the last message")
     p.add_argument("--timeout", type=float, default=60.0)
     a = p.parse_args()
@@ -77,6 +82,8 @@ def pub(a):
             msg.header.seq = i
         if a.kind in ("image", "cloud"):
             msg.header.stamp = rospy.Time.now()  # (its age at a client: payloads.stamp_of)
+        elif a.stamp and a.kind == "twist":
+            msg.angular.y = time.time()
         publisher.publish(msg)
         if period:
             time.sleep(max(0.0, start + (i + 1) * period - time.monotonic()))

@@ -1,10 +1,12 @@
-"""Lean rosbridge websocket clients for the benchmarks (Tornado's client; no ROS imports), one role per process.
+"""Lean websocket clients for the benchmarks (Tornado's client; no ROS imports), one role per process. They speak
+rosbridge, or with --protocol foxglove the Foxglove protocol (foxglove_protocol.py).
 
-  publish    advertises a topic, then on cue sends `count` publish ops as fast as the socket takes them; with
-             --one-frame-per-write, from a blocking socket that masks and sends each frame by itself, as
-             synchronous clients do (websocket-client, which roslibpy's users and scripts often use)
-  subscribe  subscribes (optionally with compression; or to foxglove_bridge, --protocol foxglove) and counts the
-             messages and bytes that arrive, and an image's age (arrival - its header stamp)
+  publish    advertises a topic, then on cue sends `count` publish ops as fast as the socket takes them (Foxglove: a
+             client channel's binary messages, the ROS bytes), or at --publish-rate; with --one-frame-per-write,
+             from a blocking socket that masks and sends each frame by itself, as synchronous clients do
+             (websocket-client, which roslibpy's users and scripts often use)
+  subscribe  subscribes (optionally with compression) and counts the messages and bytes that arrive, and their age
+             (arrival - an image's header stamp, or the send time of a Twist published with ros_roles.py --stamp)
   rtt        round trips: publishes pings at `rate` Hz and times the echoes coming back on another topic
   fanout     opens `clients` connections, all subscribed to one topic, and checks every one gets every message
 
@@ -47,7 +49,8 @@ def main():
         "--protocol",
         default="rosbridge",
         choices=["rosbridge", "foxglove"],
-        help="subscribe: a rosbridge server, or foxglove_bridge (foxglove_protocol.py: the ROS bytes)",
+        help="subscribe, publish: rosbridge, or the Foxglove protocol (foxglove_protocol.py: the ROS bytes; to "
+        "foxglove_bridge, the bridge or foxglove_ceiling.py)",
     )
     p.add_argument("--clients", type=int, default=1)
     p.add_argument("--idle", type=float, default=2.0)
@@ -78,19 +81,26 @@ def decode(frame):
 async def publish(a):
     if a.one_frame_per_write:
         return publish_frame_by_frame(a)
-    ws = await websocket_connect(a.url, max_message_size=MAX_FRAME)
-    await send(ws, {"op": "advertise", "topic": a.topic, "type": payloads.TYPES[a.kind]})
-    frame = payloads.publish_frame(a.kind, a.topic)
+    statuses = []
+    if a.protocol == "foxglove":  # a client channel (encoding ros1): the message's ROS bytes in binary frames
+        client = await foxglove_protocol.Client(lambda *_: None, statuses.append).connect(a.url)
+        await client.advertise(a.topic, payloads.TYPES[a.kind])
+        ws, frame = client.ws, foxglove_protocol.client_message(1, payloads.ros_bytes(a.kind))
+    else:
+        ws = await websocket_connect(a.url, max_message_size=MAX_FRAME)
+        await send(ws, {"op": "advertise", "topic": a.topic, "type": payloads.TYPES[a.kind]})
+        frame = payloads.publish_frame(a.kind, a.topic)
+    binary = isinstance(frame, bytes)
     print("READY", flush=True)
     await stats.cue()
     period = 1.0 / a.publish_rate if a.publish_rate else 0.0
     start = time.monotonic()
     for i in range(a.count):
-        await ws.write_message(frame)
+        await ws.write_message(frame, binary=binary)
         if period:
             await asyncio.sleep(max(0.0, start + (i + 1) * period - time.monotonic()))
     elapsed = time.monotonic() - start
-    stats.result(sent=a.count, seconds=elapsed, frame_bytes=len(frame))
+    stats.result(sent=a.count, seconds=elapsed, frame_bytes=len(frame), statuses=[str(s)[:200] for s in statuses[:3]])
     await stats.cue()  # stay connected until the suite has counted (closing early could cut the bridge's backlog)
     ws.close()
     await asyncio.sleep(0.2)
