@@ -1,4 +1,5 @@
-"""The seams of contract.py, checked against what implements them: a protocol session (protocol.Session) is what
+"""The seams of contract.py, checked against what implements them: a protocol session (protocol.Session,
+foxglove.FoxgloveSession) is what
 its connection calls (ProtocolSession) and what the ROS side calls (Client); a connection
 (transport/connection.ClientConnection), and the tests' fake of it, is what a session may ask (SessionHost)."""
 
@@ -7,6 +8,7 @@ import inspect
 import pytest
 
 from rosbridge.contract import Client, ProtocolSession, SessionHost
+from rosbridge.globs import Globs
 from rosbridge.protocol import Config, Session
 
 from fakes import Host
@@ -40,6 +42,19 @@ def mismatches(implementation, contract):
 @pytest.mark.parametrize("contract", [ProtocolSession, Client], ids=lambda contract: contract.__name__)
 def test_the_rosbridge_session_is_what_its_connection_and_the_ros_side_call(contract):
     session = Session(None, Config(), Host())  # (its backend is asked nothing here)
+    assert mismatches(session, contract) == []
+
+
+@pytest.mark.parametrize("contract", [ProtocolSession, Client], ids=lambda contract: contract.__name__)
+def test_the_foxglove_session_is_what_its_connection_and_the_ros_side_call(contract):
+    from rosbridge.foxglove import Catalog, FoxgloveSession
+
+    class Quiet:  # (a backend that is asked only to watch the graph here)
+        def watch_graph(self, listener):
+            pass
+
+    host = Host()
+    session = FoxgloveSession(Quiet(), Config(), host, Catalog(Quiet(), Globs(), host.call_later, host.cancel_later))
     assert mismatches(session, contract) == []
 
 
