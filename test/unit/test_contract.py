@@ -1,7 +1,7 @@
 """The seams of contract.py, checked against what implements them: a protocol session (protocol.Session,
-foxglove.FoxgloveSession) is what
-its connection calls (ProtocolSession) and what the ROS side calls (Client); a connection
-(transport/connection.ClientConnection), and the tests' fake of it, is what a session may ask (SessionHost)."""
+foxglove.FoxgloveSession) is what its connection calls (ProtocolSession) and what the ROS side calls (Client); a
+connection (transport/connection.ClientConnection), and the tests' fake of it, is what a session may ask
+(SessionHost)."""
 
 import inspect
 
