@@ -153,8 +153,9 @@ def rospy_pubsub(run, kind, count, rate=0, queue_size=100):
 FRAME_BY_FRAME = ("--one-frame-per-write",)  # a synchronous client: one send per frame (ws_roles.py)
 
 
-def bridge_in(run, url, server, kind, count, rate=0, client_args=()):
-    """Websocket client publishes (as fast as it can, or at `rate` Hz) through the bridge -> rospy subscriber."""
+def bridge_in(run, url, server, kind, count, rate=0, client_args=(), protocol="rosbridge"):
+    """Websocket client publishes (as fast as it can, or at `rate` Hz) through the bridge -> rospy subscriber.
+    protocol "foxglove": the client advertises a channel of its own and sends the message's ROS bytes."""
     topic = run.topic("in")
     sub = run.role("ros_roles.py", "count", "--topic", topic, "--kind", kind, "--count", count)
     client = run.role(
@@ -170,6 +171,8 @@ def bridge_in(run, url, server, kind, count, rate=0, client_args=()):
         count,
         "--publish-rate",
         rate,
+        "--protocol",
+        protocol,
         *client_args,
     )
     run.ready(client), run.ready(sub)
@@ -186,16 +189,27 @@ def bridge_in(run, url, server, kind, count, rate=0, client_args=()):
 
 
 def bridge_out(
-    run, url, server, kind, count, compression="none", rate=0, queue_size=100, clients=1, protocol="rosbridge"
+    run,
+    url,
+    server,
+    kind,
+    count,
+    compression="none",
+    rate=0,
+    queue_size=100,
+    clients=1,
+    protocol="rosbridge",
+    topic=None,
 ):
     """rospy publisher (at full speed, or `rate` Hz; queued, or synchronous with queue_size 0) -> the bridge ->
     `clients` subscribed websocket clients (one process each). With several, `delivered` is the least any client
     got and the CPU is per message published (`server_us_delivered`: per message delivered to any client), `age_p95`
-    the highest client's (an image's age: arrival - its header stamp). protocol "foxglove": the server is
-    foxglove_bridge (which learns the topic from the master: the publisher comes first; each client's subscription
-    is a roscpp subscriber of its own, on the one connection roscpp keeps per topic, added a moment after the
-    client's request)."""
-    topic = run.topic("out")
+    the highest client's (an image's age: arrival - its header stamp; a Twist's: arrival - the send time it
+    carries, with protocol "foxglove" only). protocol "foxglove": the clients speak the Foxglove protocol, to
+    foxglove_bridge, the bridge or foxglove_ceiling.py (which learn the topic from the master, or are told it:
+    `topic`; the publisher comes first. Each subscription of foxglove_bridge's clients is a roscpp subscriber of its
+    own, on the one connection roscpp keeps per topic, added a moment after the client's request)."""
+    topic = topic or run.topic("out")
     pub = run.role(
         "ros_roles.py",
         "pub",
@@ -209,6 +223,7 @@ def bridge_out(
         rate,
         "--queue-size",
         queue_size,
+        *(["--stamp"] if protocol == "foxglove" else []),
     )
     subscribers = [
         run.role(
@@ -254,30 +269,45 @@ def bridge_out(
     return figures
 
 
-def foxglove_out(run, kind, count, **options):
-    """bridge_out through a fresh foxglove_bridge (bench/peers.py), or None when it is not built."""
+def on_foxglove(run, measure, kind, count, **options):
+    """measure (bridge_out, bridge_in) through a fresh foxglove_bridge (bench/peers.py), or None when it is not
+    built."""
     if run.foxglove_missing:
         return None
     proc, url, stat = run.foxglove()
     try:
-        return bridge_out(run, url, stat, kind, count, protocol="foxglove", **options)
+        return measure(run, url, stat, kind, count, protocol="foxglove", **options)
     finally:
         run.stop(proc)
+
+
+def foxglove_ceiling_out(run, kind, count, **options):
+    """bridge_out through bench/foxglove_ceiling.py: the same TCPROS bytes read and written to the clients as
+    Foxglove message data, nothing else."""
+    topic, port = run.topic("out"), harness.free_port()
+    server = run.role("foxglove_ceiling.py", "--port", port, "--topic", topic, "--kind", kind)
+    run.ready(server)
+    try:
+        url, stat = f"ws://127.0.0.1:{port}/", harness.ProcStat(server.pid)
+        return bridge_out(run, url, stat, kind, count, protocol="foxglove", topic=topic, **options)
+    finally:
+        run.stop(server)
+
+
+def at_most(mine, theirs, factor):
+    return mine is not None and theirs is not None and mine <= factor * theirs
 
 
 def foxglove_rows(run, table, label, bridged, fox_rounds, limit, key="server_us", lossless=False, age=False):
     """Rows of the bridge's figures (`bridged`: {client: medians}) beside foxglove_bridge's in the same run (its
     clients get the ROS bytes, as cbor-raw's do): CPU per message (key) against `limit`; with `lossless`, every
-    message delivered by both; with `age`, the p95 age no higher than foxglove's."""
+    message delivered by both; the p95 age at the client where both have one, with `age` no higher than
+    foxglove's."""
     fox_rounds = [r for r in fox_rounds if r]
     if not fox_rounds:
         table.notes.append(f"{label}: {peers.FOXGLOVE_NAME} not measured ({run.foxglove_missing}).")
         return
     fox, peer = medians(fox_rounds), f"{peers.FOXGLOVE_NAME} (ROS bytes)"
-
-    def at_most(mine, theirs, factor):
-        return mine is not None and theirs is not None and mine <= factor * theirs
-
     for client, r in bridged.items():
         table.row(
             f"{label} ({client}): bridge CPU per message{' delivered' if key != 'server_us' else ''}",
@@ -288,35 +318,68 @@ def foxglove_rows(run, table, label, bridged, fox_rounds, limit, key="server_us"
             f"<= {limit}x",
             at_most(r.get(key), fox.get(key), limit),
         )
-        if lossless:
-            table.row(
-                f"{label} ({client}): messages delivered",
-                r["delivered"],
-                "%",
-                peer,
-                fox["delivered"],
-                "100%",
-                r["delivered"] >= 1.0,
-            )
-        if age:
-            ms = [f.get("age_p95") and f["age_p95"] * 1e3 for f in (r, fox)]
+        table.row(
+            f"{label} ({client}): messages delivered",
+            r["delivered"],
+            "%",
+            peer,
+            fox["delivered"],
+            "100%" if lossless else "",
+            r["delivered"] >= 1.0 if lossless else None,
+        )
+        ms = [f.get("age_p95") and f["age_p95"] * 1e3 for f in (r, fox)]
+        if age or None not in ms:
             table.row(
                 f"{label} ({client}): age p95 at the client",
                 ms[0],
                 "ms",
                 peer,
                 ms[1],
-                "no higher",
-                at_most(ms[0], ms[1], 1.0),
+                "no higher" if age else "",
+                at_most(ms[0], ms[1], 1.0) if age else None,
             )
-    if not lossless:
+
+
+FOXGLOVE_CEILING = "bare TCPROS read -> Foxglove frames (foxglove_ceiling.py)"
+
+
+def foxglove_protocol_rows(run, table, label, bridged, fox_rounds, ceiling_rounds, limit, key="server_us", **options):
+    """Issue 36: the bridge speaking the Foxglove protocol (`bridged`: its rounds) beside foxglove_bridge speaking
+    it to the same client (foxglove_rows: CPU per message, `key`, against `limit`), and against the bare ceiling
+    (`ceiling_rounds`, where measured: CPU per message at most 1.2x its)."""
+    mine = medians(bridged)
+    foxglove_rows(run, table, label, {"Foxglove protocol": mine}, fox_rounds, limit, key=key, **options)
+    if ceiling_rounds:
+        ceiling = medians(ceiling_rounds)
         table.row(
-            f"{label}: messages delivered (the least any client got)",
-            min(r["delivered"] for r in bridged.values()),
-            "%",
-            peer,
-            fox["delivered"],
+            f"{label} (Foxglove protocol): bridge CPU per message, vs the bare ceiling",
+            mine.get(key),
+            "µs",
+            FOXGLOVE_CEILING,
+            ceiling.get(key),
+            "<= 1.2x",
+            at_most(mine.get(key), ceiling.get(key), 1.2),
         )
+
+
+def foxglove_in_rows(run, table, label, bridged, fox_rounds, limit):
+    """Issue 36: a Foxglove client publishing through the bridge (`bridged`: its rounds) and through foxglove_bridge
+    in the same run: CPU per message delivered to the rospy subscriber against `limit`, and the share delivered."""
+    fox_rounds = [r for r in fox_rounds if r]
+    if not fox_rounds:
+        table.notes.append(f"{label}: {peers.FOXGLOVE_NAME} not measured ({run.foxglove_missing}).")
+        return
+    mine, fox = medians(bridged), medians(fox_rounds)
+    table.row(
+        f"{label}: bridge CPU per message",
+        mine["server_us"],
+        "µs",
+        peers.FOXGLOVE_NAME,
+        fox["server_us"],
+        f"<= {limit}x",
+        at_most(mine["server_us"], fox["server_us"], limit),
+    )
+    table.row(f"{label}: messages delivered", mine["delivered"], "%", peers.FOXGLOVE_NAME, fox["delivered"])
 
 
 def transport_in(run, count, rate=0, forward=False, client_args=()):
@@ -475,6 +538,7 @@ def section_throughput(run, table, rounds, count):
     is shown too), and a bridge whose max_queue holds the whole burst, so nothing is dropped."""
     queued, sync, ceil_in, ceil_out, into, out, paced = [], [], [], [], [], [], []
     ceil_in_single, into_single, paced_raw, paced_fox = [], [], [], []
+    paced_fg, paced_fg_ceiling = [], []  # (issue 36: the bridge's Foxglove protocol, and its bare ceiling)
     for _ in range(rounds):
         queued.append(rospy_pubsub(run, "twist", count))
         sync.append(rospy_pubsub(run, "twist", count, queue_size=0))
@@ -488,8 +552,10 @@ def section_throughput(run, table, rounds, count):
         out.append(bridge_out(run, url, server, "twist", count, queue_size=0))
         paced.append(bridge_out(run, url, server, "twist", count))
         paced_raw.append(bridge_out(run, url, server, "twist", count, "cbor-raw"))
+        paced_fg.append(bridge_out(run, url, server, "twist", count, protocol="foxglove"))
         run.stop(bridge)
-        paced_fox.append(foxglove_out(run, "twist", count))
+        paced_fox.append(on_foxglove(run, bridge_out, "twist", count))
+        paced_fg_ceiling.append(foxglove_ceiling_out(run, "twist", count))
     queued, sync, ceil_in, ceil_out, into, out, paced, ceil_in_single, into_single = map(
         medians, (queued, sync, ceil_in, ceil_out, into, out, paced, ceil_in_single, into_single)
     )
@@ -592,6 +658,16 @@ def section_throughput(run, table, rounds, count):
         limit=0.8,
         lossless=True,
     )
+    foxglove_protocol_rows(
+        run,
+        table,
+        f"ROS -> client from a queued rospy publisher ({paced['rate']:,.0f} msg/s)",
+        paced_fg,
+        paced_fox,
+        paced_fg_ceiling,
+        limit=0.6,
+        lossless=True,
+    )
 
 
 RATES = ((100, 10.0), (1000, 5.0))  # Hz, seconds: most robot topics run at 10-1000 Hz, not in floods
@@ -603,6 +679,7 @@ def section_rates(run, table, rounds):
     for hz, seconds in RATES:
         count = int(hz * seconds)
         ceil_in, ceil_out, into, out, forwarding, raw, fox = [], [], [], [], [], [], []
+        foxglove, foxglove_ceiling, foxglove_in, fox_in = [], [], [], []  # (issue 36)
         for _ in range(rounds):
             ceil_in.append(transport_in(run, count, rate=hz))
             forwarding.append(transport_in(run, count, rate=hz, forward=True))
@@ -612,9 +689,13 @@ def section_rates(run, table, rounds):
             out.append(bridge_out(run, url, server, "twist", count, rate=hz))
             if hz >= 1000:  # (issue 25: beside foxglove_bridge, whose clients get the ROS bytes, as cbor-raw's)
                 raw.append(bridge_out(run, url, server, "twist", count, "cbor-raw", rate=hz))
+                foxglove.append(bridge_out(run, url, server, "twist", count, rate=hz, protocol="foxglove"))
+                foxglove_in.append(bridge_in(run, url, server, "twist", count, rate=hz, protocol="foxglove"))
             run.stop(bridge)
             if hz >= 1000:
-                fox.append(foxglove_out(run, "twist", count, rate=hz))
+                fox.append(on_foxglove(run, bridge_out, "twist", count, rate=hz))
+                fox_in.append(on_foxglove(run, bridge_in, "twist", count, rate=hz))
+                foxglove_ceiling.append(foxglove_ceiling_out(run, "twist", count, rate=hz))
         ceil_in, ceil_out, into, out, forwarding = map(medians, (ceil_in, ceil_out, into, out, forwarding))
         goal, limit = ("<= 1.3x", 1.3) if hz >= 1000 else ("", None)
         for way, bridge_r, ceil in (("client -> ROS", into, ceil_in), ("ROS -> client", out, ceil_out)):
@@ -638,6 +719,17 @@ def section_rates(run, table, rounds):
         if raw:
             foxglove_rows(
                 run, table, f"ROS -> client at {hz:,} Hz", {"JSON": out, "cbor-raw": medians(raw)}, fox, limit=0.9
+            )
+            foxglove_protocol_rows(
+                run, table, f"ROS -> client at {hz:,} Hz", foxglove, fox, foxglove_ceiling, limit=0.7
+            )
+            foxglove_in_rows(
+                run,
+                table,
+                f"client -> ROS at {hz:,} Hz (Foxglove protocol: a client channel, Twist as ros1)",
+                foxglove_in,
+                fox_in,
+                limit=1.0,
             )
 
 
@@ -744,6 +836,7 @@ def section_large(run, table, rounds, count):
         ceilings = {"none": [], "cbor": []}
         to_three = {c: [] for c in ceilings} if kind == "image" else {}
         raw, fox, fox_twenty, to_twenty = [], [], [], {"CBOR": [], "cbor-raw": []}
+        foxglove, foxglove_twenty, foxglove_ceiling = [], [], []  # (issue 36)
         for _ in range(rounds):
             plain.append(rospy_pubsub(run, kind, count))
             paced.append(rospy_pubsub(run, kind, count, rate=CAMERA_HZ))
@@ -761,10 +854,15 @@ def section_large(run, table, rounds, count):
                     to_twenty[c].append(
                         bridge_out(run, url, server, kind, count, c.lower(), rate=CAMERA_HZ, clients=TWENTY)
                     )
+                foxglove.append(bridge_out(run, url, server, kind, count, rate=CAMERA_HZ, protocol="foxglove"))
+                foxglove_twenty.append(
+                    bridge_out(run, url, server, kind, count, rate=CAMERA_HZ, clients=TWENTY, protocol="foxglove")
+                )
             run.stop(bridge)
             if kind == "image":
-                fox.append(foxglove_out(run, kind, count, rate=CAMERA_HZ))
-                fox_twenty.append(foxglove_out(run, kind, count, rate=CAMERA_HZ, clients=TWENTY))
+                fox.append(on_foxglove(run, bridge_out, kind, count, rate=CAMERA_HZ))
+                fox_twenty.append(on_foxglove(run, bridge_out, kind, count, rate=CAMERA_HZ, clients=TWENTY))
+                foxglove_ceiling.append(foxglove_ceiling_out(run, kind, count, rate=CAMERA_HZ))
         plain, paced, into = medians(plain), medians(paced), medians(into)
         outs = {c: medians(v) for c, v in outs.items()}
         ceilings = {c: medians(v) for c, v in ceilings.items()}
@@ -858,6 +956,26 @@ def section_large(run, table, rounds, count):
                 {c: medians(v) for c, v in to_twenty.items()},
                 fox_twenty,
                 limit=0.5,
+                key="server_us_delivered",
+            )
+            foxglove_protocol_rows(
+                run,
+                table,
+                f"{label}, ROS -> client at {CAMERA_HZ} Hz",
+                foxglove,
+                fox,
+                foxglove_ceiling,
+                limit=0.5,
+                age=True,
+            )
+            foxglove_protocol_rows(
+                run,
+                table,
+                f"{label}, ROS -> {TWENTY} clients at {CAMERA_HZ} Hz",
+                foxglove_twenty,
+                fox_twenty,
+                None,
+                limit=0.25,
                 key="server_us_delivered",
             )
 
