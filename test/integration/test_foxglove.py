@@ -7,6 +7,7 @@ import json
 import shutil
 import socket
 import struct
+import time
 import xmlrpc.client
 
 import pytest
@@ -343,3 +344,28 @@ def test_with_authenticate_a_foxglove_client_is_refused_with_a_reason_it_shows(r
         results = run(ros, f"ws://127.0.0.1:{port}", {"do": "info"}, check=False)
     assert results["closed"]["code"] == 1008 and "rosauth" in results["closed"]["reason"]
     assert "a Foxglove client refused" in proc.output()
+
+
+def test_providers_that_never_answer_do_not_hold_channel_updates(ros, bridge):
+    # three services whose provider takes the connection and never answers the type probe (a stopped node)
+    silent = socket.socket()
+    silent.bind(("127.0.0.1", 0))
+    silent.listen(16)
+    master, caller = ros.master(), xmlrpc.client.ServerProxy(ros.uri)
+    uri = f"rosrpc://127.0.0.1:{silent.getsockname()[1]}"
+    names = [f"/fg/silent_{i}" for i in range(3)]
+    try:
+        for name in names:
+            caller.registerService("/fg_silent", name, uri, "http://127.0.0.1:9/")
+        client = WsClient(ws_url(bridge), headers={"Sec-WebSocket-Protocol": "foxglove.websocket.v1"})
+        client.recv_until(lambda f: f.get("op") == "advertise", timeout=20)  # (the first poll, which probed them)
+        started = time.monotonic()
+        with ros.spawn(["rostopic", "pub", "-r", "2", "/fg/late", "std_msgs/String", "data: x"], "pub-late"):
+            client.recv_until(lambda f: f.get("op") == "advertise" and "/fg/late" in str(f), timeout=30)
+            took = time.monotonic() - started
+    finally:
+        for name in names:
+            caller.unregisterService("/fg_silent", name, uri)
+        silent.close()
+    assert took < 4.0, f"the new topic's channel came {took:.1f} s after its publisher started"
+    assert master.getSystemState()  # (the master still answers)

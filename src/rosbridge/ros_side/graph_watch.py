@@ -3,6 +3,7 @@ definitions, services with theirs, and who publishes, subscribes and provides wh
 GRAPH_POLL seconds on a thread of its own while anyone watches (a slow master, or a service provider that does not
 answer its probe, holds only this thread); each new state goes to the watchers on the loop."""
 
+import concurrent.futures
 import threading
 
 import rosgraph
@@ -11,10 +12,10 @@ import rospy
 from rosbridge.contract import GraphState
 from rosbridge.errors import ClientError, log_bug
 from rosbridge.message_types import message_class, service_class
-from rosbridge.ros_side.rosapi import probe_service_type
+from rosbridge.ros_side.rosapi import PROBE_THREADS, probe_service_type
 
 GRAPH_POLL = 0.5  # s: channels appear and go within a second
-MAX_TYPES_KNOWN = 4096  # service types remembered by (service, providers)
+MAX_TYPES_KNOWN = 4096  # service types remembered by (service, providers), found or not
 
 
 class GraphWatch:
@@ -66,6 +67,17 @@ class GraphWatch:
             self._wake.wait(GRAPH_POLL)
             self._wake.clear()
 
+    @staticmethod
+    def _probe(name, nodes):
+        """On a probe thread: a service's type, "" if its provider does not say (kept as such until its providers
+        change: a provider that does not answer is not asked again at every poll). A master proxy of its own:
+        one XML-RPC connection cannot carry two calls at once."""
+        try:
+            uri = rosgraph.Master(rospy.get_name()).lookupService(name) if nodes else ""
+        except (rosgraph.MasterError, OSError):  # (gone since the master listed it)
+            return ""
+        return probe_service_type(name, uri) if uri else ""
+
     def _tell(self, state):
         for listener in list(self._watchers):
             try:
@@ -85,17 +97,16 @@ class GraphWatch:
             if type_name and type_name != "*":
                 topics[topic] = (type_name, _definition(type_name))
         providers = {name: frozenset(nodes) for name, nodes in services}
+        unknown = [(name, nodes) for name, nodes in providers.items() if (name, nodes) not in self._service_types]
+        if unknown:  # (asked at once: a provider that never answers costs PROBE_TIMEOUT once, not once each)
+            with concurrent.futures.ThreadPoolExecutor(min(PROBE_THREADS, len(unknown))) as pool:
+                found = list(pool.map(lambda key: self._probe(*key), unknown))
+            if len(self._service_types) + len(unknown) > MAX_TYPES_KNOWN:
+                self._service_types.clear()
+            self._service_types.update(zip(unknown, found))
         service_types = {}
         for name, nodes in providers.items():
-            key = (name, nodes)
-            type_name = self._service_types.get(key)
-            if type_name is None:
-                uri = master.lookupService(name) if nodes else ""
-                type_name = probe_service_type(name, uri) if uri else ""
-                if type_name:
-                    if len(self._service_types) >= MAX_TYPES_KNOWN:
-                        self._service_types.clear()
-                    self._service_types[key] = type_name
+            type_name = self._service_types[(name, nodes)]
             service_types[name] = (type_name, *_service_definitions(type_name))
         return GraphState(topics, publishers, subscribers, service_types, providers)
 
