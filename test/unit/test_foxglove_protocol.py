@@ -130,8 +130,8 @@ GRAPH = GraphState(
     topics={"/turtle1/cmd_vel": ("geometry_msgs/Twist", TWIST_DEF), "/odd": ("x/Unknown", None)},
     publishers={},
     subscribers={"/turtle1/cmd_vel": frozenset({"/turtlesim"})},
-    services={"/clear": ("std_srvs/Empty", "", ""), "/dead": ("", None, None)},
-    providers={"/clear": frozenset({"/turtlesim"}), "/dead": frozenset({"/gone"})},
+    services={"/clear": ("std_srvs/Empty", "", ""), "/dead": ("", None, None), "/odd": ("x/Unknown", None, None)},
+    providers={"/clear": frozenset({"/turtlesim"}), "/dead": frozenset({"/gone"}), "/odd": frozenset({"/x"})},
 )
 
 
@@ -168,7 +168,7 @@ def test_a_client_gets_server_info_then_a_channel_for_every_topic_it_may_use():
         TWIST_DEF,
         "ros1msg",
     )
-    (service,) = services["services"]  # (a service whose type is unknown is not advertised)
+    (service,) = services["services"]  # (a service whose type is unknown, or not installed here, is not advertised)
     assert service["name"] == "/clear" and service["request"]["schemaName"] == "std_srvs/Empty_Request"
 
 

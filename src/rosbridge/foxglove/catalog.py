@@ -126,7 +126,11 @@ class Catalog:
             channel_id = self._channel_ids[key] = next(self._ids)
             added.append(channel_entry(channel_id, *key))
             self.channels[channel_id] = added[-1]
-        services = {(name, type_name): schemas for name, (type_name, *schemas) in graph.services.items() if type_name}
+        services = {  # (a service whose type is not known, or not installed here, as a topic's: not advertised)
+            (name, type_name): schemas
+            for name, (type_name, *schemas) in graph.services.items()
+            if type_name and schemas[0] is not None
+        }
         gone = [key for key in self._service_ids if key not in services]
         removed_services = [self._service_ids.pop(key) for key in gone]
         for service_id in removed_services:
