@@ -213,9 +213,9 @@ class Backend(abc.ABC):
         whole message of the topic's type."""
 
     @abc.abstractmethod
-    def call_service_bytes(self, session, service, type_name, data, reply):
+    def call_service_bytes(self, session, service, type_name, data, timeout, reply):
         """Calls a ROS service with a request's ROS bytes; reply(ok, the response's bytes or the failure's text)
-        later, on the loop, exactly once."""
+        later, on the loop, exactly once (timeout: seconds, or None)."""
 
     @abc.abstractmethod
     def get_parameters(self, session, names, reply):

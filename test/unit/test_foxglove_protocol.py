@@ -235,7 +235,7 @@ def test_a_service_call_answers_with_the_response_bytes_or_a_failure():
     client.frames()
     service_id = next(iter(client.catalog.services))
     client.session.handle_binary(b"\x02" + struct.pack("<III", service_id, 8, 4) + b"ros1" + b"req")
-    assert client.backend.calls[-1][:4] == ("call_service_bytes", "/clear", "std_srvs/Empty", b"req")
+    assert client.backend.calls[-1][:5] == ("call_service_bytes", "/clear", "std_srvs/Empty", b"req", 60.0)
     client.backend.replies.pop()(True, b"resp")
     assert client.frames() == [struct.pack("<BIII", 3, service_id, 8, 4) + b"ros1resp"]
     client.session.handle_binary(b"\x02" + struct.pack("<III", service_id, 9, 4) + b"ros1")
@@ -301,3 +301,15 @@ def test_with_sim_time_the_clock_is_sent_and_stamps_the_messages():
     assert client.frames() == []
     client.session.closed()
     assert host.timers == []  # (the last client left: the tick stops)
+
+
+def test_a_binary_message_over_max_message_size_is_refused():
+    client = Client(max_message_size=150)
+    client.frames()
+    client.send(
+        {"op": "advertise", "channels": [{"id": 1, "topic": "/s", "encoding": "ros1", "schemaName": "std_msgs/String"}]}
+    )
+    client.session.handle_binary(b"\x01" + struct.pack("<I", 1) + bytes(200))
+    (status,) = client.frames()
+    assert "binary message of 205 bytes refused: over max_message_size (150 bytes)" == status["message"]
+    assert not any(call[0] == "publish_bytes" for call in client.backend.calls)

@@ -91,7 +91,7 @@ class MemoryBackend(Backend):
     def publish_bytes(self, session, topic, data):
         self._record("publish_bytes", topic, data)
 
-    def call_service_bytes(self, session, service, type_name, data, reply):
+    def call_service_bytes(self, session, service, type_name, data, timeout, reply):
         self._record("call_service_bytes", service, data)
 
     def get_parameters(self, session, names, reply):

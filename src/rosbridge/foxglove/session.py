@@ -21,6 +21,9 @@ LEVELS = {"info": 0, "warning": 1, "error": 2}
 ENCODINGS = ("ros1", "json")  # what clients may publish and call services with
 CAPABILITIES = ("clientPublish", "parameters", "parametersSubscribe", "services", "connectionGraph", "assets")
 MAX_PARAMETER_NAMES = 10_000  # names in one request
+# s: a service call not answered by then fails (serviceCallFailure); the protocol has no timeout of its own, and a
+# call holds one of the client's call slots (ros_side.backend: 16 at once) while it runs
+CALL_TIMEOUT = 60.0
 MAX_ASSETS_IN_FLIGHT = 4  # fetchAsset requests of one client being read at once; more are refused
 
 
@@ -80,6 +83,10 @@ class FoxgloveSession:
             self.status("error", f"{op}: internal error (logged by the bridge)")
 
     def handle_binary(self, data):
+        limit = self.config.max_message_size
+        if limit and len(data) > limit:
+            self.status("error", f"binary message of {len(data)} bytes refused: over max_message_size ({limit} bytes)")
+            return
         try:
             message = wire.client_message(data)
             if message[0] == "publish":
@@ -192,13 +199,13 @@ class FoxgloveSession:
 
         try:
             if encoding == "ros1":
-                self.backend.call_service_bytes(self, name, type_name, bytes(payload), reply)
+                self.backend.call_service_bytes(self, name, type_name, bytes(payload), CALL_TIMEOUT, reply)
                 return
             try:
                 args = json.loads(bytes(payload)) if len(payload) else {}
             except (ValueError, RecursionError) as error:
                 raise RequestError(f"the request is not JSON ({error})") from None
-            self.backend.call_service(self, name, args, type_name, None, reply)
+            self.backend.call_service(self, name, args, type_name, CALL_TIMEOUT, reply)
         except ClientError as error:
             self._call_failed(service_id, call_id, str(error))
 

@@ -82,10 +82,12 @@ class RosBackend(Backend):
     def publish_bytes(self, session, topic, data):
         self._publishers.publish_bytes(session, topic, data)
 
-    def call_service_bytes(self, session, service, type_name, data, reply):
+    def call_service_bytes(self, session, service, type_name, data, timeout, reply):
         service = self.resolve_name(service)
         work = functools.partial(call_raw_service, service, type_name, data)
-        self._calls.run(session, f"call_service {service}", work, reply)
+        self._calls.run(
+            session, f"call_service {service}", work, reply, timeout, f"Service {service} timed out after {timeout} s"
+        )
 
     def get_parameters(self, session, names, reply):
         self._calls.run(session, "getParameters", functools.partial(parameters.get_parameters, names), reply)
