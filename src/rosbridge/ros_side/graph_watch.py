@@ -27,7 +27,9 @@ class GraphWatch:
         self._lock = threading.Lock()
         self._wanted = False
         self._newcomer = False  # a watcher came since the last poll: it gets the state even if unchanged
-        self._service_types = {}  # (service, providers) -> type (the thread's)
+        self._service_types = {}  # (service, providers) -> type (the thread's, as are:)
+        self._last_system, self._last_state = None, None  # the master's last getSystemState, and what it gave
+        self._master = None
 
     def watch(self, listener):
         self._watchers.append(listener)
@@ -61,7 +63,7 @@ class GraphWatch:
                     log_bug("polling the ROS graph", error)
                 state = None
                 self._newcomer = self._newcomer or newcomer
-            if state is not None and (state != last or newcomer):
+            if state is not None and (state is not last or newcomer):
                 last = state
                 self._loop.add_callback(self._tell, state)
             self._wake.wait(GRAPH_POLL)
@@ -86,8 +88,24 @@ class GraphWatch:
                 log_bug("telling a watcher of the ROS graph")
 
     def _poll(self):
-        master = rosgraph.Master(rospy.get_name())
-        publications, subscriptions, services = master.getSystemState()
+        """The graph now: one call to the master while nothing changed (the same state is returned), the types
+        and definitions only when who publishes, subscribes or provides what has changed. (A poll is most of what
+        an idle Foxglove client costs the bridge: twice a second.)"""
+        if self._master is None:  # (kept: its connection to the master too, instead of a new one at every poll)
+            self._master = rosgraph.Master(rospy.get_name())
+        master = self._master
+        try:
+            system = master.getSystemState()
+        except Exception:
+            self._master = None  # (the master restarted, or the connection broke: a new one next time)
+            raise
+        if system == self._last_system and self._last_state is not None:
+            return self._last_state
+        self._last_system, self._last_state = system, None
+        self._last_state = self._state(master, *system)
+        return self._last_state
+
+    def _state(self, master, publications, subscriptions, services):
         types = dict(master.getTopicTypes())
         publishers = {topic: frozenset(nodes) for topic, nodes in publications}
         subscribers = {topic: frozenset(nodes) for topic, nodes in subscriptions}
