@@ -90,15 +90,17 @@ async def auth_flood(ws, seconds):
     return f"{sent} auth frames"
 
 
-def raw_connect(url, extensions="", recv_buffer=None):
-    """A raw socket after the websocket handshake (sent, its answer not read), offering `extensions`; with
-    recv_buffer, its receive buffer that small (a client that reads nothing then takes almost nothing)."""
+def raw_connect(url, extensions="", recv_buffer=None, subprotocol=None):
+    """A raw socket after the websocket handshake (sent, its answer not read), offering `extensions` (and
+    `subprotocol`); with recv_buffer, its receive buffer that small (a client that reads nothing then takes almost
+    nothing)."""
     parts = urllib.parse.urlparse(url)
     sock = socket.socket()
     if recv_buffer:
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, recv_buffer)
     sock.connect((parts.hostname, parts.port))
     offer = f"Sec-WebSocket-Extensions: {extensions}\r\n" if extensions else ""
+    offer += f"Sec-WebSocket-Protocol: {subprotocol}\r\n" if subprotocol else ""
     sock.sendall(
         f"GET / HTTP/1.1\r\nHost: {parts.hostname}:{parts.port}\r\nUpgrade: websocket\r\n"
         "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
@@ -280,9 +282,13 @@ async def main(url, abuse, seconds):
     return "; ".join(done[:3]) + (f" (and {len(done) - 3} more connections)" if len(done) > 3 else "")
 
 
+POSE = object()  # (Victim._heard: a frame is a pose)
+
+
 class Victim:
     """A well-behaved client on a thread of its own: the largest gap between poses, the slowest get_time, the
-    round trips of its websocket pings."""
+    round trips of its websocket pings. What it says and hears is rosbridge's (_open, _heard, _ask: another
+    protocol's victim changes those)."""
 
     def __init__(self, url, auth=None):
         self.url, self.auth = url, auth
@@ -292,11 +298,27 @@ class Victim:
         self._thread.start()
         assert self.ready.wait(30), "the victim could not start"
 
-    async def _run(self):
+    async def _open(self):
+        """The connection, subscribed to the pose."""
         ws = await websocket_connect(self.url)
         if self.auth is not None:
             await ws.write_message(json.dumps(self.auth))
         await ws.write_message(json.dumps({"op": "subscribe", "topic": "/turtle1/pose", "type": "turtlesim/Pose"}))
+        return ws
+
+    def _heard(self, frame):
+        """POSE, the id of the call a frame answers, or None."""
+        message = json.loads(frame)
+        if message.get("topic") == "/turtle1/pose":
+            return POSE
+        return message.get("id") if message.get("op") == "service_response" else None
+
+    async def _ask(self, ws, n):
+        """Call n (answered within MAX_CALL_TIME by a bridge that serves everyone)."""
+        await ws.write_message(json.dumps({"op": "call_service", "service": "/rosapi/get_time", "id": n}))
+
+    async def _run(self):
+        ws = await self._open()
         calls, pings = {}, {}
 
         def pong(data):
@@ -310,12 +332,12 @@ class Victim:
                 frame = await ws.read_message()
                 if frame is None:
                     return
-                message, now = json.loads(frame), time.monotonic()
-                if message.get("topic") == "/turtle1/pose":
+                heard, now = self._heard(frame), time.monotonic()
+                if heard is POSE:
                     self.arrivals.append(now)
                     self.ready.set()
-                elif message.get("op") == "service_response" and message.get("id") in calls:
-                    self.call_times.append(now - calls.pop(message["id"]))
+                elif heard in calls:
+                    self.call_times.append(now - calls.pop(heard))
 
         async def ticker():  # how late this thread's own loop ran: a gap it causes is not the bridge's
             while True:
@@ -334,7 +356,7 @@ class Victim:
         while not self._stop.is_set():
             n += 1
             calls[n] = time.monotonic()
-            await ws.write_message(json.dumps({"op": "call_service", "service": "/rosapi/get_time", "id": n}))
+            await self._ask(ws, n)
             await asyncio.sleep(0.25)
         self.unanswered = [time.monotonic() - sent for sent in calls.values()]
         self.ping_times += [time.monotonic() - sent for sent in pings.values()]
@@ -361,17 +383,18 @@ RAW_ABUSES = {
 ABUSES = [*ABUSES_IN_PROCESS, *RAW_ABUSES]
 
 
-def measure(ros, url, server, abuse, seconds, auth=None):
-    """Runs `abuse` for `seconds` beside a Victim (sending `auth` first if given) on the bridge at `url` whose
-    server process is `server` (a ProcStat); returns what the attacker did and what the victim saw (times in
+def measure(ros, url, server, abuse, seconds, auth=None, victim=Victim, script=__file__):
+    """Runs `abuse` (of `script`: this one's, or another's run alike) for `seconds` beside a victim
+    (a Victim, or what `victim` makes of the url and auth: sending `auth` first if given) on the bridge at `url`
+    whose server process is `server` (a ProcStat); returns what the attacker did and what the victim saw (times in
     seconds from the attacker's start: `attacked`, when it ended; `gap_at`, when the largest gap began;
     `victims_own_stall`, the victim's own loop's longest stall in that gap, which the bridge did not cause; its
     pings' round trips; the bridge's memory growth after the attack and at its peak)."""
-    victim = Victim(url, auth)
+    victim = victim(url, auth)
     time.sleep(1.0)
     rss_before, started = server.rss_mb(), time.monotonic()
     server.reset_peak_rss()
-    attacker = ros.spawn([sys.executable, __file__, url, abuse, str(seconds)], f"hostile_{abuse}")
+    attacker = ros.spawn([sys.executable, script, url, abuse, str(seconds)], f"hostile_{abuse}")
     code = attacker.popen.wait(seconds + 90)
     attacked = time.monotonic() - started
     time.sleep(0.5)
@@ -391,6 +414,7 @@ def measure(ros, url, server, abuse, seconds, auth=None):
         "slowest_ping": pings[-1],
         "rss_growth": server.rss_mb() - rss_before,
         "peak_rss_growth": server.peak_rss_mb() - rss_before,
+        "victim": victim,
     }
 
 

@@ -85,9 +85,8 @@ class RosBackend(Backend):
     def call_service_bytes(self, session, service, type_name, data, timeout, reply):
         service = self.resolve_name(service)
         work = functools.partial(call_raw_service, service, type_name, data)
-        self._calls.run(
-            session, f"call_service {service}", work, reply, timeout, f"Service {service} timed out after {timeout} s"
-        )
+        text = f"Service {service} timed out after {timeout} s"
+        self._calls.run(session, f"call_service {service}", work, reply, timeout, text, through_proxy=True)
 
     def get_parameters(self, session, names, reply):
         self._calls.run(session, "getParameters", functools.partial(parameters.get_parameters, names), reply)
