@@ -3,11 +3,16 @@ and Foxglove) keep being served, and what it causes is bounded and released when
 rosbridge client does not hurt a Foxglove client either. The abuses are foxglove_hostile.py's (a process of their
 own), measured beside victims as test_isolation.py does (hostile.measure)."""
 
+import itertools
 import shutil
 import struct
+import threading
+import time
 from pathlib import Path
 
 import pytest
+
+from rosbridge.ros_side.publishers import MAX_LINGERING
 
 import foxglove_hostile
 from bridge_client import WsClient
@@ -76,3 +81,54 @@ def test_calls_to_a_silent_service_end_when_their_client_leaves_and_leave_others
     for sock in staying:
         sock.close()
     wait_for(lambda: blocked_in_reads(pid) == 0, 10, what=lambda: f"{blocked_in_reads(pid)} calls still blocked")
+
+
+def test_a_client_that_advertises_and_unadvertises_in_a_loop_is_paced_and_its_publishers_bounded(
+    ros, world, hostile_bridge
+):
+    """A Foxglove client advertises and unadvertises 200 new topics, again and again, for 4 s. A rosbridge client
+    that subscribes meanwhile gets its first pose within 5 s, and the bridge never publishes more of those topics
+    than publishers.MAX_LINGERING (outliving their client) and the 200 advertised. Before, the churn queued
+    180,000 publishers on the ROS worker in 5 s: 20,000 were registered within a minute (the bridge at 1.5 GB),
+    and the subscription had no message in 60 s."""
+    url = f"ws://127.0.0.1:{hostile_bridge.port}/"
+    master, stop, most = ros.master(), threading.Event(), [0]
+
+    def churn():
+        with foxglove_hostile.connect(url) as sock:
+            foxglove_hostile.read_all(sock)
+            foxglove_hostile.until(time.monotonic() + 4, lambda: sock.sendall(advertised_and_unadvertised(sock)))
+        stop.set()
+
+    rounds = itertools.count()
+
+    def advertised_and_unadvertised(sock):
+        first = next(rounds) * 200
+        channels = [
+            {"id": first + i, "topic": f"/hostile/c{first + i}", "encoding": "ros1", "schemaName": "std_msgs/String"}
+            for i in range(200)
+        ]
+        return foxglove_hostile.text({"op": "advertise", "channels": channels}) + foxglove_hostile.text(
+            {"op": "unadvertise", "channelIds": [c["id"] for c in channels]}
+        )
+
+    def count():
+        while not stop.is_set():
+            most[0] = max(most[0], sum(t.startswith("/hostile/c") for t, _ in master.getSystemState()[0]))
+            time.sleep(0.2)
+
+    threads = [threading.Thread(target=churn), threading.Thread(target=count)]
+    for thread in threads:
+        thread.start()
+    time.sleep(1)
+    client = WsClient(url)
+    started = time.monotonic()
+    client.send({"op": "subscribe", "topic": "/turtle1/pose", "type": "turtlesim/Pose"})
+    client.recv_op("publish", timeout=60)
+    waited = time.monotonic() - started
+    for thread in threads:
+        thread.join(60)
+    client.close()
+    print(f"first pose after {waited:.2f} s; at most {most[0]} publishers of the churned topics; {next(rounds)} rounds")
+    assert waited < 5
+    assert most[0] <= MAX_LINGERING + 200 + 50  # (50: the master hears of unregistrations a little later)

@@ -20,6 +20,10 @@ from rosbridge.protocol.outbox import Outbox
 LEVELS = {"info": 0, "warning": 1, "error": 2}
 ENCODINGS = ("ros1", "json")  # what clients may publish and call services with
 CAPABILITIES = ("clientPublish", "parameters", "parametersSubscribe", "services", "connectionGraph", "assets")
+# requests whose ROS side (publishers and subscribers made and dropped) is the ROS worker's, shared by every client:
+# after one, the client's next messages wait in its socket until that work is done (holding), so that a client
+# cannot queue work without bound there (200 topics advertised and unadvertised in a loop queued 180,000)
+PACED_OPS = frozenset(("subscribe", "unsubscribe", "advertise", "unadvertise"))
 MAX_PARAMETER_NAMES = 10_000  # names in one request
 # s: a service call not answered by then fails (serviceCallFailure); the protocol has no timeout of its own, and a
 # call holds one of the client's call slots (ros_side.backend: 16 at once) while it runs
@@ -31,7 +35,7 @@ class FoxgloveSession:
     """One Foxglove client. `host` is its connection (contract.SessionHost); `catalog` the bridge's Catalog."""
 
     authenticated = True  # (the protocol has no authentication: with authenticate on, the handshake refuses it)
-    holding = False  # (nothing a client sends waits for ROS work: publishing after advertising is replayed)
+    holding = False  # after a PACED_OPS request, while its ROS side is under way (the host then reads nothing)
 
     def __init__(self, backend, config, host, catalog, name="client", session_id=""):
         self.backend, self.config, self.name = backend, config, name
@@ -81,6 +85,13 @@ class FoxgloveSession:
         except Exception:
             log_bug(f"foxglove {op} failed")
             self.status("error", f"{op}: internal error (logged by the bridge)")
+        if isinstance(op, str) and op in PACED_OPS and self.backend.after_pending(self, self._settled):
+            self.holding = True
+
+    def _settled(self):
+        self.holding = False
+        if not self.is_closed:
+            self._host.resume_reading()
 
     def handle_binary(self, data):
         limit = self.config.max_message_size

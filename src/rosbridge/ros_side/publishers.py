@@ -22,6 +22,9 @@ from rosbridge.ros_side.holders import Holders
 # must not receive stale commands.
 REPLAY_WINDOW = 1.0  # seconds after advertising
 INFERRING_LIMIT = 100  # messages kept per topic while the master is asked for its type
+# publishers that outlive their last client (unregister_timeout) at once, at most; beyond, the one left longest goes
+# now: clients that advertise and unadvertise new topics in a loop made 20,000 (1.5 GB) in a minute
+MAX_LINGERING = 256
 
 
 class EarlyReplay:
@@ -141,8 +144,8 @@ class _Entry:
 
 class Publishers:
     """The topics clients publish. A topic's publisher is made on the worker, and outlives its last client by
-    unregister_timeout seconds, so that a page reload finds its subscribers still connected. A client learns of
-    a failure on the worker through session.ros_refused."""
+    unregister_timeout seconds (MAX_LINGERING of them at most), so that a page reload finds its subscribers still
+    connected. A client learns of a failure on the worker through session.ros_refused."""
 
     def __init__(self, loop, worker, links, unregister_timeout):
         self._loop, self._worker, self._links, self._unregister_timeout = loop, worker, links, unregister_timeout
@@ -150,6 +153,7 @@ class Publishers:
         self._holders = Holders()
         self._inferring = {}  # topic -> [(session, msg, latch, queue_size)] waiting for the graph's type
         self._driven = {}  # session -> the DRIVE_TYPES topics it published on since it last stopped
+        self._lingering = collections.OrderedDict()  # topic -> its entry, while it outlives its last client
 
     def advertise(self, session, topic, type_name, latch, queue_size):
         entry = self._entries.get(topic)
@@ -167,6 +171,7 @@ class Publishers:
         if entry.unregister_timer is not None:  # a client came back in time (page reload): keep the publisher
             self._loop.remove_timeout(entry.unregister_timer)
             entry.unregister_timer = None
+            del self._lingering[topic]
         self._holders.add(topic, session)
 
     def _made(self, topic, entry, error):
@@ -179,6 +184,7 @@ class Publishers:
             del self._entries[topic]
             if entry.unregister_timer is not None:
                 self._loop.remove_timeout(entry.unregister_timer)
+                del self._lingering[topic]
         text = refusal_text(error, f"advertising {topic}")
         for session in self._holders.holders(topic):
             self._holders.discard(topic, session)
@@ -263,9 +269,15 @@ class Publishers:
             entry.unregister_timer = self._loop.call_later(
                 self._unregister_timeout, lambda: self._unregister(topic, entry)
             )
+            self._lingering[topic] = entry
+            if len(self._lingering) > MAX_LINGERING:
+                oldest, its = next(iter(self._lingering.items()))
+                self._loop.remove_timeout(its.unregister_timer)
+                self._unregister(oldest, its)
 
     def _unregister(self, topic, entry):
         entry.unregister_timer = None
+        del self._lingering[topic]
         if not self._holders.holders(topic) and self._entries.get(topic) is entry:
             del self._entries[topic]
             if entry.ready:
