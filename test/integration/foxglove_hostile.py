@@ -74,10 +74,12 @@ def until(end, send):
 
 
 class Scout:
-    """A Foxglove client that learns the channels and services (their ids hold while a Foxglove client stays)."""
+    """A Foxglove client that learns the channels and services (their ids hold while a Foxglove client stays), and
+    asks for parameters (request)."""
 
     def __init__(self, url):
         self.channels, self.services = {}, {}
+        self._answers = {}  # request id -> the future of its parameterValues
         self.ws = asyncio.run_coroutine_threadsafe(self._connect(url), _loop()).result(30)
 
     async def _connect(self, url):
@@ -90,7 +92,27 @@ class Scout:
                 self.channels[channel["topic"]] = channel["id"]
             for service in message.get("services", ()) if message.get("op") == "advertiseServices" else ():
                 self.services[service["name"]] = service["id"]
+        asyncio.ensure_future(self._read(ws))
         return ws
+
+    async def _read(self, ws):
+        while (message := await ws.read_message()) is not None:
+            message = json.loads(message) if isinstance(message, str) else {}
+            if message.get("op") == "parameterValues" and message.get("id") in self._answers:
+                self._answers.pop(message["id"]).set_result(message)
+            elif message.get("op") == "status" and message["level"] == 2:
+                for answer in self._answers.values():
+                    answer.set_exception(AssertionError(message))
+                self._answers.clear()
+
+    def request(self, request, timeout=30):
+        """Sends a request; the parameterValues that answers its id (AssertionError: an error status came first)."""
+        return asyncio.run_coroutine_threadsafe(self._request(request), _loop()).result(timeout)
+
+    async def _request(self, request):
+        answer = self._answers[request["id"]] = asyncio.get_running_loop().create_future()
+        await self.ws.write_message(json.dumps(request))
+        return await answer
 
 
 _LOOP = []

@@ -7,12 +7,17 @@ updates for each session. Parameters are polled here (Backend.get_parameters) wh
 Pure: no rospy, no tornado; the loop's call_later and cancel_later are given."""
 
 import itertools
+import time
 
 from rosbridge.contract import DELETE
+from rosbridge.foxglove.parameters import ALL
 from rosbridge.foxglove.sim_clock import SimClock
 from rosbridge.globs import allowed
 
-PARAMETER_POLL = 1.0  # s: how often the master's parameters are read while a client subscribes to updates
+PARAMETER_POLL = 1.0  # s: how often the master's parameters are read while a client subscribes to updates...
+# ...but a poll waits at least this many times as long as the last one took: what the polls cost the bridge and
+# the master stays a small share, however many parameters there are (28 MB of them took 8% of a core at 1 s)
+POLL_SPACING = 10
 
 
 def channel_entry(channel_id, topic, type_name, schema):
@@ -76,7 +81,9 @@ class Catalog:
         self._ids = itertools.count(1)
         self._polling = False  # while a client subscribes to parameters
         self._parameter_timer = None  # the next poll, if not under way
-        self._parameters = None  # {name: value} of the last poll
+        self._parameters = None  # {name: value} of the last poll...
+        self._asked = None  # ...and the names it asked for (None: every parameter)
+        self._poll_started = 0.0
 
     # ---- sessions -------------------------------------------------------------------------------
     def join(self, session):
@@ -171,22 +178,43 @@ class Catalog:
                 self._cancel_later(self._parameter_timer)
                 self._parameter_timer = None
 
-    def _poll_parameters(self):
-        self._parameter_timer = None
-        self._backend.get_parameters(self, None, self._polled)
+    def _wanted_names(self):
+        """The names the clients subscribe to, or None: one of them subscribes to every parameter."""
+        names = set()
+        for session in self.sessions:
+            if ALL in session.parameter_subscriptions:
+                return None
+            names |= session.parameter_subscriptions
+        return names
 
-    def _polled(self, ok, values):
+    def _poll_parameters(self):
+        """Reads what the clients subscribe to: only those names, unless one subscribes to every parameter (a
+        client watching one parameter does not make the bridge read them all)."""
+        self._parameter_timer = None
+        asked = self._wanted_names()
+        self._poll_started = time.monotonic()
+        self._backend.get_parameters(
+            self, None if asked is None else sorted(asked), lambda ok, values: self._polled(ok, values, asked)
+        )
+
+    def _polled(self, ok, values, asked):
         if not self._polling:  # (stopped meanwhile)
             return
-        self._parameter_timer = self._call_later(PARAMETER_POLL, self._poll_parameters)
+        took = time.monotonic() - self._poll_started
+        self._parameter_timer = self._call_later(max(PARAMETER_POLL, took * POLL_SPACING), self._poll_parameters)
         if not ok:
             return
         values = {name: value for name, value in values.items() if self.parameter_allowed(name)}
-        before, self._parameters = self._parameters, values
-        if before is None:  # (the first poll is what later ones are compared with)
+        before, asked_before = self._parameters, self._asked
+        self._parameters, self._asked = values, asked
+        if before is None or (asked is None) != (asked_before is None):  # (what later polls are compared with)
             return
-        changed = [name for name, value in values.items() if before.get(name, DELETE) != value]
-        changed += [name for name in before if name not in values]
+
+        def compared(name):  # (a name asked both times: one asked only now is not news)
+            return asked_before is None or name in asked_before
+
+        changed = [name for name, value in values.items() if compared(name) and before.get(name, DELETE) != value]
+        changed += [name for name in before if name not in values and (asked is None or name in asked)]
         if changed:
             self.parameters_changed({name: values.get(name, DELETE) for name in changed})
 

@@ -24,7 +24,10 @@ CAPABILITIES = ("clientPublish", "parameters", "parametersSubscribe", "services"
 # after one, the client's next messages wait in its socket until that work is done (holding), so that a client
 # cannot queue work without bound there (200 topics advertised and unadvertised in a loop queued 180,000)
 PACED_OPS = frozenset(("subscribe", "unsubscribe", "advertise", "unadvertise"))
-MAX_PARAMETER_NAMES = 10_000  # names in one request
+MAX_PARAMETER_NAMES = 10_000  # names in one request, and names one client subscribes to
+# getParameters and setParameters of one client under way at once; more are refused (each may carry every parameter:
+# 100 getParameters of a 28 MB tree at once took the bridge to +615 MB)
+MAX_PARAMETER_REQUESTS = 4
 # s: a service call not answered by then fails (serviceCallFailure); the protocol has no timeout of its own, and a
 # call holds one of the client's call slots (ros_side.backend: 16 at once) while it runs
 CALL_TIMEOUT = 60.0
@@ -49,6 +52,7 @@ class FoxgloveSession:
         self.parameter_subscriptions = set()  # names; params.ALL: every parameter
         self.graph_subscribed = False
         self._assets_in_flight = 0
+        self._parameter_requests = 0  # getParameters and setParameters under way
         self.send_json(
             {
                 "op": "serverInfo",
@@ -237,16 +241,11 @@ class FoxgloveSession:
         for name in names:
             if not self._catalog.parameter_allowed(name):
                 raise RequestError(f"getParameters {name}: not allowed by params_glob")
-
-        def reply(ok, values):
-            if self.is_closed:
-                return
-            if not ok:
-                self.status("error", f"getParameters: {values}")
-                return
-            self._parameter_values(values, request_id)
-
-        self.backend.get_parameters(self, names or None, reply)
+        self._ask_parameters(
+            "getParameters",
+            lambda reply: self.backend.get_parameters(self, names or None, reply),
+            lambda values: self._parameter_values(values, request_id),
+        )
 
     def _op_setParameters(self, req):  # noqa: N802
         request_id, updates = _request_id(req), {}
@@ -256,17 +255,33 @@ class FoxgloveSession:
                 raise RequestError(f"setParameters {name}: not allowed by params_glob")
             updates[name] = value
 
-        def reply(ok, values):
-            if self.is_closed:
-                return
-            if not ok:
-                self.status("error", f"setParameters: {values}")
-                return
+        def done(values):
             self._catalog.parameters_changed(values)
             if request_id is not None:
                 self._parameter_values(values, request_id)
 
-        self.backend.set_parameters(self, updates, reply)
+        self._ask_parameters("setParameters", lambda reply: self.backend.set_parameters(self, updates, reply), done)
+
+    def _ask_parameters(self, op, ask, done):
+        """ask(reply) of the backend, within MAX_PARAMETER_REQUESTS; done(values) with what it answers."""
+        if self._parameter_requests >= MAX_PARAMETER_REQUESTS:
+            raise RequestError(f"{op}: refused, {MAX_PARAMETER_REQUESTS} parameter requests of this client under way")
+
+        def reply(ok, values):
+            self._parameter_requests -= 1
+            if self.is_closed:
+                return
+            if not ok:
+                self.status("error", f"{op}: {values}")
+                return
+            done(values)
+
+        self._parameter_requests += 1
+        try:
+            ask(reply)
+        except ClientError:
+            self._parameter_requests -= 1
+            raise
 
     def _parameter_values(self, values, request_id=None):
         entries = [
@@ -280,8 +295,10 @@ class FoxgloveSession:
         self.send_json(answer)
 
     def _op_subscribeParameterUpdates(self, req):  # noqa: N802
-        names = self._names(req)
-        self.parameter_subscriptions.update(names or [params.ALL])
+        names = set(self._names(req) or [params.ALL])
+        if len(self.parameter_subscriptions | names) > MAX_PARAMETER_NAMES:
+            raise RequestError(f"subscribeParameterUpdates: at most {MAX_PARAMETER_NAMES} names subscribed")
+        self.parameter_subscriptions |= names
         self._catalog.parameters_wanted()
 
     def _op_unsubscribeParameterUpdates(self, req):  # noqa: N802
