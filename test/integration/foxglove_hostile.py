@@ -75,15 +75,15 @@ def until(end, send):
 
 class Scout:
     """A Foxglove client that learns the channels and services (their ids hold while a Foxglove client stays), and
-    asks for parameters (request)."""
+    asks for parameters (request) and assets (fetch)."""
 
     def __init__(self, url):
         self.channels, self.services = {}, {}
-        self._answers = {}  # request id -> the future of its parameterValues
+        self._answers = {}  # request id -> the future of its parameterValues, or fetchAssetResponse
         self.ws = asyncio.run_coroutine_threadsafe(self._connect(url), _loop()).result(30)
 
     async def _connect(self, url):
-        ws = await websocket_connect(url, subprotocols=[SUBPROTOCOL])
+        ws = await websocket_connect(url, subprotocols=[SUBPROTOCOL], max_message_size=64 << 20)
         deadline = time.monotonic() + 20
         while not (self.channels and self.services) and time.monotonic() < deadline:
             message = await asyncio.wait_for(ws.read_message(), 20)
@@ -97,7 +97,11 @@ class Scout:
 
     async def _read(self, ws):
         while (message := await ws.read_message()) is not None:
-            message = json.loads(message) if isinstance(message, str) else {}
+            if isinstance(message, bytes):
+                if message[0] == 4 and (answer := self._answers.pop(struct.unpack_from("<I", message, 1)[0], None)):
+                    answer.set_result(message)
+                continue
+            message = json.loads(message)
             if message.get("op") == "parameterValues" and message.get("id") in self._answers:
                 self._answers.pop(message["id"]).set_result(message)
             elif message.get("op") == "status" and message["level"] == 2:
@@ -108,6 +112,13 @@ class Scout:
     def request(self, request, timeout=30):
         """Sends a request; the parameterValues that answers its id (AssertionError: an error status came first)."""
         return asyncio.run_coroutine_threadsafe(self._request(request), _loop()).result(timeout)
+
+    def fetch(self, uri, request_id=1, timeout=30):
+        """The bytes of an asset (AssertionError: the bridge refused it)."""
+        request = {"op": "fetchAsset", "uri": uri, "requestId": request_id, "id": request_id}
+        answer = asyncio.run_coroutine_threadsafe(self._request(request), _loop()).result(timeout)
+        assert answer[5] == 0, answer[10:]
+        return answer[10:]
 
     async def _request(self, request):
         answer = self._answers[request["id"]] = asyncio.get_running_loop().create_future()
