@@ -24,6 +24,7 @@ CAPABILITIES = ("clientPublish", "parameters", "parametersSubscribe", "services"
 # after one, the client's next messages wait in its socket until that work is done (holding), so that a client
 # cannot queue work without bound there (200 topics advertised and unadvertised in a loop queued 180,000)
 PACED_OPS = frozenset(("subscribe", "unsubscribe", "advertise", "unadvertise"))
+SHOWN_REFUSALS = 3  # entries of one request refused that its status names; it counts the others
 MAX_PARAMETER_NAMES = 10_000  # names in one request, and names one client subscribes to
 # getParameters and setParameters of one client under way at once; more are refused (each may carry every parameter:
 # 100 getParameters of a 28 MB tree at once took the bridge to +615 MB)
@@ -116,65 +117,77 @@ class FoxgloveSession:
 
     # ---- subscriptions ----------------------------------------------------------------------------
     def _op_subscribe(self, req):
-        for entry in _list(req, "subscriptions"):
-            sub_id, channel_id = _u32(entry, "id"), _u32(entry, "channelId")
-            channel = self._catalog.channel(channel_id)
-            if sub_id in self._subscriptions:
-                self.status("error", f"subscribe: subscription id {sub_id} is already in use")
-                continue
-            if channel is None:
-                self.status("error", f"subscribe: no channel {channel_id}")
-                continue
-            topic = channel["topic"]
-            if topic in self._topics:
-                self.status("error", f"subscribe: channel {channel_id} ({topic}) is already subscribed")
-                continue
-            limit = self.config.max_topics_per_client
-            if len(self._topics) >= limit:
-                self.status("error", f"subscribe {topic}: refused, {limit} already (max_topics_per_client)")
-                continue
-            self._subscriptions[sub_id] = topic
-            self._topics[topic] = sub_id
-            self.backend.subscribe(self, topic, channel["schemaName"])
+        self._each(_list(req, "subscriptions"), self._subscribe)
+
+    def _subscribe(self, entry):
+        sub_id, channel_id = _u32(entry, "id"), _u32(entry, "channelId")
+        channel = self._catalog.channel(channel_id)
+        if sub_id in self._subscriptions:
+            raise RequestError(f"subscribe: subscription id {sub_id} is already in use")
+        if channel is None:
+            raise RequestError(f"subscribe: no channel {channel_id}")
+        topic = channel["topic"]
+        if topic in self._topics:
+            raise RequestError(f"subscribe: channel {channel_id} ({topic}) is already subscribed")
+        limit = self.config.max_topics_per_client
+        if len(self._topics) >= limit:
+            raise RequestError(f"subscribe {topic}: refused, {limit} already (max_topics_per_client)")
+        self._subscriptions[sub_id] = topic
+        self._topics[topic] = sub_id
+        self.backend.subscribe(self, topic, channel["schemaName"])
 
     def _op_unsubscribe(self, req):
-        for sub_id in _list(req, "subscriptionIds"):
-            topic = self._subscriptions.pop(sub_id, None) if type(sub_id) is int else None
-            if topic is None:
-                self.status("warning", f"unsubscribe: no subscription {str(sub_id)[:20]}")
-                continue
-            del self._topics[topic]
-            self.backend.unsubscribe(self, topic)
+        self._each(_list(req, "subscriptionIds"), self._unsubscribe, "warning")
+
+    def _unsubscribe(self, sub_id):
+        topic = self._subscriptions.pop(sub_id, None) if type(sub_id) is int else None
+        if topic is None:
+            raise RequestError(f"unsubscribe: no subscription {str(sub_id)[:20]}")
+        del self._topics[topic]
+        self.backend.unsubscribe(self, topic)
+
+    def _each(self, entries, handle, level="error"):
+        """handle(entry) for each entry of a request; those it refuses (ClientError) are told in one status: a
+        subscribe of 10,000 channels that do not exist made 10,000 (0.1 s of the loop), and the client's other
+        answers were dropped for them."""
+        refused = []
+        for entry in entries:
+            try:
+                handle(entry)
+            except ClientError as error:
+                refused.append(str(error))
+        if refused:
+            more = f"; and {len(refused) - SHOWN_REFUSALS} more" if len(refused) > SHOWN_REFUSALS else ""
+            self.status(level, "; ".join(refused[:SHOWN_REFUSALS]) + more)
 
     # ---- client publishing ------------------------------------------------------------------------
     def _op_advertise(self, req):
-        for entry in _list(req, "channels"):
-            channel_id = _u32(entry, "id")
-            topic, encoding, type_name = (_string(entry, key) for key in ("topic", "encoding", "schemaName"))
-            try:
-                if channel_id in self._client_channels:
-                    raise RequestError(f"advertise: client channel {channel_id} is already advertised")
-                if encoding not in ENCODINGS:
-                    raise RequestError(f"advertise {topic}: encoding must be one of {', '.join(ENCODINGS)}")
-                if not allowed(topic, self.config.globs.topics):
-                    raise RequestError(f"advertise {topic}: not allowed by topics_glob {self.config.globs.topics}")
-                limit = self.config.max_topics_per_client
-                if len(self._client_channels) >= limit:
-                    raise RequestError(f"advertise {topic}: refused, {limit} already (max_topics_per_client)")
-                self.backend.advertise(self, topic, type_name, False, 100)
-            except ClientError as error:
-                self.status("error", str(error))
-                continue
-            self._client_channels[channel_id] = (topic, encoding, type_name)
+        self._each(_list(req, "channels"), self._advertise)
+
+    def _advertise(self, entry):
+        channel_id = _u32(entry, "id")
+        topic, encoding, type_name = (_string(entry, key) for key in ("topic", "encoding", "schemaName"))
+        if channel_id in self._client_channels:
+            raise RequestError(f"advertise: client channel {channel_id} is already advertised")
+        if encoding not in ENCODINGS:
+            raise RequestError(f"advertise {topic}: encoding must be one of {', '.join(ENCODINGS)}")
+        if not allowed(topic, self.config.globs.topics):
+            raise RequestError(f"advertise {topic}: not allowed by topics_glob {self.config.globs.topics}")
+        limit = self.config.max_topics_per_client
+        if len(self._client_channels) >= limit:
+            raise RequestError(f"advertise {topic}: refused, {limit} already (max_topics_per_client)")
+        self.backend.advertise(self, topic, type_name, False, 100)
+        self._client_channels[channel_id] = (topic, encoding, type_name)
 
     def _op_unadvertise(self, req):
-        for channel_id in _list(req, "channelIds"):
-            channel = self._client_channels.pop(channel_id, None) if isinstance(channel_id, int) else None
-            if channel is None:
-                self.status("warning", f"unadvertise: no client channel {str(channel_id)[:20]}")
-                continue
-            if not any(topic == channel[0] for topic, _, _ in self._client_channels.values()):
-                self.backend.unadvertise(self, channel[0])
+        self._each(_list(req, "channelIds"), self._unadvertise, "warning")
+
+    def _unadvertise(self, channel_id):
+        channel = self._client_channels.pop(channel_id, None) if isinstance(channel_id, int) else None
+        if channel is None:
+            raise RequestError(f"unadvertise: no client channel {str(channel_id)[:20]}")
+        if not any(topic == channel[0] for topic, _, _ in self._client_channels.values()):
+            self.backend.unadvertise(self, channel[0])
 
     def _publish(self, channel_id, payload):
         channel = self._client_channels.get(channel_id)
