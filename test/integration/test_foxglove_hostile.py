@@ -16,11 +16,19 @@ import pytest
 from rosbridge.ros_side.publishers import MAX_LINGERING
 
 import foxglove_hostile
+import hostile
 from bridge_client import WsClient
 from fixtures import bridge_fixture
 from harness import REPO, ProcStat, node_pid, wait_for
 
 pytestmark = pytest.mark.slow
+
+
+ATTACK_SECONDS = 5.0
+MAX_GAP = 0.5  # s without a pose, for either victim
+MAX_CALL_TIME = 1.0  # s for a call: the rosbridge victim's /rosapi/get_time, the Foxglove victim's getParameters
+MAX_RSS_GROWTH = 200  # MB after the attack
+MAX_PEAK_RSS_GROWTH = 400  # MB at its peak
 
 
 @pytest.fixture(scope="module")
@@ -49,6 +57,51 @@ def parameters(ros):
 
 
 hostile_bridge = bridge_fixture("foxglove_hostile", scope="function", yields="bridge", unregister_timeout=1)
+
+
+def measured(ros, bridge, abuse, victim, script):
+    """hostile.measure, and then what test_isolation checks; and no thread of the bridge still waits for a service
+    for a client that left (the calls' idle threads wait a minute for the next call: their count is printed)."""
+    url = f"ws://127.0.0.1:{bridge.port}/"
+    pid = node_pid(ros, "/foxglove_hostile")
+    stat = ProcStat(pid)
+    threads = stat.threads()
+    got = hostile.measure(ros, url, stat, abuse, ATTACK_SECONDS, victim=victim, script=script)
+    victims = getattr(got["victim"], "victims", (got["victim"],))
+    print(
+        f"{abuse}: {got['attacker']} (for {got['attacked']:.2f} s); "
+        + "; ".join(
+            f"{type(v).__name__}: largest gap {v.largest_gap(0)[0]:.3f} s, slowest call "
+            f"{max(v.call_times + v.unanswered, default=float('inf')):.3f} s"
+            for v in victims
+        )
+        + f"; pings p95 {got['ping_p95'] * 1e3:.1f} ms; bridge RSS {got['rss_growth']:+.0f} MB "
+        f"(peak {got['peak_rss_growth']:+.0f} MB), threads {threads} -> {stat.threads()}"
+    )
+    assert got["attacker_exit"] == 0, got["attacker"]
+    assert got["gap"] < MAX_GAP, f"{abuse}: a victim went {got['gap']:.2f} s without a pose"
+    assert got["slowest_call"] < MAX_CALL_TIME, f"{abuse}: a victim's call took {got['slowest_call']:.2f} s"
+    assert got["ping_p95"] < MAX_GAP, f"{abuse}: the victims' pings took {got['ping_p95'] * 1e3:.0f} ms (p95)"
+    assert got["rss_growth"] < MAX_RSS_GROWTH, f"{abuse}: the bridge grew by {got['rss_growth']:.0f} MB"
+    assert got["peak_rss_growth"] < MAX_PEAK_RSS_GROWTH, (
+        f"{abuse}: the bridge grew by {got['peak_rss_growth']:.0f} MB at its peak"
+    )
+    assert bridge.proc.alive()
+    wait_for(lambda: blocked_in_reads(pid) == 0, 10, what=lambda: f"{blocked_in_reads(pid)} calls still blocked")
+
+
+@pytest.mark.alone  # (the victims' gaps and calls are times)
+@pytest.mark.parametrize("abuse", foxglove_hostile.ABUSES)
+def test_a_hostile_foxglove_client_hurts_neither_a_rosbridge_nor_a_foxglove_client(
+    ros, world, parameters, hostile_bridge, abuse
+):
+    measured(ros, hostile_bridge, abuse, foxglove_hostile.BothVictims, foxglove_hostile.__file__)
+
+
+@pytest.mark.alone
+@pytest.mark.parametrize("abuse", [abuse for abuse in hostile.ABUSES if abuse != "auth_flood"])  # (no auth in Foxglove)
+def test_a_hostile_rosbridge_client_does_not_hurt_a_foxglove_client(ros, world, hostile_bridge, abuse):
+    measured(ros, hostile_bridge, abuse, foxglove_hostile.FoxgloveVictim, hostile.__file__)
 
 
 def blocked_in_reads(pid):
@@ -222,3 +275,22 @@ def test_clients_that_never_read_big_answers_do_not_starve_others_of_big_message
     for sock in socks:
         sock.close()
     camera.close()
+
+
+def test_a_foxglove_client_that_comes_and_goes_leaves_nothing_behind(ros, world, hostile_bridge):
+    """The only Foxglove client connects and leaves 200 times (each time the catalog is made and let go, and the
+    graph's thread started and stopped): the bridge's threads and memory are back where they were."""
+    url = f"ws://127.0.0.1:{hostile_bridge.port}/"
+    stat = ProcStat(node_pid(ros, "/foxglove_hostile"))
+
+    def once():
+        with foxglove_hostile.connect(url) as sock:
+            sock.recv(65536)
+
+    once()  # (what the first one makes that stays: the master's proxy of the graph's poll)
+    time.sleep(1)
+    threads, rss = stat.threads(), stat.rss_mb()
+    for _ in range(200):
+        once()
+    wait_for(lambda: stat.threads() <= threads, 5, what=lambda: f"threads {threads} -> {stat.threads()}")
+    assert stat.rss_mb() < rss + 10
