@@ -402,3 +402,19 @@ def test_a_request_s_refused_entries_are_told_in_one_status():
     assert "field 'id' must be an integer" in status["message"] and "1 is already advertised" not in status["message"]
     assert "client channel 0 is already advertised" in status["message"]
     assert [call[1] for call in client.backend.calls if call[0] == "advertise"] == ["/t0", "/t1"]
+
+
+def test_what_every_client_is_told_is_encoded_once():
+    """The channels and services a client is told when it comes, and the graph when it subscribes to it, are the
+    same frames for every client until the graph changes. Before, each was encoded for each client: with 308
+    channels, a Foxglove connection took 1.5 ms of the loop (a rosbridge one 0.26 ms)."""
+    first = Client()
+    first.backend.watchers[0](GRAPH)
+    later = [Client(catalog=first.catalog, backend=first.backend) for _ in range(2)]
+    told = []
+    for client in later:
+        client.session.take_frame()  # (its serverInfo)
+        client.send({"op": "subscribeConnectionGraph"})
+        told.append([client.session.take_frame() for _ in range(3)])
+    assert [json.loads(frame)["op"] for frame in told[0]] == ["advertise", "advertiseServices", "connectionGraphUpdate"]
+    assert all(a is b for a, b in zip(*told))

@@ -9,6 +9,7 @@ Pure: no rospy, no tornado; the loop's call_later and cancel_later are given."""
 import itertools
 import time
 
+from rosbridge.codec.json_values import dumps
 from rosbridge.contract import DELETE
 from rosbridge.foxglove.parameters import ALL
 from rosbridge.foxglove.sim_clock import SimClock
@@ -79,6 +80,10 @@ class Catalog:
         self.services = {}  # id -> service entry
         self._service_ids = {}  # (name, type) -> id
         self._ids = itertools.count(1)
+        # what every client that comes is told (advertise, advertiseServices) and one that subscribes to the graph,
+        # encoded once until the graph changes: 308 channels took 1.5 ms of the loop per connection, 0.26 ms for a
+        # rosbridge client's
+        self._encoded = {}
         self._polling = False  # while a client subscribes to parameters
         self._parameter_timer = None  # the next poll, if not under way
         self._parameters = None  # {name: value} of the last poll...
@@ -94,8 +99,7 @@ class Catalog:
             if self.sim_clock is not None:
                 self.sim_clock.start()
         elif self.graph is not None:
-            session.advertise(list(self.channels.values()), [])
-            session.advertise_services(list(self.services.values()), [])
+            session.tell(self._everything())
 
     def leave(self, session):
         self.sessions.discard(session)
@@ -104,6 +108,7 @@ class Catalog:
             if self.sim_clock is not None:
                 self.sim_clock.stop()
             self.graph = None  # (a client that comes later gets a fresh poll, not what was true then)
+            self._encoded.clear()
             self.channels.clear()
             self._channel_ids.clear()
             self.services.clear()
@@ -147,20 +152,46 @@ class Catalog:
             service_id = self._service_ids[key] = next(self._ids)
             added_services.append(service_entry(service_id, *key, *services[key]))
             self.services[service_id] = added_services[-1]
-        update = graph_update(old, graph) if old is None or old.nodes_differ(graph) else None
-        for session in list(self.sessions):
-            if old is None or added or removed:
-                session.advertise(added if old is not None else list(self.channels.values()), removed)
-            if old is None or added_services or removed_services:
-                session.advertise_services(
-                    added_services if old is not None else list(self.services.values()), removed_services
+        self._encoded.clear()
+        if old is None:
+            frames = self._everything()
+        else:
+            frames = [
+                dumps(message)
+                for message, due in (
+                    ({"op": "unadvertise", "channelIds": [channel["id"] for channel in removed]}, removed),
+                    ({"op": "advertise", "channels": added}, added),
+                    ({"op": "unadvertiseServices", "serviceIds": removed_services}, removed_services),
+                    ({"op": "advertiseServices", "services": added_services}, added_services),
                 )
-            if update is not None and session.graph_subscribed:
-                session.send_json(update)
+                if due
+            ]
+        nodes_changed, update = old is None or old.nodes_differ(graph), None
+        for session in list(self.sessions):
+            if removed:
+                session.channels_gone(removed)
+            session.tell(frames)
+            if nodes_changed and session.graph_subscribed:
+                update = update or dumps(graph_update(old, graph))
+                session.tell((update,))
+
+    def _everything(self):
+        """The advertise of every channel (even none) and the advertiseServices of every service (if any)."""
+        frames = [self._encoded_list("advertise", "channels", self.channels)]
+        if self.services:
+            frames.append(self._encoded_list("advertiseServices", "services", self.services))
+        return frames
+
+    def _encoded_list(self, op, field, entries):
+        if op not in self._encoded:
+            self._encoded[op] = dumps({"op": op, field: list(entries.values())})
+        return self._encoded[op]
 
     def full_graph(self):
-        """The connectionGraphUpdate a client gets when it subscribes."""
-        return graph_update(None, self.graph) if self.graph is not None else None
+        """The connectionGraphUpdate a client gets when it subscribes (encoded), None before the first poll."""
+        if self.graph is not None and "graph" not in self._encoded:
+            self._encoded["graph"] = dumps(graph_update(None, self.graph))
+        return self._encoded.get("graph")
 
     # ---- parameters ------------------------------------------------------------------------------
     def parameter_allowed(self, name):

@@ -337,7 +337,7 @@ class FoxgloveSession:
         self.graph_subscribed = True
         update = self._catalog.full_graph()
         if update is not None:
-            self.send_json(update)
+            self.tell((update,))
 
     def _op_unsubscribeConnectionGraph(self, req):  # noqa: N802
         self.graph_subscribed = False
@@ -383,23 +383,18 @@ class FoxgloveSession:
         log_bug("a Foxglove client asked to serve a service", RuntimeError(service))
 
     # ---- from the catalog ---------------------------------------------------------------------------
-    def advertise(self, channels, removed):
-        """New channels, and channels gone (their entries): the subscriptions of those end."""
+    def channels_gone(self, removed):
+        """Channels gone (their entries): the client's subscriptions of those end."""
         for channel in removed:
             sub_id = self._topics.pop(channel["topic"], None)
             if sub_id is not None:
                 del self._subscriptions[sub_id]
                 self.backend.unsubscribe(self, channel["topic"])
-        if removed:
-            self.send_json({"op": "unadvertise", "channelIds": [channel["id"] for channel in removed]})
-        if channels or not removed:
-            self.send_json({"op": "advertise", "channels": channels})
 
-    def advertise_services(self, services, removed):
-        if removed:
-            self.send_json({"op": "unadvertiseServices", "serviceIds": removed})
-        if services:
-            self.send_json({"op": "advertiseServices", "services": services})
+    def tell(self, frames):
+        """Frames every client is told alike (advertisements, graph updates), encoded once by the catalog."""
+        for frame in frames:
+            self._queue(None, (frame,))
 
     def send_time(self, frame):
         """The simulated time (sim_clock.py), kept fresh on a slow link as a topic's messages are."""
