@@ -179,6 +179,29 @@ def advertise_churn(url, seconds, scout):
     return f"{len(rounds) * 200} client channels advertised and unadvertised"
 
 
+def big_publishes(url, seconds, scout):
+    """A new topic advertised, three messages of 7.9 MB published on it at once (nobody subscribes yet), again and
+    again."""
+    sock, end, topics = read_all(connect(url)), time.monotonic() + seconds, []
+    data = struct.pack("<I", 7_900_000) + b"x" * 7_900_000  # (a std_msgs/String)
+
+    def publish():
+        channel = len(topics)
+        advertise = {
+            "id": channel,
+            "topic": f"/hostile/big{channel}",
+            "encoding": "ros1",
+            "schemaName": "std_msgs/String",
+        }
+        sock.sendall(text({"op": "advertise", "channels": [advertise]}))
+        for _ in range(3):
+            sock.sendall(binary(b"\x01" + struct.pack("<I", channel) + data))
+        topics.append(channel)
+
+    until(end, publish)
+    return f"{len(topics) * 3} messages of 7.9 MB published on {len(topics)} new topics"
+
+
 BAD_ASSETS = [
     "package://no_such_package_{n}/mesh.stl",
     "package://turtlesim/../../../etc/passwd.stl",
@@ -340,6 +363,7 @@ ABUSES = {
         wrong_lengths,
         subscribe_10k,
         advertise_churn,
+        big_publishes,
         asset_flood,
         big_assets,
         parameter_names,

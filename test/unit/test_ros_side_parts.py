@@ -1,7 +1,7 @@
 """The rospy-free parts of the ROS side: who holds what, and the early replay's thread rules."""
 
 from rosbridge.ros_side.holders import Holders
-from rosbridge.ros_side.publishers import REPLAY_WINDOW, EarlyReplay
+from rosbridge.ros_side.publishers import REPLAY_BYTES, REPLAY_WINDOW, EarlyReplay
 
 from fakes import Clock
 
@@ -48,5 +48,16 @@ def test_no_replay_once_a_subscriber_left():
 def test_early_replay_keeps_the_newest_messages():
     replay = EarlyReplay(2, Clock(100.0))
     for n in range(5):
-        replay.record(n)
-    assert replay.replay() == (3, 4)
+        replay.record(b"%d" % n)
+    assert replay.replay() == (b"3", b"4")
+
+
+def test_early_replay_keeps_the_newest_messages_within_replay_bytes():
+    """Before, it kept queue_size messages of any size: a client advertising new topics and publishing 8 MB
+    messages at once on each held 620 MB in 5 s."""
+    replay = EarlyReplay(100, Clock(100.0))
+    for n in range(5):
+        replay.record(bytes([n]) * (REPLAY_BYTES // 3))
+    assert [m[0] for m in replay.replay()] == [2, 3, 4]
+    replay.record(bytes(REPLAY_BYTES + 1))  # (too big to keep)
+    assert [m[0] for m in replay.replay()] == [2, 3, 4]

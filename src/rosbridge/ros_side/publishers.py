@@ -21,6 +21,9 @@ from rosbridge.ros_side.holders import Holders
 # that the first Twist of a page is not lost. Never after a subscriber has left: a robot driver that restarts
 # must not receive stale commands.
 REPLAY_WINDOW = 1.0  # seconds after advertising
+# bytes kept for that per topic (the newest messages; a bigger one is not kept): a client that advertised new topics
+# and published 8 MB messages at once on each held 620 MB in 5 s, until it left
+REPLAY_BYTES = 64 * 1024
 INFERRING_LIMIT = 100  # messages kept per topic while the master is asked for its type
 # publishers that outlive their last client (unregister_timeout) at once, at most; beyond, the one left longest goes
 # now: clients that advertise and unadvertise new topics in a loop made 20,000 (1.5 GB) in a minute
@@ -29,12 +32,13 @@ MAX_LINGERING = 256
 
 class EarlyReplay:
     """The messages published before any subscriber connected, for the subscribers that connect within
-    REPLAY_WINDOW. On the loop only."""
+    REPLAY_WINDOW: the newest maxlen of them within REPLAY_BYTES. On the loop only."""
 
     def __init__(self, maxlen, clock=time.monotonic):
         self._clock = clock
         self._until = clock() + REPLAY_WINDOW
-        self._messages = collections.deque(maxlen=maxlen)
+        self._messages = collections.deque()
+        self._maxlen, self._bytes = maxlen, 0
         self._over = False  # set once (window passed, or a subscriber left), never cleared
 
     def record(self, data):
@@ -43,8 +47,11 @@ class EarlyReplay:
             return
         if self._clock() >= self._until:
             self.end()
-        else:
+        elif len(data) <= REPLAY_BYTES:
             self._messages.append(data)
+            self._bytes += len(data)
+            while len(self._messages) > self._maxlen or self._bytes > REPLAY_BYTES:
+                self._bytes -= len(self._messages.popleft())
 
     def replay(self):
         """What a subscriber that connects now gets first."""
@@ -55,6 +62,7 @@ class EarlyReplay:
     def end(self):
         self._over = True
         self._messages.clear()
+        self._bytes = 0
 
 
 class ClientPublisher:
