@@ -389,7 +389,7 @@ def measure(ros, url, server, abuse, seconds, auth=None, victim=Victim, script=_
     whose server process is `server` (a ProcStat); returns what the attacker did and what the victim saw (times in
     seconds from the attacker's start: `attacked`, when it ended; `gap_at`, when the largest gap began;
     `victims_own_stall`, the victim's own loop's longest stall in that gap, which the bridge did not cause; its
-    pings' round trips; the bridge's memory growth after the attack and at its peak)."""
+    pings' round trips; the bridge's memory growth after the attack and at its peak; `victim`, the victim)."""
     victim = victim(url, auth)
     time.sleep(1.0)
     rss_before, started = server.rss_mb(), time.monotonic()
