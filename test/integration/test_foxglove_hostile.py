@@ -24,7 +24,7 @@ from harness import REPO, ProcStat, node_pid, wait_for
 pytestmark = pytest.mark.slow
 
 
-ATTACK_SECONDS = 5.0
+ATTACK_SECONDS = 3.0  # (22 attacks run alone, one after another: CI stays within its 15 minutes)
 MAX_GAP = 0.5  # s without a pose, for either victim
 MAX_CALL_TIME = 1.0  # s for a call: the rosbridge victim's /rosapi/get_time, the Foxglove victim's getParameters
 MAX_RSS_GROWTH = 200  # MB after the attack
