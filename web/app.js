@@ -4,7 +4,7 @@
 import { readAddress, keepInAddress } from './address.js';
 import { Connection, bridgeUrl } from './connection.js';
 import { PANELS, viewersFor } from './registry.js';
-import { Feedback } from './panels/feedback.js';
+import { Feedback } from './parts/feedback.js';
 import { linkReport } from './panels/link.js';
 
 const TAB_PARAM = 'tab';  // ?tab=services: the console's tab shown

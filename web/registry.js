@@ -1,6 +1,6 @@
 // Every panel and every viewer of the page, in one table: app.js makes the page from it and from nothing else.
 //
-// A panel (panels/panel.js says its shape): `name` keys its element ids and the ?tab= of the address, `title`
+// A panel (parts/panel.js says its shape): `name` keys its element ids and the ?tab= of the address, `title`
 // names it (its tab in the console, its card's heading, or its region), `place` is where it lives: 'bar' (the
 // page's header, before the connection's badge), 'world' (the world's card, in order), 'side' (a card beside the
 // world) or 'console' (a tab).
@@ -19,7 +19,7 @@
 //                                         null when the viewer needs no messages from it;
 //   viewer.attach(session), viewer.detach()  (optional) the connected RosSession, and its loss, for a viewer that
 //                                         fetches more than its messages (the image viewer's picture stream).
-import { TurtlesPanel } from './panels/turtles.js';
+import { WorldPanel } from './panels/world.js';
 import { DrivePanel } from './panels/drive.js';
 import { TwistPanel } from './panels/twist.js';
 import { WorldToolsPanel } from './panels/world-tools.js';
@@ -48,7 +48,7 @@ import { PointCloudViewer } from './viewers/cloud.js';
 // In the order shown; the console's tabs in the order of the tutorial's terminal windows.
 export const PANELS = [
   { name: 'link', title: 'Link health', place: 'bar', Panel: LinkPanel },
-  { name: 'world', title: 'Turtle world', place: 'world', Panel: TurtlesPanel },
+  { name: 'world', title: 'Turtle world', place: 'world', Panel: WorldPanel },
   { name: 'camera', title: 'Camera', place: 'world', Panel: CameraPanel },
   { name: 'drive', title: 'Drive', place: 'world', Panel: DrivePanel },
   { name: 'twist', title: 'Publish a Twist', place: 'side', Panel: TwistPanel },

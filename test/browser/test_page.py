@@ -22,7 +22,7 @@ from harness import ARTIFACTS, wait_for, wait_publisher_connected
 
 CENTRE = 5.544444561004639
 BACKGROUND = (69, 86, 255)
-TURTLE1_SHELL = (46, 204, 113)  # web/panels/world.js PALETTE[0]
+TURTLE1_SHELL = (46, 204, 113)  # web/parts/world-view.js PALETTE[0]
 
 
 @pytest.fixture

@@ -470,7 +470,7 @@ def test_a_4000x4000_map(open_page, node, publishers):
 
 
 def test_the_fields_that_may_make_a_message_megabytes(open_page):
-    """web/panels/messages.js's bulkArrays: variable-length arrays of bytes, nested ones too; not fixed-length ones
+    """web/parts/messages.js's bulkArrays: variable-length arrays of bytes, nested ones too; not fixed-length ones
     (a uuid's 16 bytes), nor arrays of numbers or strings (a scan's ranges, a joint state)."""
     page = open_page()
 
@@ -501,7 +501,7 @@ def test_the_fields_that_may_make_a_message_megabytes(open_page):
     ]
     found = page.driver.execute_async_script(
         """const done = arguments[arguments.length - 1];
-        import('/panels/messages.js').then(m => done(m.bulkArrays(arguments[0])), e => done(String(e)));""",
+        import('/parts/messages.js').then(m => done(m.bulkArrays(arguments[0])), e => done(String(e)));""",
         typedefs,
     )
     assert found == ["images[].data: uint8[]", "raw: char[]"]

@@ -3,8 +3,8 @@
 // one), with Send goal after the fields; Send sends a goal, whose status, latest feedback and result are shown
 // live; Cancel cancels it. The address keeps the server (?action=/fibonacci).
 import { readAddress, keepInAddress } from '../address.js';
-import { messageForm, messageTree } from './messages.js';
-import { ListPanel, fillSelect } from './panel.js';
+import { messageForm, messageTree } from '../parts/messages.js';
+import { ListPanel, fillSelect } from '../parts/panel.js';
 
 const ACTION_PARAM = 'action';
 const REFRESH_MS = 3000;

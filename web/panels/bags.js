@@ -3,8 +3,8 @@
 // and save it; the folder's bags with their size and date, downloaded by a plain link, deleted after a question.
 // The topics chosen are kept in the address (?bag=/turtle1/pose&bag=/rosout).
 import { readAddress, keepInAddress } from '../address.js';
-import { confirmFirst } from './confirm.js';
-import { Panel, showName } from './panel.js';
+import { confirmFirst } from '../parts/confirm.js';
+import { Panel, showName } from '../parts/panel.js';
 
 const BAG_PARAM = 'bag';
 const POLL_MS = 1000;

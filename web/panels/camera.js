@@ -6,7 +6,7 @@
 //
 // The viewer brings its pictures by the bridge's JPEG stream when there is one; only without it does this panel
 // subscribe to the topic over the websocket for it (binary, the newest frame only).
-import { ListPanel, fillSelect } from './panel.js';
+import { ListPanel, fillSelect } from '../parts/panel.js';
 import { ImageViewer } from '../viewers/image.js';
 import { readAddress, keepInAddress } from '../address.js';
 

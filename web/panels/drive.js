@@ -3,9 +3,9 @@
 // current session: the Twist form publishes through it, and the world's tools ask it which turtle is driven.
 // Under the joystick, the readout of what a driver watches: the driven robot's pose and speed (its turtle's
 // turtlesim/Pose, or its nav_msgs/Odometry), drawn at the next animation frame after each message, with its age.
-import { Panel } from './panel.js';
-import { Driver } from './driver.js';
-import { turtlesIn } from './turtles.js';
+import { Panel } from '../parts/panel.js';
+import { Driver } from '../parts/driver.js';
+import { turtlesIn } from './world.js';
 import { readAddress, keepInAddress } from '../address.js';
 import { formatAge } from '../format.js';
 

@@ -3,7 +3,7 @@
 // and picture streams as the page reads them: approximate), and the messages the bridge skipped or dropped for
 // this page (its `status` reports: "skipped N older message(s)" when a slow link made it keep only the newest of
 // a topic, "dropped N ..." or "refused N ..." for real losses), counted since the page was opened.
-import { Panel } from './panel.js';
+import { Panel } from '../parts/panel.js';
 import { formatAge, formatBytes } from '../format.js';
 
 const PING_MS = 2000;

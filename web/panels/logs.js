@@ -1,6 +1,6 @@
 // Logs (rqt_console): every node's log lines from /rosout_agg as they come, filtered by level, node and text;
 // the newest first, at most HISTORY kept.
-import { Panel } from './panel.js';
+import { Panel } from '../parts/panel.js';
 
 const HISTORY = 1000;
 const LEVELS = { 1: 'DEBUG', 2: 'INFO', 4: 'WARN', 8: 'ERROR', 16: 'FATAL' };

@@ -1,5 +1,5 @@
 // Nodes (rosnode list / info): every node; choosing one shows what it publishes, subscribes to and provides.
-import { ListPanel, fillSelect } from './panel.js';
+import { ListPanel, fillSelect } from '../parts/panel.js';
 
 export class NodesPanel extends ListPanel {
   constructor(root, page) {

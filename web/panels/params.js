@@ -1,6 +1,6 @@
 // Parameters (rosparam list / get / set / delete): every parameter with its value; editing keeps its type
 // (a number stays a number, a list a list); a value that does not fit is flagged under its field.
-import { ListPanel } from './panel.js';
+import { ListPanel } from '../parts/panel.js';
 
 export class ParamsPanel extends ListPanel {
   constructor(root, page) {

@@ -1,7 +1,7 @@
 // Publish anything (rostopic pub): a topic and a message type; a form generated from the type's definition;
 // publish once, or at a rate until stopped.
-import { messageForm } from './messages.js';
-import { Panel } from './panel.js';
+import { messageForm } from '../parts/messages.js';
+import { Panel } from '../parts/panel.js';
 
 const MAX_RATE_HZ = 100;
 

@@ -5,7 +5,7 @@
 // configuration the node answers: a value it clamped or changed reads as the node has it, and says so under the
 // field. The address keeps the node (?reconfigure=/camera).
 import { readAddress, keepInAddress } from '../address.js';
-import { ListPanel, fillSelect } from './panel.js';
+import { ListPanel, fillSelect } from '../parts/panel.js';
 
 const NODE_PARAM = 'reconfigure';
 const SERVICE_TYPE = 'dynamic_reconfigure/Reconfigure';

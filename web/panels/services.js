@@ -1,8 +1,8 @@
 // Services (rosservice list / info / call, rossrv show): every service with its type; choosing one shows a
 // form generated from its request definition; calling it shows the response, or the error.
-import { definitionText, messageForm, messageTree } from './messages.js';
-import { ListPanel, fillSelect } from './panel.js';
-import { confirmFirst } from './confirm.js';
+import { definitionText, messageForm, messageTree } from '../parts/messages.js';
+import { ListPanel, fillSelect } from '../parts/panel.js';
+import { confirmFirst } from '../parts/confirm.js';
 
 // Services whose call cannot be undone (turtlesim's /kill, /clear, /reset, rosapi's delete_param...): asked first.
 const IRREVERSIBLE = /\/(kill|clear|reset|delete\w*|shutdown)$/;

@@ -8,9 +8,9 @@
 // only its changed values are written when its shape is the tree's.
 import { readAddress, keepInAddress } from '../address.js';
 import { formatAge, formatBytes } from '../format.js';
-import { bulkArrays, definitionText, messageTree, treeShape } from './messages.js';
-import { ListPanel, showName } from './panel.js';
-import { Plot } from './plot.js';
+import { bulkArrays, definitionText, messageTree, treeShape } from '../parts/messages.js';
+import { ListPanel, showName } from '../parts/panel.js';
+import { Plot } from '../parts/plot.js';
 
 const REFRESH_MS = 3000;
 const WINDOW_S = 5;  // rate and bandwidth over the last seconds, as rostopic hz/bw's window

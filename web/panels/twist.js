@@ -1,7 +1,7 @@
 // The tutorial's panel: Linear X and Angular Z, and Publish sends one Twist on the topic driven (drive.js). The
 // two numbers are also the top speeds of the keys and the joystick. The page's feedback list is shown here.
-import { Panel } from './panel.js';
-import { numberField, readNumbers } from './numbers.js';
+import { Panel } from '../parts/panel.js';
+import { numberField, readNumbers } from '../parts/numbers.js';
 
 const TUTORIAL_SPEED = 1.5;
 

@@ -1,9 +1,9 @@
 // The world's services: Clear trails (/clear), Reset (/reset), Spawn (/spawn), Teleport (the driven turtle's
 // teleport_absolute); what they did, or their error, on the panel's status line. Clear and Reset ask first.
 import WORLD from '../world-constants.js';
-import { Panel } from './panel.js';
-import { numberField, readNumbers } from './numbers.js';
-import { confirmFirst } from './confirm.js';
+import { Panel } from '../parts/panel.js';
+import { numberField, readNumbers } from '../parts/numbers.js';
+import { confirmFirst } from '../parts/confirm.js';
 
 const SPAWN_MARGIN_M = 1;  // keeps random turtles off the walls
 

@@ -1,12 +1,12 @@
 // The live world, the first thing one sees: every turtle of the graph (each /<name>/pose of type turtlesim/Pose)
-// drawn where it is, with the trail it leaves while the page is open (world.js draws). Its subscriptions are the
+// drawn where it is, with the trail it leaves while the page is open (parts/world-view.js draws). Its subscriptions are the
 // current session's, dropped in detach().
-import { Panel } from './panel.js';
-import { WorldView } from './world.js';
+import { Panel } from '../parts/panel.js';
+import { WorldView } from '../parts/world-view.js';
 
 const DISCOVERY_MS = 2000;  // how often the set of turtles is refreshed
 
-export class TurtlesPanel extends Panel {
+export class WorldPanel extends Panel {
   constructor(root, page) {
     super(root, page);
     root.classList.add('turtles');

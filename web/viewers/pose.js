@@ -1,6 +1,6 @@
-// One turtle's turtlesim/Pose in turtlesim's world, with the trail it leaves while shown (world.js draws it as the
+// One turtle's turtlesim/Pose in turtlesim's world, with the trail it leaves while shown (parts/world-view.js draws it as the
 // page's live world does, in the turtle's colour there).
-import { WorldView } from '../panels/world.js';
+import { WorldView } from '../parts/world-view.js';
 
 export class TurtlePoseViewer {
   constructor(element, { topic }) {
