@@ -6,7 +6,7 @@
    clock). Compared in the same run with the same camera shown the way roslibjs pages usually do it: a plain
    subscription (JSON, the image data as base64, no throttling), decoded into an ImageData and drawn on a canvas.
 2. A robot's console (issue 23): the Laser viewer of a 1081-ray scan at 40 Hz, the TF tree of 50 frames at 100 Hz
-   and the camera, all at once, opened as test/browser/test_viewers.py opens them, from the same publishers
+   and the camera, all at once, opened as the browser tests do (testkit/page_actions.py), from the same publishers
    (testkit/sensor_messages.py): frames/s in each second of the run (median and lowest), the longest frame, the scans
    published, reaching the page and drawn, and the CPU of the bridge, Chromium and the publishers beside the load
    average. Compared with the same page with nothing open, in the same run (its own rate on this machine).
@@ -30,11 +30,10 @@ from sensor_msgs.msg import Image, LaserScan
 from tf2_msgs.msg import TFMessage
 
 REPO = Path(__file__).resolve().parent.parent
-sys.path[:0] = [str(REPO / "testkit"), str(REPO / "test" / "browser")]
-from test_viewers import open_viewer, text_of  # noqa: E402  (the viewers opened as a person does, as the tests do)
-
+sys.path.insert(0, str(REPO / "testkit"))
 import harness  # noqa: E402
 from chromium import CHROMIUM_FLAGS  # noqa: E402
+from page_actions import open_viewer, text_of  # noqa: E402  (the viewers opened as a person does, as the tests do)
 from reporting import markdown  # noqa: E402
 from sensor_messages import Publishing, moving_frames, wide_scan  # noqa: E402
 
@@ -132,7 +131,7 @@ def show_console_camera(driver):
 
 
 class Console:
-    """The page in a Chromium, as test_viewers.py's helpers take it (driver, js)."""
+    """The page in a Chromium, as testkit/page_actions.py's helpers take it (driver, js)."""
 
     def __init__(self, driver):
         self.driver = driver

@@ -17,9 +17,7 @@ BENCH = Path(__file__).resolve().parent
 REPO = BENCH.parent
 sys.path.insert(0, str(REPO / "testkit"))
 import harness  # noqa: E402  (the tests' process tools, testkit/: private roscore, process groups, logs)
-
-sys.path.insert(0, str(REPO / "test" / "integration"))
-import hostile  # noqa: E402  (the isolation tests' hostile clients and their victim)
+import hostile  # noqa: E402  (testkit/: the isolation tests' hostile clients and their victim)
 import payloads  # noqa: E402
 import peers  # noqa: E402
 import reporting  # noqa: E402
@@ -1073,7 +1071,7 @@ def section_cloud(run, table, rounds):
 
 
 def section_isolation(run, table):
-    """One hostile client at a time (test/integration/hostile.py) against a well-behaved one: the victim's
+    """One hostile client at a time (testkit/hostile.py) against a well-behaved one: the victim's
     largest gap in turtlesim's 62.5 Hz pose, its slowest /rosapi/get_time, the bridge's memory growth."""
     turtle = run.ros.spawn(["rosrun", "turtlesim", "turtlesim_node", "__name:=bench_turtle"], "bench_turtle")
     turtle.wait_output("Spawning turtle [turtle1]", 30)

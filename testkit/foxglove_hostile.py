@@ -21,7 +21,7 @@ import hostile
 
 SUBPROTOCOL = "foxglove.websocket.v1"
 SLOW_SERVICE = "/foxglove_hostile/silent"
-BIG_ASSET = Path(__file__).resolve().parents[2] / "test" / "artifacts" / "foxglove_hostile" / "big.stl"
+BIG_ASSET = Path(__file__).resolve().parents[1] / "test" / "artifacts" / "foxglove_hostile" / "big.stl"
 BIG_ASSET_URI = "package://turtlesim/test/artifacts/foxglove_hostile/big.stl"
 PARAMETERS = "/foxglove_hostile"  # where the abuses set parameters (the test deletes them)
 

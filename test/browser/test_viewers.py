@@ -14,36 +14,13 @@ from selenium.webdriver.support.ui import Select
 
 from fixtures import bridge_fixture
 from harness import ARTIFACTS, wait_for
+from page_actions import open_topic, open_viewer, text_of
 from sensor_messages import Publishing, big_cloud, moving_frames, quaternion, tf_message, wide_scan
 
 BACKGROUND = (15, 20, 36)
 
 
 # ---- helpers ------------------------------------------------------------------------------------------------------
-def text_of(page, selector):
-    found = page.driver.find_elements(By.CSS_SELECTOR, selector)
-    return found[0].text if found else ""
-
-
-def open_topic(page, topic):
-    """Opens a topic from the Topics tab's list, as a person clicks its name."""
-    page.js("document.getElementById('tab-button-topics').click()")  # (a click, wherever the page is scrolled)
-    click = f"""const button = document.querySelector('#tab-topics tr[data-topic="{topic}"] button');
-                if (button) button.click();
-                return Boolean(button);"""
-    wait_for(lambda: page.js(click), 20, what=f"{topic} listed")
-
-
-def open_viewer(page, topic, viewer):
-    """Opens topic and shows its viewer; returns the CSS selector of the viewer's area."""
-    open_topic(page, topic)
-    opened = f'.open-topic[data-topic="{topic}"]'
-    button = f'{opened} button.view[data-viewer="{viewer}"]'
-    wait_for(lambda: page.driver.find_elements(By.CSS_SELECTOR, button), 10, what=f"the {viewer} viewer offered")
-    page.js("document.querySelector(arguments[0]).click()", button)
-    return f"{opened} .viewer"
-
-
 def pixels(page, canvas_selector, colour=None, tolerance=60):
     """How many pixels of the canvas are close to colour, or (colour None) differ from the background."""
     return page.js(
