@@ -256,6 +256,7 @@ def images_within(client, seconds):
     return count
 
 
+@pytest.mark.alone  # (beside other tests' load the hoarders' answers may not fill the bound in time: it passed)
 @pytest.mark.xfail(strict=True, reason="the outboxes' shared bound counts a buffer once per client that holds it")
 def test_clients_that_never_read_big_answers_do_not_starve_others_of_big_messages(ros, world, hostile_bridge):
     """While ten Foxglove clients that never read hold four answers each of the 30 MB mesh (the same bytes for
