@@ -80,16 +80,7 @@ class FoxgloveSession:
             self.status("error", f"message is not valid JSON ({error}): {text[:60]!r}")
             return
         op = request.get("op") if isinstance(request, dict) else None
-        try:
-            handler = _OPS.get(op) if isinstance(op, str) else None
-            if handler is None:
-                raise RequestError(f"unknown op {str(op)[:60]!r}" if op is not None else "missing field 'op'")
-            handler(self, request)
-        except ClientError as error:
-            self.status("error", str(error))
-        except Exception:
-            log_bug(f"foxglove {op} failed")
-            self.status("error", f"{op}: internal error (logged by the bridge)")
+        self._answering(op, self._dispatch, op, request)
         if isinstance(op, str) and op in PACED_OPS and self.backend.after_pending(self, self._settled):
             self.holding = True
 
@@ -103,17 +94,30 @@ class FoxgloveSession:
         if limit and len(data) > limit:
             self.status("error", f"binary message of {len(data)} bytes refused: over max_message_size ({limit} bytes)")
             return
+        self._answering("binary message", self._dispatch_binary, data)
+
+    def _dispatch(self, op, request):
+        handler = _OPS.get(op) if isinstance(op, str) else None
+        if handler is None:
+            raise RequestError(f"unknown op {str(op)[:60]!r}" if op is not None else "missing field 'op'")
+        handler(self, request)
+
+    def _dispatch_binary(self, data):
+        message = wire.client_message(data)
+        if message[0] == "publish":
+            self._publish(*message[1:])
+        else:
+            self._call(*message[1:])
+
+    def _answering(self, what, fn, *args):
+        """fn(*args): a refusal becomes a status error; a bug is logged and the client told; the session goes on."""
         try:
-            message = wire.client_message(data)
-            if message[0] == "publish":
-                self._publish(*message[1:])
-            else:
-                self._call(*message[1:])
+            fn(*args)
         except ClientError as error:
             self.status("error", str(error))
         except Exception:
-            log_bug("foxglove binary message failed")
-            self.status("error", "binary message: internal error (logged by the bridge)")
+            log_bug(f"foxglove {what} failed")
+            self.status("error", f"{what}: internal error (logged by the bridge)")
 
     # ---- subscriptions ----------------------------------------------------------------------------
     def _op_subscribe(self, req):
