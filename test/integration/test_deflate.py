@@ -13,7 +13,7 @@ import pytest
 
 from bridge_client import RawWebSocket, WsClient, ping
 from fixtures import bridge_fixture
-from harness import launch_bridge, wait_for
+from harness import launch_bridge, wait_for, wait_publisher_connected
 from slow_link import Rover, paced_frames
 
 bridge = bridge_fixture("deflate_bridge")
@@ -100,7 +100,7 @@ def test_a_reader_that_keeps_up_gets_big_messages_as_they_are(bridge, node):
     assert len(frames) >= 25 and not any(compressed for _, compressed, _, _ in frames)
 
 
-def test_the_clients_own_compressed_messages_are_taken(bridge, node):
+def test_the_clients_own_compressed_messages_are_taken(ros, bridge, node):
     """A client that keeps no context between its messages, as agreed (browsers), and Tornado 6.2's client, which
     keeps it (its parser drops the answer's client_no_context_takeover)."""
     from std_msgs.msg import String
@@ -118,7 +118,8 @@ def test_the_clients_own_compressed_messages_are_taken(bridge, node):
         agreeing.send_text(
             json.dumps({"op": "advertise", "topic": "/deflate_in", "type": "std_msgs/String"}), deflated=True
         )
-        wait_for(lambda: subscriber.get_num_connections(), 20, what="the bridge's publisher")
+        # (from the bridge's side: after 1 s, what is published before the link is made is not replayed)
+        wait_publisher_connected(ros, "/deflate_bridge", "/deflate_in", node.get_name())
         for text in texts["agreeing"]:
             agreeing.send_text(
                 json.dumps({"op": "publish", "topic": "/deflate_in", "msg": {"data": text}}), deflated=True
