@@ -2,6 +2,7 @@
 nodes started with rosrun/roslaunch, and the stock CLI tools. Every process is started in its own process group
 and killed at teardown."""
 
+import contextlib
 import os
 import random
 import re
@@ -172,6 +173,19 @@ class RosMaster:
             return True
         except Exception:
             return False
+
+    @contextlib.contextmanager
+    def unresponsive(self):
+        """For the block, the master process is stopped (SIGSTOP): it accepts connections and answers nothing, as
+        a master on a machine that hangs does."""
+        (pid,) = (
+            pid for pid in descendants(self.core.popen.pid) if b"rosmaster" in Path(f"/proc/{pid}/cmdline").read_bytes()
+        )
+        os.kill(pid, signal.SIGSTOP)
+        try:
+            yield
+        finally:
+            os.kill(pid, signal.SIGCONT)
 
     def spawn(self, args, name=None, env=None, **kwargs):
         """Starts a process with this master's environment; it is stopped at teardown."""

@@ -6,8 +6,10 @@ not somewhere in a client's connection.
 Everything else the bridge uses of Tornado (RequestHandler.detach, IOStream.read_bytes / write /
 set_close_callback, IOLoop.add_handler, TCPServer) and of rospy is their public API."""
 
+import rospy
 import rospy.core
 import rospy.impl.masterslave
+import rospy.impl.paramserver
 import rospy.impl.registration
 import rospy.impl.tcpros
 import rospy.impl.transport
@@ -56,3 +58,17 @@ def forget_read_index(bag):
     reading while it is open; the file's own index is made of each chunk's, kept apart. The bag recorder never
     reads a bag it writes, so it clears that list after each write (a 1 GB bag of empty messages held 3.9 GB)."""
     bag._connection_indexes.clear()
+
+
+ROSOUT_SETTING = "/rosout_disable_topics_generation"
+
+
+def keep_rosout_setting_cached():
+    """rospy: its rosout handler reads ROSOUT_SETTING from rospy's parameter cache for every log line, and the
+    cache takes an unset one ({}) for "not cached": each line asked the master, on the loop for the bridge's
+    lines (every client waited while the master was slow). Asked once here (rospy subscribes to it, so a later
+    value reaches the cache), and kept as unset (False) when it is."""
+    try:
+        rospy.get_param_cached(ROSOUT_SETTING)
+    except KeyError:
+        rospy.impl.paramserver.get_param_server_cache().set(ROSOUT_SETTING, False)

@@ -6,6 +6,7 @@ One IOLoop thread serves every client; rospy's threads and the service-call thre
 
 import gc
 import resource
+import signal
 import time
 from pathlib import Path
 
@@ -19,7 +20,7 @@ import tornado.web
 from rosbridge import protocol
 from rosbridge.accepting import BoundedHTTPServer, accept_connections
 from rosbridge.auth import UrlMacs
-from rosbridge.borrowed import handle_connection
+from rosbridge.borrowed import handle_connection, keep_rosout_setting_cached
 from rosbridge.foxglove import Catalog
 from rosbridge.globs import Globs, parse_globs
 from rosbridge.heap import reuse_big_buffers
@@ -166,7 +167,8 @@ def raise_fd_limit():
 
 
 def main():
-    rospy.init_node("rosbridge_websocket")
+    rospy.init_node("rosbridge_websocket", disable_signals=True)  # (the loop takes them: stop_on_signals)
+    keep_rosout_setting_cached()
     try:
         current = Settings(lambda name: rospy.get_param("~" + name, None))
         globs = Globs.parse(current.topics_glob, current.services_glob, current.params_glob)
@@ -256,19 +258,25 @@ def main():
         f"; Foxglove WebSocket clients also on port {ports['~actual_foxglove_port']}" if foxglove_sockets else "",
     )
 
-    # The kernel may deliver SIGINT to one of rospy's threads, which leaves the loop asleep in epoll: wake it
-    # twice a second so that Python runs rospy's signal handler, and stop once rospy is shutting down.
-    tornado.ioloop.PeriodicCallback(lambda: rospy.is_shutdown() and loop.stop(), 500).start()
+    stop_on_signals(loop)
     # what start-up made lives as long as the node: the garbage collector's full collections (a black box save's
     # writing sets them off) need not walk it each time (the loop's stalls during a save: 25-35 ms -> 5-9 ms)
     gc.freeze()
     try:
         loop.start()
-    except KeyboardInterrupt:
-        pass
     finally:
         for sock in sockets + foxglove_sockets:
             sock.close()
+
+
+def stop_on_signals(loop):
+    """SIGINT and SIGTERM shut rospy down on the loop, between two of its callbacks (asyncio's handler wakes it
+    through its own pipe, whichever thread the kernel chose), and the loop stops once rospy shuts down, for
+    whatever reason. rospy's own handler ran in the middle of what the loop was doing: within one of its calls to
+    the master, the shutdown's own call waited for the lock that call held, for ever."""
+    for number in (signal.SIGINT, signal.SIGTERM):
+        loop.asyncio_loop.add_signal_handler(number, rospy.signal_shutdown, f"signal {number.name}")
+    rospy.on_shutdown(lambda: loop.add_callback(loop.stop))
 
 
 if __name__ == "__main__":

@@ -276,3 +276,41 @@ def test_after_a_roscore_restart_the_connected_client_drives_again(tmp_path):
         assert proc.alive()
     finally:
         master.stop()
+
+
+def test_a_master_that_stops_answering_does_not_stop_the_bridge_serving_its_clients(tmp_path):
+    """The master is stopped (SIGSTOP: it accepts connections and never answers) while a client is connected:
+    another client connects, and both are served. Before, the bridge's log line of that connection asked the
+    master (rospy's rosout handler, for /rosout_disable_topics_generation, on every line) on the loop, and every
+    client waited until the master answered."""
+    master = RosMaster(tmp_path).start()
+    try:
+        _, port = start_bridge(master, node_name="bridge_master_stopped")
+        first = WsClient(f"ws://127.0.0.1:{port}/")
+        with master.unresponsive():
+            second = WsClient(f"ws://127.0.0.1:{port}/", timeout=5)
+            for client in (first, second):
+                reply = client.request({"op": "set_level", "level": "bogus", "id": "ping"}, timeout=2)
+                assert reply["op"] == "status" and "bogus" in reply["msg"], reply
+            second.close()
+        first.close()
+    finally:
+        master.stop()
+
+
+def test_a_sigint_while_the_master_is_slow_stops_the_bridge(tmp_path):
+    """SIGINT (Ctrl-C, roslaunch's stop) comes while the master is slow to answer and a client connects: the
+    bridge exits once the master answers. Before, rospy's handler ran inside the loop's call to the master and its
+    shutdown waited for the lock that call held, for ever (only SIGKILL ended it)."""
+    master = RosMaster(tmp_path).start()
+    try:
+        proc, port = start_bridge(master, node_name="bridge_stopped_on_sigint")
+        with master.unresponsive():
+            client = RawWebSocket(port)
+            time.sleep(0.5)  # (its log line is being written)
+            os.kill(proc.popen.pid, signal.SIGINT)
+            time.sleep(0.5)
+        assert proc.popen.wait(10) == 0
+        client.close()
+    finally:
+        master.stop()

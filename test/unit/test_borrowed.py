@@ -4,8 +4,11 @@ a version that moves or changes one fails here, by name (see borrowed.py for why
 import inspect
 import os
 
+import pytest
 import rospy.impl.masterslave
+import rospy.impl.paramserver
 import rospy.impl.registration
+import rospy.impl.rosout
 import rospy.topics
 import tornado.tcpserver
 
@@ -64,3 +67,15 @@ def test_rosbag_keeps_an_index_entry_per_message_written_that_can_be_cleared(tmp
         bag.write("/empty", Empty())
     with rosbag.Bag(str(tmp_path / "a.bag")) as bag:  # the file's own index is whole
         assert bag.get_message_count() == 4
+
+
+def test_rospys_rosout_handler_reads_the_setting_that_the_bridge_keeps_cached():
+    """Each log line reads it through rospy's cache, which takes an unset ({}) value for "not cached"; one set in
+    the cache is read from it."""
+    assert f'get_param_cached("{borrowed.ROSOUT_SETTING}"' in inspect.getsource(rospy.impl.rosout._rosout)
+    cache = rospy.impl.paramserver.ParamServerCache()
+    cache.set(borrowed.ROSOUT_SETTING, {})
+    with pytest.raises(KeyError):
+        cache.get(borrowed.ROSOUT_SETTING)
+    cache.set(borrowed.ROSOUT_SETTING, False)
+    assert cache.get(borrowed.ROSOUT_SETTING) is False
