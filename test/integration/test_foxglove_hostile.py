@@ -256,23 +256,25 @@ def images_within(client, seconds):
     return count
 
 
-@pytest.mark.alone  # (beside other tests' load the hoarders' answers may not fill the bound in time: it passed)
-@pytest.mark.xfail(strict=True, reason="the outboxes' shared bound counts a buffer once per client that holds it")
 def test_clients_that_never_read_big_answers_do_not_starve_others_of_big_messages(ros, world, hostile_bridge):
-    """While ten Foxglove clients that never read hold four answers each of the 30 MB mesh (the same bytes for
-    all), a rosbridge client subscribed to the camera (300 kB images) keeps getting them. It gets none: the
-    bound all outboxes share beyond 256 kB each (QueuePool, 128 MB) counts the mesh 40 times, and every message
-    over 256 kB to any client is dropped until websocket_ping_timeout closes those clients (30 s)."""
+    """While twenty Foxglove clients that never read hold four answers each of the 30 MB mesh (the same bytes for
+    all), a rosbridge client subscribed to the camera (300 kB images) keeps getting them, and a Foxglove client
+    that reads gets the mesh. Before, it got none:
+    the bound all outboxes share (QueuePool, 128 MB) counted the mesh up to 80 times, and every message over 256 kB
+    to any client was dropped until websocket_ping_timeout closed those clients (30 s)."""
     url = f"ws://127.0.0.1:{hostile_bridge.port}/"
     camera = WsClient(url)
     camera.send({"op": "subscribe", "topic": "/turtle_camera/image_raw", "type": "sensor_msgs/Image"})
     camera.recv_op("publish", timeout=20)
-    socks = never_reading_fetches(url)
+    scout = foxglove_hostile.Scout(url)
+    socks = never_reading_fetches(url, clients=20)
     time.sleep(1)
     images = images_within(camera, 1)  # (those on their way before)
     images = images_within(camera, 4)
     print(f"{images} images in 4 s (10 a second come)")
     assert images >= 20
+    # and a Foxglove client that reads gets the mesh too (the pool's room left was always less than the mesh)
+    assert scout.fetch(foxglove_hostile.BIG_ASSET_URI, timeout=10) == foxglove_hostile.BIG_ASSET.read_bytes()
     for sock in socks:
         sock.close()
     camera.close()

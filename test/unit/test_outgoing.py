@@ -11,6 +11,7 @@ from rosbridge.protocol.outbox import (
     Outbox,
     QueuePool,
 )
+from rosbridge.protocol.encoded import SplicedFrame
 
 from fakes import Clock
 
@@ -31,7 +32,7 @@ def big(name, parts=1):
 def drain(box):
     taken = []
     while (frame := box.take()) is not None:
-        taken.append(bytes(frame).split(b" ")[0].decode())
+        taken.append((frame.encode() if isinstance(frame, str) else bytes(frame)).split(b" ")[0].decode())
     return taken
 
 
@@ -172,11 +173,10 @@ def test_the_outboxes_of_every_client_share_one_bound_beyond_their_own_bytes():
     drains, or whose client leaves, gives its share back."""
     pool, clock = QueuePool(3_000_000), Clock()
     hogs = [Outbox(1000, 64_000_000, clock, pool) for _ in range(3)]
-    answer = (b"A" * 1_000_000,)
     for hog in hogs:
         hog.set_backed_up(True, in_flight=1_000_000)  # (an answer in its socket already)
         for _ in range(5):
-            hog.push(None, answer)
+            hog.push(None, (str("A" * 1_000_000),))  # (each a client's own: a str is encoded as it is taken)
     assert pool.granted == pool.limit
     assert [hog.bytes for hog in hogs] == [2_000_000, 0, 0]  # (with the one in flight: the pool and its own)
     assert [hog.take_report()[1][None] for hog in hogs] == [3, 5, 5]
@@ -189,7 +189,68 @@ def test_the_outboxes_of_every_client_share_one_bound_beyond_their_own_bytes():
     first.set_backed_up(False)
     assert pool.granted == 2_000_000 - OWN_QUEUE_BYTES
     assert drain(first) == ["A" * 1_000_000] * 2 and pool.granted == 0
-    hogs[1].push(None, answer)  # (room again)
+    hogs[1].push(None, ("A" * 1_000_000,))  # (room again)
     assert hogs[1].bytes == 1_000_000 and pool.granted == 2_000_000 - OWN_QUEUE_BYTES
     hogs[1].clear()
     assert pool.granted == 0
+
+
+def test_a_big_buffer_that_many_clients_hold_counts_once_in_the_pool():
+    """Ten clients that never read each hold the same 30 MB answer four times, one of them in their socket: the
+    pool counts 30 MB, not 1.2 GB, and another client's pictures still fit."""
+    pool, clock = QueuePool(128_000_000), Clock()
+    mesh = b"M" * 30_000_000
+    hoarders = [Outbox(1000, 64_000_000, clock, pool) for _ in range(10)]
+    for i, hoarder in enumerate(hoarders):
+        answers = [SplicedFrame((b"head %d.%d " % (i, n), mesh), text=False) for n in range(4)]
+        hoarder.push(None, (answers[0],))
+        assert hoarder.take() is answers[0]
+        hoarder.set_backed_up(True, in_flight=len(answers[0]))
+        for answer in answers[1:]:
+            hoarder.push(None, (answer,))
+    assert pool.shared == len(mesh) and pool.granted == 0  # (each keeps two waiting: 64 MB are its own bound)
+    viewer = Outbox(1000, 64_000_000, clock, pool)
+    viewer.set_backed_up(True, in_flight=300_000)
+    for i in range(10):
+        viewer.push("/camera", (bytes([i]) * 300_000,))
+    assert viewer.take_report()[1] == {}
+
+
+def test_a_taken_big_frame_is_held_until_the_socket_has_it():
+    pool, clock = QueuePool(10_000_000), Clock()
+    box = Outbox(1000, 64_000_000, clock, pool)
+    picture = b"P" * 1_000_000
+    box.push("/camera", (picture,))
+    assert box.take() is picture and pool.shared == len(picture)
+    box.set_backed_up(True, in_flight=len(picture) + 100)  # (the socket holds it and a small frame)
+    assert pool.shared == len(picture) and pool.granted == 0
+    box.set_backed_up(False)
+    assert pool.shared == 0
+
+
+def test_a_big_frame_that_does_not_fit_the_pool_makes_room_from_its_own_clients_older_ones_first():
+    pool, clock = QueuePool(3_000_000), Clock()
+    other = Outbox(1000, 64_000_000, clock, pool)
+    other.push(None, (b"O" * 1_500_000,))
+    box = Outbox(1000, 64_000_000, clock, pool)
+    box.backed_up = True
+    first, second = b"1" * 1_000_000, b"2" * 1_000_000
+    box.push(None, (first,))
+    box.push(None, (second,))  # (1.5 + 1 + 1 MB: the older one of its own goes)
+    assert box.take_report()[1] == {None: 1} and drain(box) == ["2" * 1_000_000]
+    box.push(None, (b"3" * 2_000_000,))  # (it cannot fit beside the other client's: refused)
+    assert box.take_report()[1] == {None: 1} and len(box) == 0
+    assert drain(other) == ["O" * 1_500_000]
+
+
+def test_a_client_that_leaves_lets_go_of_every_buffer_it_held():
+    pool, clock = QueuePool(100_000_000), Clock()
+    box = Outbox(1000, 64_000_000, clock, pool)
+    shared = b"S" * 1_000_000
+    box.push("/map", (SplicedFrame((b"a", shared), text=False), SplicedFrame((b"b", shared), text=False)))
+    box.take()
+    box.set_backed_up(True, in_flight=1_000_001)
+    box.push("/camera", (b"C" * 2_000_000,))
+    box.push(None, ("x" * 500_000,))
+    box.clear()
+    assert (pool.shared, pool.granted) == (0, 0)

@@ -2,6 +2,9 @@
 kept fresh while the socket is backed up, bounded per client and for all clients together (QueuePool)."""
 
 import collections
+import itertools
+
+from rosbridge.protocol.encoded import SplicedFrame
 
 SMALL_MESSAGE = 1 << 16  # bytes: a message smaller than this goes before the big ones that have not started yet
 OWN_QUEUE_BYTES = 1 << 18  # what one client's outbox may hold before it draws on the bound shared by all clients'
@@ -9,33 +12,74 @@ OWN_QUEUE_BYTES = 1 << 18  # what one client's outbox may hold before it draws o
 TOPIC_BACKLOG_BYTES = 16 * 1024  # what one topic may have waiting while the socket is backed up (but its newest)...
 FRESH_HORIZON = 0.5  # ...and for how long (s): older messages of a topic that has a newer one waiting are skipped
 REPORT_INTERVAL = 1.0  # s: how often at most a client is told what its slow link skipped or dropped
+SHARED_BYTES = SMALL_MESSAGE  # a buffer this big is held by reference by every client it goes to: the pool counts
+# it once (ten clients that never read holding the same 30 MB mesh four times each counted 1.2 GB against a 128 MB
+# pool, and every big message to anyone was dropped)
+
+
+def shared_buffers(frame):
+    """The big buffers of a frame that each client it goes to holds by reference, not as a copy of its own: the
+    frame itself (encoded once for all its clients), or a spliced frame's big parts (an image's bytes behind each
+    client's own head). A str frame is encoded anew for each client as it is taken: none."""
+    if isinstance(frame, SplicedFrame):
+        return tuple(part for part in frame.parts if len(part) >= SHARED_BYTES)
+    if isinstance(frame, str) or len(frame) < SHARED_BYTES:
+        return ()
+    return (frame,)
 
 
 class _Unit:
-    """One message's frames (its fragments, or its one frame) waiting for the socket."""
+    """One message's frames (its fragments, or its one frame) waiting for the socket; `shared`, the big buffers
+    among them that the pool holds (counted once for every client), `own` the rest of its bytes."""
 
-    __slots__ = ("key", "frames", "size", "queued_at", "big")
+    __slots__ = ("key", "frames", "size", "queued_at", "big", "shared", "own")
 
-    def __init__(self, key, frames, size, queued_at, big):
+    def __init__(self, key, frames, size, queued_at, big, shared, own):
         self.key, self.frames, self.size, self.queued_at, self.big = key, frames, size, queued_at, big
+        self.shared, self.own = shared, own
 
 
 class QueuePool:
-    """What the outboxes of every client may hold together beyond OWN_QUEUE_BYTES each: `limit` bytes, handed out
-    as an outbox needs them and given back as it drains (Outbox), so that clients that do not read cannot hold
-    their whole bound each."""
+    """What the outboxes of every client may hold together: `limit` bytes of
+    - the big buffers that clients hold by reference (shared_buffers), each counted once however many hold it;
+    - and beyond OWN_QUEUE_BYTES each, the rest, handed out as an outbox needs it and given back as it drains;
+    so that clients that do not read cannot hold their whole bound each."""
 
     def __init__(self, limit):
         self.limit, self.granted = limit, 0
+        self.shared = 0  # bytes of the distinct buffers held
+        self._holders = {}  # id(buffer) -> [buffer, how many holds]
 
     def grant(self, wanted):
         """Up to `wanted` more bytes for one outbox: what is left of the limit, at most."""
-        given = max(0, min(wanted, self.limit - self.granted))
+        given = max(0, min(wanted, self.limit - self.granted - self.shared))
         self.granted += given
         return given
 
     def give_back(self, count):
         self.granted -= count
+
+    def hold(self, buffers):
+        """Holds each buffer once more; False, holding none, if those nobody holds yet do not fit."""
+        new = {id(buffer): len(buffer) for buffer in buffers if id(buffer) not in self._holders}
+        if new and self.granted + self.shared + sum(new.values()) > self.limit:
+            return False
+        for buffer in buffers:
+            held = self._holders.get(id(buffer))
+            if held is None:
+                self._holders[id(buffer)] = [buffer, 1]
+                self.shared += len(buffer)
+            else:
+                held[1] += 1
+        return True
+
+    def release(self, buffers):
+        for buffer in buffers:
+            held = self._holders[id(buffer)]
+            held[1] -= 1
+            if not held[1]:
+                del self._holders[id(buffer)]
+                self.shared -= len(buffer)
 
 
 class Outbox:
@@ -58,13 +102,18 @@ class Outbox:
       deflated copy lives with the frame (transport/slow_link.deflated_payload).
     - With a `pool` (a QueuePool shared by every client's outbox), what waits beyond OWN_QUEUE_BYTES, and what
       the socket was given but has not sent (in_flight, from set_backed_up), must also be granted by the pool:
-      beyond what it grants, whole messages are dropped as above, the newest too."""
+      beyond what it grants, whole messages are dropped as above, the newest too. The big buffers that clients
+      hold by reference are held in the pool instead, once for all, from their push until they have left (the
+      socket has drained: set_backed_up(False), which the transport says after it wrote a big frame too)."""
 
     def __init__(self, max_frames, max_bytes, clock, pool=None):
         self.max_frames, self.max_bytes, self._clock = max_frames, max_bytes, clock
         self._pool, self._granted, self._in_flight = pool, 0, 0
-        # what may wait before the oldest messages are dropped: max_bytes, or with a pool what it granted
+        # what of self.bytes the pool does not hold (all of it without a pool), and what it may be before the
+        # oldest messages are dropped: max_bytes, or with a pool what it granted
+        self._own = 0
         self._allowed = max_bytes if pool is None else min(max_bytes, OWN_QUEUE_BYTES)
+        self._sent, self._sent_bytes = [], 0  # the pool's holds of the buffers taken that may not have left yet
         self._small, self._big = collections.deque(), collections.deque()  # units, oldest first
         self._dead = 0  # units skipped or dropped that are still in a lane (removed lazily)
         self._by_key = {}  # topic (or None) -> its waiting units, oldest first
@@ -86,28 +135,51 @@ class Outbox:
         if len(frames) > self.max_frames or size > self.max_bytes:
             self.refused[key] += 1
             return
+        shared, own = (), size
+        if self._pool is not None and size >= SHARED_BYTES:
+            shared = tuple(itertools.chain.from_iterable(map(shared_buffers, frames)))
+            if shared and not self._hold(shared):
+                self.dropped[key] += 1
+                return
+            own -= sum(map(len, shared))
         waiting = self._by_key.get(key)
         if waiting is None:
             waiting = self._by_key[key] = collections.deque()
         big = size >= SMALL_MESSAGE or bool(waiting and waiting[-1].big) or (key == self._current_key and self._current)
-        unit = _Unit(key, frames, size, self._clock(), big)
+        unit = _Unit(key, frames, size, self._clock(), big, shared, own)
         (self._big if big else self._small).append(unit)
         waiting.append(unit)
         self._key_bytes[key] += size
         self.frames += len(frames)
         self.bytes += size
+        self._own += own
         if self.backed_up and key is not None:
             self._freshen(key, waiting, unit.queued_at)
-        if self.frames > self.max_frames or self.bytes > self._allowed:
+        if self.frames > self.max_frames or self.bytes > self.max_bytes or self._own > self._allowed:  # (_over)
             self._bound(unit)
+
+    def _over(self):
+        return self.frames > self.max_frames or self.bytes > self.max_bytes or self._own > self._allowed
+
+    def _hold(self, shared):
+        """Has the pool hold a new message's shared buffers, dropping this client's oldest big messages while
+        they do not fit; False if they still do not."""
+        for unit in self._big:
+            if self._pool.hold(shared):
+                return True
+            if unit.frames is not None and unit.shared:
+                self._drop(unit)
+        return self._pool.hold(shared)
 
     def set_backed_up(self, flag, in_flight=0):
         """Whether the socket is backed up (then each topic keeps only what is fresh), and how many bytes the
         socket holds that have not left yet (they count against the pool until they have)."""
         self.backed_up, self._in_flight = flag, in_flight
         if self._pool is not None:
+            if not flag and self._sent:
+                self._release_sent()
             self._regrant()
-            if self.bytes > self._allowed:
+            if self._over():
                 self._bound(None)
 
     def _freshen(self, key, waiting, now):
@@ -122,11 +194,11 @@ class Outbox:
             self._regrant()
         for lane in (self._big, self._small):  # the big ones first: they are what fills memory
             for unit in lane:
-                if self.frames <= self.max_frames and self.bytes <= self._allowed:
+                if not self._over():
                     return
                 if unit.frames is not None and unit is not newest:
                     self._drop(unit)
-        if self._pool is not None and self.bytes > self._allowed and newest is not None and newest.frames is not None:
+        if self._pool is not None and self._over() and newest is not None and newest.frames is not None:
             self._drop(newest)  # (what the pool did not grant)
 
     def _drop(self, unit):
@@ -136,19 +208,29 @@ class Outbox:
 
     def _regrant(self):
         """Holds as much of the pool as what waits (up to max_bytes) and what is in flight take beyond
-        OWN_QUEUE_BYTES, or what is left of it, and gives back the rest."""
-        wanted = max(0, min(self.bytes, self.max_bytes) + self._in_flight - OWN_QUEUE_BYTES)
+        OWN_QUEUE_BYTES, or what is left of it, and gives back the rest: what the pool holds already (shared
+        buffers, waiting or taken) not counted."""
+        in_flight = max(0, self._in_flight - self._sent_bytes)
+        wanted = max(0, min(self._own, self.max_bytes) + in_flight - OWN_QUEUE_BYTES)
         if wanted > self._granted:
             self._granted += self._pool.grant(wanted - self._granted)
         elif wanted < self._granted:
             self._pool.give_back(self._granted - wanted)
             self._granted = wanted
-        self._allowed = min(self.max_bytes, OWN_QUEUE_BYTES + self._granted - self._in_flight)
+        self._allowed = min(self.max_bytes, OWN_QUEUE_BYTES + self._granted - in_flight)
+
+    def _release_sent(self):
+        """What was taken has left: the pool's holds on its buffers go."""
+        self._pool.release(self._sent)
+        self._sent.clear()
+        self._sent_bytes = 0
 
     def _remove(self, unit):
         """Takes a waiting unit out of the counts; it leaves its lane when the lane is next taken from, or compacted
         once the dead outnumber the living (a client that never reads must not grow the lanes)."""
         self._forget(unit)
+        if unit.shared:
+            self._pool.release(unit.shared)
         unit.frames = None
         self._dead += 1
         if self._dead > 64 and self._dead > len(self._small) + len(self._big) - self._dead:
@@ -165,6 +247,7 @@ class Outbox:
             del self._by_key[key]
         self.frames -= len(unit.frames)
         self.bytes -= unit.size
+        self._own -= unit.own
 
     def take(self):
         """The next frame to send, or None."""
@@ -175,10 +258,15 @@ class Outbox:
         if unit is not None:
             self._by_key[unit.key].popleft()
             self._forget(unit)
+            if unit.shared:  # (held until the socket has them all, the current message's rest included)
+                self._sent.extend(unit.shared)
+                self._sent_bytes += unit.size - unit.own
             if len(unit.frames) == 1:
                 return unit.frames[0]
             self.frames += len(unit.frames) - 1  # (the rest now counted as the current message)
-            self.bytes += unit.size - len(unit.frames[0])
+            rest = unit.size - len(unit.frames[0])
+            self.bytes += rest
+            self._own += rest - sum(len(b) for frame in unit.frames[1:] for b in shared_buffers(frame))
             current.extend(unit.frames[1:])
             self._current_key = unit.key
             return unit.frames[0]
@@ -189,6 +277,10 @@ class Outbox:
         frame = current.popleft()
         self.frames -= 1
         self.bytes -= len(frame)
+        if self._pool is not None:
+            self._own -= len(frame) - sum(map(len, shared_buffers(frame)))
+        else:
+            self._own -= len(frame)
         return frame
 
     def _next_unit(self, lane):
@@ -215,13 +307,17 @@ class Outbox:
         return report
 
     def clear(self):
+        for unit in itertools.chain(self._small, self._big):
+            if unit.frames is not None and unit.shared:
+                self._pool.release(unit.shared)
         for lane in (self._small, self._big, self._current):
             lane.clear()
         self._current_key = None
         self._by_key.clear()
         self._key_bytes.clear()
-        self._dead = self.frames = self.bytes = self._in_flight = 0
+        self._dead = self.frames = self.bytes = self._own = self._in_flight = 0
         if self._pool is not None:
+            self._release_sent()
             self._regrant()
 
 

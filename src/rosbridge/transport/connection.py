@@ -297,6 +297,7 @@ class ClientConnection:
             return
         stream = self._stream
         one_at_a_time = bool(self.bridge.settings.delay_between_messages)
+        big_sent = False  # (the Session's pool holds a big frame's bytes until it hears they left: _backed_up)
         while not self._closing and not stream.closed():
             batch, size = [], 0
             while size < WRITE_BATCH_BYTES:
@@ -305,6 +306,7 @@ class ClientConnection:
                     break
                 batch.append((frame, payload))
                 size += len(frame if payload is None else payload)
+                big_sent = big_sent or len(frame) >= BIG_BYTES
                 if one_at_a_time:
                     break
             if batch:
@@ -319,6 +321,8 @@ class ClientConnection:
             if self._deflating:  # (_deflated goes on)
                 return
             if frame is None:  # the queue is empty: the next frame queued wakes us again
+                if big_sent:
+                    self._backed_up()
                 if self._close_reason is not None:
                     self.close(ws.POLICY, self._close_reason)
                 return
