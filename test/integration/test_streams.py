@@ -466,8 +466,8 @@ def test_viewers_of_the_same_size_and_quality_share_one_encode(bridge_proc, node
             reader.start()
         time.sleep(1.5)
         start_counts = list(counts)
-        cpu = cpu_per_second(stat, 5.0)
-        rates = [(c - s) / 5.0 for c, s in zip(counts, start_counts)]
+        cpu = cpu_per_second(stat, 3.0)
+        rates = [(c - s) / 3.0 for c, s in zip(counts, start_counts)]
         done.set()
         for reader in readers:
             reader.join(10)
