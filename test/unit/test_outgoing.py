@@ -3,6 +3,7 @@ socket is backed up, bounded."""
 
 import tracemalloc
 
+from rosbridge.protocol.encoded import SplicedFrame
 from rosbridge.protocol.outbox import (
     FRESH_HORIZON,
     OWN_QUEUE_BYTES,
@@ -11,7 +12,6 @@ from rosbridge.protocol.outbox import (
     Outbox,
     QueuePool,
 )
-from rosbridge.protocol.encoded import SplicedFrame
 
 from fakes import Clock
 
