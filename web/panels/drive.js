@@ -35,7 +35,7 @@ export class DrivePanel extends Panel {
       <p class="readout" hidden aria-live="off"><code class="readout-topic"></code>
         <span class="readout-values"></span> <span class="readout-age"></span></p>`;
     this.select = root.querySelector('#target');
-    this.turtles = new Set();  // the graph's turtles, as last seen
+    this.turtles = null;  // the graph's turtles as last seen; null until this connection's first look
     this.cmdVel = null;  // {name, publisher} advertised on the current session
     this.listeners = [];
     this.timer = null;
@@ -61,10 +61,12 @@ export class DrivePanel extends Panel {
     return this.select.value;
   }
 
-  // The turtle whose cmd_vel is driven (teleport acts on it), or null for another robot's topic.
+  // The turtle whose cmd_vel is driven (teleport acts on it), or null for another robot's topic. Before the graph
+  // is seen, a turtle's cmd_vel is taken at its name: a teleport clicked as the page connects goes (turtlesim
+  // answers if there is no such turtle), where it was refused as "not a turtle's cmd_vel".
   turtle() {
     const name = /^\/([^/]+)\/cmd_vel$/.exec(this.topic)?.[1];
-    return name && (this.turtles.has(name) || !this.session) ? name : null;
+    return name && (!this.session || !this.turtles || this.turtles.has(name)) ? name : null;
   }
 
   // listener() now and whenever the topic driven or the turtle it moves may have changed.
@@ -79,6 +81,7 @@ export class DrivePanel extends Panel {
 
   attach(session) {
     super.attach(session);
+    this.turtles = null;
     this.commandTopic();
     this.discover();
     this.timer = setInterval(() => this.discover(), DISCOVERY_MS);
