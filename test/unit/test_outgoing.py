@@ -254,3 +254,17 @@ def test_a_client_that_leaves_lets_go_of_every_buffer_it_held():
     box.push(None, ("x" * 500_000,))
     box.clear()
     assert (pool.shared, pool.granted) == (0, 0)
+
+
+def test_a_fragmented_message_leaves_nothing_counted_once_sent_with_or_without_a_pool():
+    for pool in (None, QueuePool(100_000_000)):
+        box = Outbox(1000, 64_000_000, Clock(), pool)
+        fragments = tuple(b"f%d " % i + b"." * SMALL_MESSAGE for i in range(3))
+        box.push("/map", fragments)
+        box.push("/map", fragments)
+        box.backed_up = True
+        assert drain(box) == ["f0", "f1", "f2"] * 2
+        box.set_backed_up(False)
+        assert (len(box), box.bytes, box._own) == (0, 0, 0)
+        if pool is not None:
+            assert (pool.shared, pool.granted) == (0, 0)

@@ -264,9 +264,8 @@ class Outbox:
             if len(unit.frames) == 1:
                 return unit.frames[0]
             self.frames += len(unit.frames) - 1  # (the rest now counted as the current message)
-            rest = unit.size - len(unit.frames[0])
-            self.bytes += rest
-            self._own += rest - sum(len(b) for frame in unit.frames[1:] for b in shared_buffers(frame))
+            self.bytes += unit.size - len(unit.frames[0])
+            self._own += sum(map(self._own_part, unit.frames[1:]))
             current.extend(unit.frames[1:])
             self._current_key = unit.key
             return unit.frames[0]
@@ -277,11 +276,14 @@ class Outbox:
         frame = current.popleft()
         self.frames -= 1
         self.bytes -= len(frame)
-        if self._pool is not None:
-            self._own -= len(frame) - sum(map(len, shared_buffers(frame)))
-        else:
-            self._own -= len(frame)
+        self._own -= self._own_part(frame)
         return frame
+
+    def _own_part(self, frame):
+        """The bytes of a frame of the current message that the pool does not hold."""
+        if self._pool is None:
+            return len(frame)
+        return len(frame) - sum(map(len, shared_buffers(frame)))
 
     def _next_unit(self, lane):
         while lane:
