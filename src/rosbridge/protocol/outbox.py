@@ -155,7 +155,7 @@ class Outbox:
         self._own += own
         if self.backed_up and key is not None:
             self._freshen(key, waiting, unit.queued_at)
-        if self.frames > self.max_frames or self.bytes > self.max_bytes or self._own > self._allowed:  # (_over)
+        if self._over():
             self._bound(unit)
 
     def _over(self):
