@@ -8,6 +8,7 @@ const WORLD_PX = WORLD.size_px;
 const BACKGROUND = `rgb(${WORLD.background.join(', ')})`;
 const PEN = `rgb(${WORLD.pen.join(', ')})`;
 const MAX_SEGMENTS = 200000;  // oldest trail segments are forgotten beyond this
+const REBORN_MS = 1000;  // after a reset, how long a pose of turtle1 away from the centre may be the old turtle's
 // Shell colours; turtle1 gets the first. Chosen to stand out on the blue background and the pale pen.
 const PALETTE = [[46, 204, 113], [255, 176, 32], [255, 99, 146], [38, 222, 235], [190, 140, 255], [240, 226, 70]];
 
@@ -18,6 +19,7 @@ export class WorldView {
     this.trail = document.createElement('canvas');
     this.trailCtx = this.trail.getContext('2d');
     this.turtles = new Map();  // name -> {pose, colour, joined: the next pose continues its trail}
+    this.reborn = null;  // {name, until}: see forgetTurtles
     this.segments = [];  // [x0, y0, x1, y1] in metres, flat
     this.dirty = false;
     canvas.style.background = BACKGROUND;  // (until the first picture is drawn)
@@ -48,16 +50,27 @@ export class WorldView {
   }
 
   setPose(name, pose) {
+    const stale = this.isStale(name, pose);
     const turtle = this.turtles.get(name);
     if (!turtle) {
-      this.turtles.set(name, { pose, colour: colourFor(name, this.turtles.size), joined: true });
+      this.turtles.set(name, { pose, colour: colourFor(name, this.turtles.size), joined: !stale });
     } else {
       const last = turtle.pose;
       if (turtle.joined && (last.x !== pose.x || last.y !== pose.y)) this.addSegment(last.x, last.y, pose.x, pose.y);
       turtle.pose = pose;
-      turtle.joined = true;
+      turtle.joined = !stale;
     }
     this.invalidate();
+  }
+
+  // Whether a pose may be the old turtle's, from before a reset (see forgetTurtles): it is shown, and no trail
+  // joins it.
+  isStale(name, pose) {
+    if (this.reborn?.name !== name) return false;
+    const centre = WORLD_M / 2;
+    if (performance.now() < this.reborn.until && Math.hypot(pose.x - centre, pose.y - centre) > 1e-3) return true;
+    this.reborn = null;
+    return false;
   }
 
   get names() {
@@ -80,10 +93,13 @@ export class WorldView {
     this.redrawTrail();
   }
 
-  // After /reset the old turtles are gone: no line may join an old pose to the new turtle1.
+  // After /reset the old turtles are gone: no line may join an old pose to the new turtle1. A pose the old
+  // turtle1 published before the reset may still come after the service's answer (the topic and the service are
+  // two connections): the new turtle1's trail starts where turtlesim puts it, the centre (or REBORN_MS later).
   forgetTurtles() {
     this.turtles.clear();
     this.clearTrails();
+    this.reborn = { name: 'turtle1', until: performance.now() + REBORN_MS };
   }
 
   addSegment(x0, y0, x1, y1) {
