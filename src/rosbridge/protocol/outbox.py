@@ -4,6 +4,7 @@ kept fresh while the socket is backed up, bounded per client and for all clients
 import collections
 import itertools
 
+from rosbridge.codec import BIG_BYTES
 from rosbridge.protocol.encoded import SplicedFrame
 
 SMALL_MESSAGE = 1 << 16  # bytes: a message smaller than this goes before the big ones that have not started yet
@@ -12,9 +13,9 @@ OWN_QUEUE_BYTES = 1 << 18  # what one client's outbox may hold before it draws o
 TOPIC_BACKLOG_BYTES = 16 * 1024  # what one topic may have waiting while the socket is backed up (but its newest)...
 FRESH_HORIZON = 0.5  # ...and for how long (s): older messages of a topic that has a newer one waiting are skipped
 REPORT_INTERVAL = 1.0  # s: how often at most a client is told what its slow link skipped or dropped
-SHARED_BYTES = SMALL_MESSAGE  # a buffer this big is held by reference by every client it goes to: the pool counts
-# it once (ten clients that never read holding the same 30 MB mesh four times each counted 1.2 GB against a 128 MB
-# pool, and every big message to anyone was dropped)
+# A buffer of BIG_BYTES or more goes to the socket by reference (transport/connection.py), so every client it goes
+# to holds the same one: the pool counts it once (ten clients that never read holding the same 30 MB mesh four
+# times each counted 1.2 GB against a 128 MB pool, and every big message to anyone was dropped)
 
 
 def shared_buffers(frame):
@@ -22,8 +23,8 @@ def shared_buffers(frame):
     frame itself (encoded once for all its clients), or a spliced frame's big parts (an image's bytes behind each
     client's own head). A str frame is encoded anew for each client as it is taken: none."""
     if isinstance(frame, SplicedFrame):
-        return tuple(part for part in frame.parts if len(part) >= SHARED_BYTES)
-    if isinstance(frame, str) or len(frame) < SHARED_BYTES:
+        return tuple(part for part in frame.parts if len(part) >= BIG_BYTES)
+    if isinstance(frame, str) or len(frame) < BIG_BYTES:
         return ()
     return (frame,)
 
@@ -136,7 +137,7 @@ class Outbox:
             self.refused[key] += 1
             return
         shared, own = (), size
-        if self._pool is not None and size >= SHARED_BYTES:
+        if self._pool is not None and size >= BIG_BYTES:
             shared = tuple(itertools.chain.from_iterable(map(shared_buffers, frames)))
             if shared and not self._hold(shared):
                 self.dropped[key] += 1
@@ -265,7 +266,7 @@ class Outbox:
                 return unit.frames[0]
             self.frames += len(unit.frames) - 1  # (the rest now counted as the current message)
             self.bytes += unit.size - len(unit.frames[0])
-            self._own += sum(map(self._own_part, unit.frames[1:]))
+            self._own += unit.own - self._own_part(unit.frames[0])
             current.extend(unit.frames[1:])
             self._current_key = unit.key
             return unit.frames[0]
