@@ -167,6 +167,11 @@ class Backend(abc.ABC):
         """The client no longer wants `topic`."""
 
     @abc.abstractmethod
+    def latched_messages(self, topic):
+        """The messages of `topic` that its publishers still latch: what a new subscriber would be given first
+        (a client subscribed already may hold them)."""
+
+    @abc.abstractmethod
     def call_service(self, session, service, args, type_name, timeout, reply):
         """Calls a ROS service (or rosapi) with JSON args; reply(ok, values) later, on the loop, exactly once.
         timeout: seconds or None."""

@@ -659,6 +659,23 @@ def test_the_variants_a_latched_frame_keeps_are_bounded_in_bytes(bridge_proc, no
     assert grown < 70, f"the bridge grew {grown:.0f} MB"
 
 
+def test_a_snapshot_of_a_watched_latched_topic_is_its_latched_picture_at_once(bridge, node):
+    """A latched picture watched by a stream already: a snapshot is answered with it at once, as a new subscriber
+    would be given it (it waited SNAPSHOT_TIMEOUT, 5 s, for a next frame that never comes)."""
+    pub = latched_image(node, "/streams_test/latched_once", camera_pictures(64, 48, 1)[0])
+    stream = Http(bridge, "/stream?topic=/streams_test/latched_once")
+    try:
+        stream.part()  # (the stream has the picture: its topic is watched)
+        start = time.monotonic()
+        status, _, body = get(bridge, "/snapshot?topic=/streams_test/latched_once&width=32")
+        took = time.monotonic() - start
+        assert status == 200 and jpeg_size(body) == (32, 24), body[:200]
+        assert took < 4.0, f"answered in {took:.1f} s, as if it waited for a next frame"
+    finally:
+        stream.close()
+        pub.unregister()
+
+
 @pytest.mark.alone  # (a ratio of times: 4.3-4.4 encodes twice in a loaded first pass, 12.5 with the old encoder)
 def test_a_flood_of_sizes_on_one_topic_does_not_starve_another_topic(bridge, node, camera):
     """24 snapshots at once of one camera, each of its own 8.4 Mpx size at quality 100 (seconds of encoding), then,

@@ -61,6 +61,9 @@ class MemoryBackend(Backend):
     def unsubscribe(self, session, topic):
         self._record("unsubscribe", topic)
 
+    def latched_messages(self, topic):
+        return []
+
     def after_pending(self, session, then):
         return False  # (the ROS side is done at once here; test_protocol.py holds requests)
 

@@ -258,8 +258,13 @@ class SnapshotViewer(Viewer):
         self._grace = False
 
     def joined(self):
-        if self.topic.latest is not None:
-            self.sent_seq = self.topic.latest.seq  # (the next one)
+        latest = self.topic.latest
+        if latest is None:
+            return
+        if any(message is latest.message for message in self.streams.backend.latched_messages(self.topic.topic)):
+            self.topic.want(self)  # a latched picture: what a new subscriber would be given at once
+        else:
+            self.sent_seq = latest.seq  # (the next one)
 
     def new_frame(self, frame):
         if not self.result.done():

@@ -63,6 +63,9 @@ class RosBackend(Backend):
     def unsubscribe(self, session, topic):
         self._subscribers.unsubscribe(session, topic)
 
+    def latched_messages(self, topic):
+        return self._subscribers.latched_messages(topic)
+
     def resolve_name(self, name):
         """As the reference (rospy.resolve_name): roslib 2.x calls rosapi by relative names ("rosapi/topics")."""
         return rospy.resolve_name(name)

@@ -166,6 +166,10 @@ class Subscribers:
             if entry.ready:
                 self._worker.submit(self._unregister(entry))
 
+    def latched_messages(self, topic):
+        entry = self._entries.get(topic)
+        return entry.latched_messages() if entry is not None else []
+
     def release(self, session):
         for topic in self._holders.names_of(session):
             self.unsubscribe(session, topic)
