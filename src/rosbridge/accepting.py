@@ -5,6 +5,7 @@ HTTP server (BoundedHTTPServer: request bodies, connections per address)."""
 import errno
 import http
 import resource
+import sys
 
 import tornado.gen
 import tornado.httpserver
@@ -61,14 +62,17 @@ class BoundedHTTPServer(tornado.httpserver.HTTPServer):
 
     - a request whose Content-Length is over max_body is answered 413 at its headers, none of its body kept (what
       the client sends meanwhile is read and dropped for up to LINGER seconds, so that it reads the answer); a body
-      sent in chunks stops at max_body too (Tornado's 400), and a body must be whole within BODY_TIMEOUT;
+      sent in chunks is answered so once past max_body, and a body must be whole within BODY_TIMEOUT;
     - one address holds at most per_address connections at once (HTTP requests, websockets and streams alike; and
       a quarter of the file descriptors at most), so that one peer cannot take them all: beyond, a connection is
       answered 503 and closed at once.
     log(kind, text): a refusal, to be logged at most now and then."""
 
     def initialize(self, app, max_body, per_address, log, **options):
-        super().initialize(_BodyBound(app, max_body, log), max_body_size=max_body, body_timeout=BODY_TIMEOUT, **options)
+        # (bounded by _BodyBound as the body comes: Tornado's own bound would answer a chunked one a bare 400)
+        super().initialize(
+            _BodyBound(app, max_body, log), max_body_size=sys.maxsize, body_timeout=BODY_TIMEOUT, **options
+        )
         soft_limit = resource.getrlimit(resource.RLIMIT_NOFILE)[0]
         if soft_limit != resource.RLIM_INFINITY:  # (and a quarter of the descriptors at most)
             per_address = min(per_address, max(1, (soft_limit - FDS_KEPT_FREE) // 4))
@@ -123,17 +127,15 @@ class _BodyBound(tornado.httputil.HTTPServerConnectionDelegate):
 class _BodyBoundRequest(tornado.httputil.HTTPMessageDelegate):
     def __init__(self, delegate, connection, bound):
         self.delegate, self.connection, self.bound = delegate, connection, bound
+        self._path = ""
+        self._received = 0  # bytes of its body so far
 
     def headers_received(self, start_line, headers):
+        self._path = start_line.path
         length = headers.get("Content-Length", "")
         if not (length.isdigit() and int(length) > self.bound.max_body):
             return self.delegate.headers_received(start_line, headers)
-        peer = self.connection.context.remote_ip
-        self.bound.log(
-            ("body", peer),
-            f"Refused a request body of {length} bytes from {peer} for "
-            f"{start_line.path[:200]}: no endpoint takes more than {self.bound.max_body}",
-        )
+        self._log(f"{length} bytes")
         stream = self.connection.detach()  # (Tornado then reads nothing more of this request)
         tornado.ioloop.IOLoop.current().add_callback(
             _refuse,
@@ -143,7 +145,28 @@ class _BodyBoundRequest(tornado.httputil.HTTPMessageDelegate):
         return None
 
     def data_received(self, chunk):
-        return self.delegate.data_received(chunk)
+        self._received += len(chunk)
+        if self._received <= self.bound.max_body:
+            return self.delegate.data_received(chunk)
+        # a body sent in chunks, past the bound: refused, then closed (Tornado's next read of it then ends the
+        # connection, and tells the application that it closed)
+        self._log(f"more than {self.bound.max_body} bytes in chunks")
+        return _refuse(
+            self.connection.stream,
+            _answer(
+                413,
+                f"request body too large: more than {self.bound.max_body} bytes sent in chunks, at most "
+                f"{self.bound.max_body} are taken",
+            ),
+        )
+
+    def _log(self, size):
+        peer = self.connection.context.remote_ip
+        self.bound.log(
+            ("body", peer),
+            f"Refused a request body of {size} from {peer} for {self._path[:200]}: no endpoint takes more than "
+            f"{self.bound.max_body}",
+        )
 
     def finish(self):
         self.delegate.finish()
