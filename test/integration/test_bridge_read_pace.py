@@ -3,6 +3,8 @@ real bridge: the bridge's event loop waits (and wakes) far fewer times than ther
 still gets every message, in order."""
 
 import json
+import os
+import signal
 import threading
 from pathlib import Path
 
@@ -12,9 +14,7 @@ from harness import node_pid, wait_for, wait_publisher_connected
 from slow_link import paced_frames
 
 COUNT = 20_000
-# (max_queue: one read after the loop was held up by other processes may bring thousands of these 8-byte messages,
-# which all wait for the client until the read's write, beyond the default bound of 1000)
-bridge = bridge_fixture("pace_bridge", max_queue=COUNT)
+bridge = bridge_fixture("pace_bridge")  # (max_queue at its default, 1000 frames: a read may bring many more)
 
 
 def loop_waits(pid):
@@ -58,3 +58,41 @@ def test_a_fast_publisher_is_read_in_batches_and_every_message_arrives_in_order(
     # read at each message (before read_pace.py): 13,362-19,083 waits for the 20,000 (load 4.5 on 2 cores, or
     # beside three CPU hogs); now 1,355-1,516
     assert waits < COUNT / 4, f"the bridge's loop waited {waits} times for {COUNT} messages"
+
+
+def test_a_read_of_more_messages_than_max_queue_reaches_a_client_that_keeps_up(bridge, ros, node):
+    """The bridge's loop is held (SIGSTOP) while 5,000 small messages come: its next read of the publisher brings
+    them at once, five times max_queue. A client that keeps up gets each of them, in order. Before, all of one
+    read's messages waited in the client's outbox until the read's write, and all but the last 1,000 were dropped
+    (the client was told of 4,000 dropped)."""
+    from std_msgs.msg import Int32
+
+    topic, count = "/pace/held", 5000
+    client = RawWebSocket(bridge, recv_buffer=1 << 20)
+    client.send_text(json.dumps({"op": "subscribe", "topic": topic, "type": "std_msgs/Int32"}))
+    publisher = node.Publisher(topic, Int32, queue_size=None)  # (each publish written before it returns)
+    got, other = [], []
+
+    def read():
+        for _, payload in paced_frames(client.sock, rate=None, seconds=60):
+            message = json.loads(payload)
+            (got if message["op"] == "publish" else other).append(message.get("msg", message))
+            if len(got) == count:
+                return
+
+    reader = threading.Thread(target=read, daemon=True)
+    pid = node_pid(ros, "/pace_bridge")
+    try:
+        wait_publisher_connected(ros, node.get_name(), topic, "/pace_bridge")
+        reader.start()
+        os.kill(pid, signal.SIGSTOP)
+        try:
+            for n in range(count):
+                publisher.publish(Int32(n))
+        finally:
+            os.kill(pid, signal.SIGCONT)
+        wait_for(lambda: len(got) == count or not reader.is_alive(), 30, what=lambda: f"{len(got)} of {count}")
+    finally:
+        publisher.unregister()
+        client.close()
+    assert [message["data"] for message in got] == list(range(count)), f"{len(got)} arrived; besides: {other[:2]}"

@@ -9,6 +9,10 @@ from rosbridge.message_types import message_class
 from rosbridge.protocol.encoded import TopicMessage
 from rosbridge.ros_side.holders import Holders
 
+# messages delivered before the clients write them: one read may bring thousands of small ones (after the loop was
+# held up), and a client's outbox keeps max_queue (1000 by default) at most, however fast the client reads
+DELIVERY_BATCH = 100
+
 
 class TopicSubscriber:
     """One topic that clients subscribe to. Its messages are read on the loop (ros_side/links.py: one
@@ -33,7 +37,7 @@ class TopicSubscriber:
 
     def __init__(self, loop, links, topic, clients, deliveries):
         self._loop, self._links, self.topic, self._clients = loop, links, topic, clients
-        self._deliveries = deliveries  # (the clients write once all the messages of one read are delivered)
+        self._deliveries = deliveries  # (the clients write once each DELIVERY_BATCH of a read is delivered)
         self.type = None  # known once made (loop)
         self.asked = {}  # session -> the type it asked for, checked once the type is known (loop)
         self.ready = False  # (loop)
@@ -83,8 +87,15 @@ class TopicSubscriber:
 
     def _deliver(self, messages, latched_by):
         """On the loop: messages (their bytes) read from one publisher: its link if it latches, else None."""
-        if not self.active:
+        if len(messages) <= DELIVERY_BATCH:
+            if self.active:
+                self._deliver_batch(messages, latched_by)
             return
+        for start in range(0, len(messages), DELIVERY_BATCH):
+            if self.active:  # (every client may leave as one batch is written)
+                self._deliver_batch(messages[start : start + DELIVERY_BATCH], latched_by)
+
+    def _deliver_batch(self, messages, latched_by):
         topic, cls, stamp = self.topic, self._class, time.time()
         with self._deliveries():
             for data in messages:
