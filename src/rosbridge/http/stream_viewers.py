@@ -195,7 +195,15 @@ class StreamViewer(Viewer):
             return
         content_type, data = made
         if not self.streams.make_room(self, data):
-            self.streams.wait_for_room(self, len(data))
+            size = len(data)
+            if self.adaptation is not None:
+                # a smaller picture may have room, and leaves more to the others: stepped down as for a frame
+                # skipped, it waits for the room of about its next level's (half the bytes)
+                level = self.adaptation.level
+                self.adaptation.skipped(self._level, time.monotonic())
+                if self.adaptation.level > level:
+                    size //= 2
+            self.streams.wait_for_room(self, size)
             return
         self.sent_seq = frame.seq
         head = (
