@@ -35,6 +35,7 @@ from rosbridge.ros_side import RosBackend
 from rosbridge.ros_side.recovery import MasterWatch
 from rosbridge.ros_side.rosapi import Rosapi
 from rosbridge.settings import Settings
+from rosbridge.transport.budget import Carryover
 from rosbridge.transport.connection import unfinished_bound
 from rosbridge.transport.deadman import DriverLeases
 from rosbridge.transport.handshake import BridgeSocket
@@ -61,6 +62,10 @@ class Bridge:
         self.url_macs = UrlMacs(self.settings.auth_time_delta)  # the HTTP endpoints' rosauth (access.py)
         self.clients = set()
         self.unfinished = unfinished_bound(self.settings)  # what the messages clients have not finished hold, together
+        # each client's budget (frames and bytes a second), kept for its address when it leaves
+        self.budgets = Carryover(
+            self.settings.max_frames_per_second, self.settings.max_bytes_per_second, time.monotonic
+        )
         loop = tornado.ioloop.IOLoop.current()
         sim_now_ns = (lambda: rospy.Time.now().to_nsec()) if rospy.get_param("/use_sim_time", False) else None
         self.foxglove = Catalog(backend, config.globs, loop.call_later, loop.remove_timeout, sim_now_ns)

@@ -76,7 +76,8 @@ SETTINGS = (
         int,
         20000,
         "frames one client may send per second (a burst of one second); beyond it its next frames wait "
-        "in its socket; 0 = no limit. Clients are served in turns whatever this is",
+        "in its socket; 0 = no limit. Clients are served in turns whatever this is. A client that connects "
+        "again starts with what its address's last one left",
         ours=True,
     ),
     Setting("max_bytes_per_second", int, 100_000_000, "bytes one client may send per second, likewise", ours=True),

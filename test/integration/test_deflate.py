@@ -4,6 +4,7 @@ they are while it keeps up; a client that does not offer it is unchanged; the cl
 (each on its own: client_no_context_takeover) are taken."""
 
 import base64
+import contextlib
 import json
 import threading
 import time
@@ -11,6 +12,7 @@ import zlib
 
 import pytest
 
+import hostile
 from bridge_client import RawWebSocket, WsClient, ping
 from fixtures import bridge_fixture
 from harness import launch_bridge, wait_for, wait_publisher_connected
@@ -145,3 +147,32 @@ def test_compress_slow_links_false_negotiates_nothing(ros):
         client.close()
     finally:
         proc.stop()
+
+
+budget_bridge = bridge_fixture("deflate_budget_bridge", scope="function", max_bytes_per_second=16_000_000)
+
+
+def test_a_client_that_reconnects_after_each_bomb_is_held_to_one_clients_byte_budget(budget_bridge):
+    """One address sends a compressed message that unpacks past max_message_size (8 MB), is closed, connects
+    again, and again, for 4 s. Each new connection started with a full second's burst of max_bytes_per_second,
+    so the loop unpacked as fast as the bridge could (75-80 % of a core in the attacker's run). A new connection
+    now starts with what its address's last one left: at 16 MB/s, 11 bombs at most in 4 s (a 16 MB burst, then
+    16 MB a second, 8 MB each)."""
+    compressor = zlib.compressobj(9, zlib.DEFLATED, -15)
+    bomb = hostile.raw_frame(
+        (compressor.compress(bytes(9_000_000)) + compressor.flush(zlib.Z_SYNC_FLUSH))[:-4], rsv1=True
+    )
+    url = f"ws://127.0.0.1:{budget_bridge}/"
+    end, bombs = time.monotonic() + 4.0, 0
+    while time.monotonic() < end:
+        with contextlib.closing(hostile.raw_connect(url, "permessage-deflate")) as sock:
+            sock.settimeout(10)
+            sock.sendall(bomb)
+            with contextlib.suppress(OSError):
+                while sock.recv(65536):  # (until the bridge closes it)
+                    pass
+            bombs += 1
+    print(f"{bombs} bombs unpacked in 4 s")
+    assert bombs <= 11, f"{bombs} bombs unpacked in 4 s"
+    with contextlib.closing(WsClient(url)) as client:  # (another client is served)
+        ping(client)

@@ -2,7 +2,7 @@
 
 import pytest
 
-from rosbridge.transport.budget import BYTES_PER_TURN, FRAMES_PER_TURN, ClientBudget
+from rosbridge.transport.budget import BYTES_PER_TURN, FRAMES_PER_TURN, Carryover, ClientBudget
 
 from fakes import Clock
 
@@ -35,3 +35,43 @@ def test_beyond_the_byte_rate_the_wait_fits_the_size():
     assert budget.after_frame(BYTES_PER_TURN) == 0.0
     assert budget.after_frame(BYTES_PER_TURN // 2) is None
     assert budget.after_frame(BYTES_PER_TURN // 2) == pytest.approx(1.0)
+
+
+def test_a_client_that_reconnects_starts_with_what_its_address_left_refilled_since():
+    clock = Clock()
+    carryover = Carryover(0, 10 * BYTES_PER_TURN, clock)
+    budget = carryover.budget("10.0.0.1")
+    for _ in range(20):  # two seconds' worth at once: ten turns in debt
+        budget.after_frame(BYTES_PER_TURN)
+    carryover.closed("10.0.0.1", budget)
+    clock.now += 0.5  # five turns' worth back: five still owed
+    again = carryover.budget("10.0.0.1")
+    assert again.after_frame(BYTES_PER_TURN) == pytest.approx(0.6)
+    assert carryover.budget("10.0.0.2").after_frame(BYTES_PER_TURN) == 0.0  # another address: a full bucket
+    assert len(carryover) == 0  # (taken by the client that came back)
+
+
+def test_a_bucket_left_full_is_not_remembered_and_the_emptiest_of_two_is_kept():
+    clock = Clock()
+    carryover = Carryover(0, 10 * BYTES_PER_TURN, clock)
+    carryover.closed("a", carryover.budget("a"))
+    assert len(carryover) == 0
+    first, second = carryover.budget("a"), carryover.budget("a")
+    first.after_frame(BYTES_PER_TURN)
+    for _ in range(5):
+        second.after_frame(BYTES_PER_TURN)
+    carryover.closed("a", second)
+    carryover.closed("a", first)
+    assert carryover.budget("a").after_frame(6 * BYTES_PER_TURN) == pytest.approx(0.1)
+
+
+def test_at_most_MAX_ADDRESSES_are_remembered_the_oldest_forgotten(monkeypatch):
+    monkeypatch.setattr(Carryover, "MAX_ADDRESSES", 3)
+    carryover = Carryover(FRAMES_PER_TURN, 0, Clock())
+    for address in "abcd":
+        budget = carryover.budget(address)
+        budget.after_frame(1)
+        carryover.closed(address, budget)
+    assert len(carryover) == 3
+    assert carryover.budget("a").held() is None  # forgotten: a full bucket
+    assert carryover.budget("d").held() is not None

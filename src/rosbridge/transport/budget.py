@@ -9,13 +9,15 @@ BYTES_PER_TURN = 65536  # or after this many bytes, whichever comes first
 
 class ClientBudget:
     """A token bucket per client, settled once per turn (not per frame: a frame must cost next to nothing);
-    rates of 0 mean no limit. The bucket holds one second's worth (a burst)."""
+    rates of 0 mean no limit. The bucket holds one second's worth (a burst). start: (frames, bytes, when) it held
+    then (Carryover's), else full now."""
 
-    def __init__(self, frames_per_second, bytes_per_second, clock):
+    def __init__(self, frames_per_second, bytes_per_second, clock, start=None):
         self.frames_per_second, self.bytes_per_second, self._clock = frames_per_second, bytes_per_second, clock
-        self._frames, self._bytes = float(frames_per_second), float(bytes_per_second)
+        if start is None:
+            start = float(frames_per_second), float(bytes_per_second), clock()
+        self._frames, self._bytes, self._last = start
         self._turn_frames = self._turn_bytes = 0
-        self._last = clock()
 
     def after_frame(self, size):
         """Called after each frame the client sent: None to go on at once, else seconds to wait first (0: just
@@ -24,6 +26,16 @@ class ClientBudget:
         self._turn_bytes += size
         if self._turn_frames < FRAMES_PER_TURN and self._turn_bytes < BYTES_PER_TURN:
             return None
+        return self._settle()
+
+    def held(self):
+        """(frames, bytes, when): what the bucket holds now, this turn's frames spent; None if it is full."""
+        self._settle()
+        if self._frames >= self.frames_per_second and self._bytes >= self.bytes_per_second:
+            return None
+        return self._frames, self._bytes, self._last
+
+    def _settle(self):
         now = self._clock()
         elapsed, self._last = now - self._last, now
         delay = 0.0
@@ -37,3 +49,37 @@ class ClientBudget:
             delay = max(delay, -self._bytes / self.bytes_per_second)
         self._turn_frames = self._turn_bytes = 0
         return delay
+
+
+class Carryover:
+    """The budgets that the clients of each address left below full as they closed, so that a client that
+    connects again starts with what its address's last one had left (refilled since), not a new second's burst:
+    a client that reconnects in a loop (a compressed message unpacking past max_message_size, closed, again: each
+    unpacked 8 MB with a full bucket) gets no more than one client that stays. Several closing at once: the
+    emptiest bucket is kept. At most MAX_ADDRESSES are remembered, the oldest forgotten first."""
+
+    MAX_ADDRESSES = 10_000
+
+    def __init__(self, frames_per_second, bytes_per_second, clock):
+        self.frames_per_second, self.bytes_per_second, self._clock = frames_per_second, bytes_per_second, clock
+        self._left = {}  # address -> (frames, bytes, when) its last client left, oldest first
+
+    def __len__(self):
+        return len(self._left)
+
+    def budget(self, address):
+        """The budget of a new client from `address`."""
+        return ClientBudget(self.frames_per_second, self.bytes_per_second, self._clock, self._left.pop(address, None))
+
+    def closed(self, address, budget):
+        left = budget.held()
+        if left is None:
+            return
+        earlier = self._left.pop(address, None)
+        if earlier is not None:  # (refilled to now, as the bucket of `budget` is)
+            other = ClientBudget(self.frames_per_second, self.bytes_per_second, self._clock, earlier).held()
+            if other is not None:
+                left = min(left[0], other[0]), min(left[1], other[1]), left[2]
+        self._left[address] = left
+        if len(self._left) > self.MAX_ADDRESSES:
+            del self._left[next(iter(self._left))]

@@ -22,7 +22,6 @@ from rosbridge.errors import log_bug
 from rosbridge.foxglove import FoxgloveSession
 from rosbridge.protocol.encoded import SplicedFrame, Utf8Text
 from rosbridge.transport import rfc6455 as ws
-from rosbridge.transport.budget import ClientBudget
 from rosbridge.transport.slow_link import DEFLATE_MIN_BYTES, LinkMeter, deflated_payload, sends_deflated
 from rosbridge.transport.unsent import limit_unsent
 
@@ -99,7 +98,7 @@ class ClientConnection:
             shared=bridge.unfinished,
             evicted=self._made_way,
         )
-        self.budget = ClientBudget(settings.max_frames_per_second, settings.max_bytes_per_second, time.monotonic)
+        self.budget = bridge.budgets.budget(peer)
         if subprotocol is not None:
             self.session = FoxgloveSession(
                 bridge.backend, bridge.config, self, bridge.foxglove, name=peer, session_id=bridge.session_id
@@ -526,6 +525,7 @@ class ClientConnection:
         self._waiting = Waiting.END
         self._reader.close()  # (what it holds goes now, not with the session: its share of the bound too)
         self._reader = None
+        self.bridge.budgets.closed(self.peer, self.budget)
         self.session.closed()
         self.bridge.client_closed(self)
 
