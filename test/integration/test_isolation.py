@@ -103,9 +103,9 @@ unfinished_bridge = bridge_fixture("isolation_unfinished", scope="function", fra
 def test_unfinished_messages_are_dropped_after_fragment_timeout_and_their_memory_with_them(ros, unfinished_bridge):
     """Three clients each begin a 10 MB message and stop: a fragmented one (FIN=0 frames), or one frame cut short
     (30 MB in all: within what unfinished messages may hold together). fragment_timeout after its first byte each
-    is closed (1008, naming the setting) and the bridge lets go of what they held: three more clients doing the
-    same then take no more memory (before, each one's message stayed until it left). A client whose message takes
-    a while but ends in time keeps its connection."""
+    is closed (1008, naming the setting) and the bridge lets go of what they held: it is back where it was, and
+    again after three more do the same (before, each one's message stayed until it left). A client whose message
+    takes a while but ends in time keeps its connection."""
     timeout = UNFINISHED_TIMEOUT
     port = unfinished_bridge
     stat = ProcStat(node_pid(ros, "/isolation_unfinished"))
@@ -144,14 +144,16 @@ def test_unfinished_messages_are_dropped_after_fragment_timeout_and_their_memory
     opcode, payload = slow.recv_frame()
     assert opcode == 0x1 and b"bogus" in payload, payload  # (its status: still served)
     slow.close()
+    after_first = stat.rss_mb() - before
     held_again, closed_again = unfinished_by_three()
+    after_second = stat.rss_mb() - before
     print(
-        f"held +{held:.0f} MB, closed after {closed:.1f} s; again +{held_again:.0f} MB, closed after "
-        f"{closed_again:.1f} s; then +{stat.rss_mb() - before:.0f} MB"
+        f"held +{held:.0f} MB, closed after {closed:.1f} s, then +{after_first:.0f} MB; again +{held_again:.0f} MB,"
+        f" closed after {closed_again:.1f} s, then +{after_second:.0f} MB"
     )
-    # (their memory served the next ones, but for what malloc kept of the first ones' heap: 8 MB seen; kept,
-    # the first 30 MB would come on top)
-    assert held > 25 and held_again < held + 15
+    # (what three more hold at once varies with how their reads interleave in the heap: 40-51 MB; once they are
+    # closed, the bridge is back within 0-11 MB each time, where kept, 30 MB more would stay every round)
+    assert held > 25 and after_first < 20 and after_second < 20
     assert timeout <= closed < timeout + 2 and timeout <= closed_again < timeout + 2
 
 
