@@ -139,7 +139,9 @@ def test_calls_to_a_silent_service_end_when_their_client_leaves_and_leave_others
     victim.close()
     for sock in staying:
         sock.close()
-    wait_for(lambda: blocked_in_reads(pid) == 0, 10, what=lambda: f"{blocked_in_reads(pid)} calls still blocked")
+    # (137 calls end as their connections are closed, some still asking the master where the service is: beside a
+    # CPU hog, 7 were still running after 10 s; held for good, they would never end)
+    wait_for(lambda: blocked_in_reads(pid) == 0, 30, what=lambda: f"{blocked_in_reads(pid)} calls still blocked")
 
 
 def test_a_client_that_advertises_and_unadvertises_in_a_loop_is_paced_and_its_publishers_bounded(

@@ -3,12 +3,14 @@ when a viewer wants them, one encoding job at a time with the newest frame winni
 topics taking turns, a frame's variants bounded in bytes; the pictures being sent to the viewers bounded in bytes
 (jpeg.Sending); the requests' parameters and which topic a request streams from."""
 
+import concurrent.futures
 import io
+import socket
 
 import pytest
 from sensor_msgs.msg import Image as RosImage
 
-from rosbridge.http import camera_encoder, jpeg, stream_requests, stream_topics
+from rosbridge.http import camera_encoder, jpeg, stream_requests, stream_topics, stream_viewers
 from rosbridge.protocol.encoded import TopicMessage
 
 from fakes import Loop
@@ -276,6 +278,66 @@ def test_the_viewers_whose_picture_stalled_oldest_first():
     assert sending.stalled(11.5, 10.0) == ["a", "b"]
     sending.done("a")
     assert sending.stalled(11.5, 10.0) == ["b"]
+
+
+# ---- a stream viewer refused room -------------------------------------------------------------------------------
+class FakeConnection:
+    """A stream viewer's detached connection: what is written is kept, nothing is ever read."""
+
+    def __init__(self):
+        self.socket, self._other = socket.socketpair()
+        self.written = []
+
+    def set_close_callback(self, callback):
+        pass
+
+    def set_nodelay(self, flag):
+        pass
+
+    def write(self, data):
+        self.written.append(bytes(data))
+        done = concurrent.futures.Future()
+        done.set_result(None)
+        return done
+
+    def read_bytes(self, count, partial=False):
+        return concurrent.futures.Future()
+
+    def closed(self):
+        return False
+
+    def close(self):
+        self.socket.close()
+        self._other.close()
+
+
+class RoomlessStreams:
+    """The viewers' shared room for pictures, always full: each viewer refused says how much room it waits for."""
+
+    def __init__(self):
+        self.loop, self.viewers, self.waiting = Loop(), set(), {}
+
+    def make_room(self, viewer, data):
+        return False
+
+    def wait_for_room(self, viewer, size):
+        self.waiting[viewer] = size
+
+
+@pytest.mark.parametrize("query, level, waits_for", [("adaptive=1", 1, 500), ("width=64", None, 1000)])
+def test_a_viewer_refused_room_waits_and_an_adaptive_one_steps_down_first(query, level, waits_for):
+    """An adaptive viewer refused room steps down its ladder, as for a skipped frame, and waits for the room of
+    about its next level's picture, half the bytes (it waited for the same full-size picture before); a viewer
+    that does not adapt waits for room for the picture it was refused."""
+    streams, connection = RoomlessStreams(), FakeConnection()
+    request = stream_requests.StreamRequest(args(f"topic=/cam&{query}"))
+    viewer = stream_viewers.StreamViewer(streams, request, "/cam", None, connection, [])
+    try:
+        viewer.take(None, ("image/jpeg", bytes(1000)))
+        assert (viewer.adaptation and viewer.adaptation.level) == level
+        assert streams.waiting == {viewer: waits_for}
+    finally:
+        connection.close()
 
 
 # ---- requests ---------------------------------------------------------------------------------------------------
