@@ -17,10 +17,11 @@ from rosbridge.ros_side.holders import Holders
 
 # A client usually publishes right after advertising, before any subscriber has connected to the new
 # publisher (that takes the master's publisherUpdate and a TCP handshake): messages published while nobody was
-# connected yet, in this window after advertising, are replayed to the subscribers that connect within it, so
-# that the first Twist of a page is not lost. Never after a subscriber has left: a robot driver that restarts
-# must not receive stale commands.
-REPLAY_WINDOW = 1.0  # seconds after advertising
+# connected yet, in this window after the master knows the publisher, are replayed to the subscribers that connect
+# within it, so that the first Twist of a page is not lost. (From advertising, a loaded machine's worker could take
+# the whole window to register it: a page's first Twist was lost beside a CPU hog.) Never after a subscriber has
+# left: a robot driver that restarts must not receive stale commands.
+REPLAY_WINDOW = 1.0  # seconds after the publisher is registered
 # bytes kept for that per topic (the newest messages; a bigger one is not kept): a client that advertised new topics
 # and published 8 MB messages at once on each held 620 MB in 5 s, until it left
 REPLAY_BYTES = 64 * 1024
@@ -32,11 +33,11 @@ MAX_LINGERING = 256
 
 class EarlyReplay:
     """The messages published before any subscriber connected, for the subscribers that connect within
-    REPLAY_WINDOW: the newest maxlen of them within REPLAY_BYTES. On the loop only."""
+    REPLAY_WINDOW of registered(): the newest maxlen of them within REPLAY_BYTES. On the loop only."""
 
     def __init__(self, maxlen, clock=time.monotonic):
         self._clock = clock
-        self._until = clock() + REPLAY_WINDOW
+        self._until = float("inf")  # (until the publisher is registered: no subscriber can connect before)
         self._messages = collections.deque()
         self._maxlen, self._bytes = maxlen, 0
         self._over = False  # set once (window passed, or a subscriber left), never cleared
@@ -52,6 +53,10 @@ class EarlyReplay:
             self._bytes += len(data)
             while len(self._messages) > self._maxlen or self._bytes > REPLAY_BYTES:
                 self._bytes -= len(self._messages.popleft())
+
+    def registered(self):
+        """The master knows the publisher: subscribers connect from now on."""
+        self._until = self._clock() + REPLAY_WINDOW
 
     def replay(self):
         """What a subscriber that connects now gets first."""
@@ -128,6 +133,11 @@ class ClientPublisher:
         for data in first:
             link.send(self._framed(data))
 
+    def registered(self):
+        """On the loop: the worker has registered the topic with the master."""
+        if self._early is not None:
+            self._early.registered()
+
     def _detach(self, link):
         if link in self._subscribers:
             self._subscribers.remove(link)
@@ -185,6 +195,7 @@ class Publishers:
     def _made(self, topic, entry, error):
         if error is None:
             entry.ready = True
+            entry.publisher.registered()
             if self._entries.get(topic) is not entry:  # dropped while it was being made
                 self._drop(entry)
             return
