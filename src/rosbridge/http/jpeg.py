@@ -20,6 +20,8 @@ import struct
 
 from PIL import Image, ImageMath
 
+from rosbridge import heap
+
 IMAGE = "sensor_msgs/Image"
 COMPRESSED = "sensor_msgs/CompressedImage"
 IMAGE_TYPES = (IMAGE, COMPRESSED)
@@ -421,14 +423,18 @@ class Sending:
 
     def __init__(self, limit, stall):
         self.limit, self.stall = limit, stall
-        self.used = 0  # bytes
-        self._pictures = {}  # id(data) -> [data, writers]
+        self._pictures = heap.SharedBuffers()  # a hold per writer
         self._writers = {}  # writer -> (since, data), oldest first
+
+    @property
+    def used(self):
+        """Bytes of the pictures being written, each once."""
+        return self._pictures.bytes
 
     def crowding(self, data, now):
         """The writers to drop before `data` may be written: [] when it fits now (or is being written already),
         None when it does not fit even without every writer stalled for `stall` seconds."""
-        return [] if id(data) in self._pictures else self._crowding(len(data), now)
+        return [] if data in self._pictures else self._crowding(len(data), now)
 
     def room_for(self, size, now):
         """Whether a picture of `size` bytes (not being written yet) may be written now, maybe after crowding."""
@@ -442,7 +448,7 @@ class Sending:
             dropped.append(writer)
             held = self._writers[writer][1]
             key = id(held)
-            left[key] = left.get(key, self._pictures[key][1]) - 1
+            left[key] = left.get(key, self._pictures.holds(held)) - 1
             if not left[key]:  # (its last writer: the picture's bytes go)
                 freed += len(held)
                 if self._fits(size, freed):
@@ -457,24 +463,14 @@ class Sending:
         """`data` is being written to `writer` from `now` (after crowding() made room for it)."""
         assert writer not in self._writers, "a writer writes one picture at a time"
         self._writers[writer] = (now, data)
-        entry = self._pictures.get(id(data))
-        if entry is None:
-            self._pictures[id(data)] = [data, 1]
-            self.used += len(data)
-        else:
-            entry[1] += 1
+        self._pictures.hold(data)
 
     def done(self, writer):
         """The writer's picture has left, or the writer is gone; whether it was writing one."""
         held = self._writers.pop(writer, None)
         if held is None:
             return False
-        data = held[1]
-        entry = self._pictures[id(data)]
-        entry[1] -= 1
-        if not entry[1]:
-            del self._pictures[id(data)]
-            self.used -= len(data)
+        self._pictures.release(held[1])
         return True
 
     def stalled(self, now, seconds):

@@ -4,6 +4,7 @@ kept fresh while the socket is backed up, bounded per client and for all clients
 import collections
 import itertools
 
+from rosbridge import heap
 from rosbridge.codec import BIG_BYTES
 from rosbridge.protocol.encoded import SplicedFrame
 
@@ -48,8 +49,12 @@ class QueuePool:
 
     def __init__(self, limit):
         self.limit, self.granted = limit, 0
-        self.shared = 0  # bytes of the distinct buffers held
-        self._holders = {}  # id(buffer) -> [buffer, how many holds]
+        self._buffers = heap.SharedBuffers()
+
+    @property
+    def shared(self):
+        """Bytes of the distinct buffers held."""
+        return self._buffers.bytes
 
     def grant(self, wanted):
         """Up to `wanted` more bytes for one outbox: what is left of the limit, at most."""
@@ -62,25 +67,16 @@ class QueuePool:
 
     def hold(self, buffers):
         """Holds each buffer once more; False, holding none, if those nobody holds yet do not fit."""
-        new = {id(buffer): len(buffer) for buffer in buffers if id(buffer) not in self._holders}
+        new = {id(buffer): len(buffer) for buffer in buffers if buffer not in self._buffers}
         if new and self.granted + self.shared + sum(new.values()) > self.limit:
             return False
         for buffer in buffers:
-            held = self._holders.get(id(buffer))
-            if held is None:
-                self._holders[id(buffer)] = [buffer, 1]
-                self.shared += len(buffer)
-            else:
-                held[1] += 1
+            self._buffers.hold(buffer)
         return True
 
     def release(self, buffers):
         for buffer in buffers:
-            held = self._holders[id(buffer)]
-            held[1] -= 1
-            if not held[1]:
-                del self._holders[id(buffer)]
-                self.shared -= len(buffer)
+            self._buffers.release(buffer)
 
 
 class Outbox:
