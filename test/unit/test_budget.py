@@ -73,5 +73,5 @@ def test_at_most_MAX_ADDRESSES_are_remembered_the_oldest_forgotten(monkeypatch):
         budget.after_frame(1)
         carryover.closed(address, budget)
     assert len(carryover) == 3
-    assert carryover.budget("a").held() is None  # forgotten: a full bucket
-    assert carryover.budget("d").held() is not None
+    assert carryover.budget("a").full()  # forgotten: a full bucket
+    assert not carryover.budget("d").full()

@@ -9,14 +9,11 @@ BYTES_PER_TURN = 65536  # or after this many bytes, whichever comes first
 
 class ClientBudget:
     """A token bucket per client, settled once per turn (not per frame: a frame must cost next to nothing);
-    rates of 0 mean no limit. The bucket holds one second's worth (a burst). start: (frames, bytes, when) it held
-    then (Carryover's), else full now."""
+    rates of 0 mean no limit. The bucket holds one second's worth (a burst), and starts full."""
 
-    def __init__(self, frames_per_second, bytes_per_second, clock, start=None):
+    def __init__(self, frames_per_second, bytes_per_second, clock):
         self.frames_per_second, self.bytes_per_second, self._clock = frames_per_second, bytes_per_second, clock
-        if start is None:
-            start = float(frames_per_second), float(bytes_per_second), clock()
-        self._frames, self._bytes, self._last = start
+        self._frames, self._bytes, self._last = float(frames_per_second), float(bytes_per_second), clock()
         self._turn_frames = self._turn_bytes = 0
 
     def after_frame(self, size):
@@ -28,12 +25,16 @@ class ClientBudget:
             return None
         return self._settle()
 
-    def held(self):
-        """(frames, bytes, when): what the bucket holds now, this turn's frames spent; None if it is full."""
+    def full(self):
+        """Whether the bucket is full now, this turn's frames spent."""
         self._settle()
-        if self._frames >= self.frames_per_second and self._bytes >= self.bytes_per_second:
-            return None
-        return self._frames, self._bytes, self._last
+        return self._frames >= self.frames_per_second and self._bytes >= self.bytes_per_second
+
+    def lower_to(self, other):
+        """Keeps, of this bucket and `other` (both refilled to now), the lower level of each."""
+        self._settle()
+        other._settle()
+        self._frames, self._bytes = min(self._frames, other._frames), min(self._bytes, other._bytes)
 
     def _settle(self):
         now = self._clock()
@@ -62,24 +63,23 @@ class Carryover:
 
     def __init__(self, frames_per_second, bytes_per_second, clock):
         self.frames_per_second, self.bytes_per_second, self._clock = frames_per_second, bytes_per_second, clock
-        self._left = {}  # address -> (frames, bytes, when) its last client left, oldest first
+        self._left = {}  # address -> the ClientBudget its last client left, oldest first
 
     def __len__(self):
         return len(self._left)
 
     def budget(self, address):
-        """The budget of a new client from `address`."""
-        return ClientBudget(self.frames_per_second, self.bytes_per_second, self._clock, self._left.pop(address, None))
+        """The budget of a new client from `address`: the one its last client left, else a full one."""
+        left = self._left.pop(address, None)
+        return left if left is not None else ClientBudget(self.frames_per_second, self.bytes_per_second, self._clock)
 
     def closed(self, address, budget):
-        left = budget.held()
-        if left is None:
+        """`budget`'s client has gone (and takes no more frames): its address keeps the budget unless it is full."""
+        if budget.full():
             return
         earlier = self._left.pop(address, None)
-        if earlier is not None:  # (refilled to now, as the bucket of `budget` is)
-            other = ClientBudget(self.frames_per_second, self.bytes_per_second, self._clock, earlier).held()
-            if other is not None:
-                left = min(left[0], other[0]), min(left[1], other[1]), left[2]
-        self._left[address] = left
+        if earlier is not None:
+            budget.lower_to(earlier)
+        self._left[address] = budget
         if len(self._left) > self.MAX_ADDRESSES:
             del self._left[next(iter(self._left))]
