@@ -418,3 +418,19 @@ def test_what_every_client_is_told_is_encoded_once():
         told.append([client.session.take_frame() for _ in range(3)])
     assert [json.loads(frame)["op"] for frame in told[0]] == ["advertise", "advertiseServices", "connectionGraphUpdate"]
     assert all(a is b for a, b in zip(*told))
+
+
+def test_a_slow_link_is_told_what_it_skipped_first_as_a_status_a_newer_one_replaces():
+    client = Client()
+    client.backend.watchers[0](GraphState({"/a": ("std_msgs/Empty", "")}, {}, {}, {}, {}))
+    client.frames()
+    client.send({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": next(iter(client.catalog.channels))}]})
+    client.session.backed_up(True)
+    client.session.deliver(TopicMessage("/a", None, b"", 1_700_000_000.0))
+    client.host.now += 1.0  # (past the freshness horizon: the older one is skipped)
+    client.session.deliver(TopicMessage("/a", None, b"", 1_700_000_001.0))
+    client.session.backed_up(False)
+    status, data = client.frames()
+    assert (status["op"], status["level"], status["id"]) == ("status", 1, "warning")
+    assert status["message"].startswith("skipped 1 older message(s)") and "/a 1" in status["message"]
+    assert data == struct.pack("<BIQ", 1, 1, 1_700_000_001_000_000_000)

@@ -15,7 +15,7 @@ from rosbridge.errors import ClientError, RequestError, log_bug
 from rosbridge.foxglove import parameters as params
 from rosbridge.foxglove import wire
 from rosbridge.globs import allowed
-from rosbridge.protocol.outbox import Outbox
+from rosbridge.protocol.outbox import OutboxSession
 
 LEVELS = {"info": 0, "warning": 1, "error": 2}
 ENCODINGS = ("ros1", "json")  # what clients may publish and call services with
@@ -35,18 +35,15 @@ CALL_TIMEOUT = 60.0
 MAX_ASSETS_IN_FLIGHT = 4  # fetchAsset requests of one client being read at once; more are refused
 
 
-class FoxgloveSession:
+class FoxgloveSession(OutboxSession):
     """One Foxglove client. `host` is its connection (contract.SessionHost); `catalog` the bridge's Catalog."""
 
     authenticated = True  # (the protocol has no authentication: with authenticate on, the handshake refuses it)
     holding = False  # after a PACED_OPS request, while its ROS side is under way (the host then reads nothing)
 
     def __init__(self, backend, config, host, catalog, name="client", session_id=""):
-        self.backend, self.config, self.name = backend, config, name
-        self._host, self._catalog = host, catalog
-        self.is_closed = False
-        self._outbox = Outbox(config.max_queue, config.max_queue_bytes, host.clock, config.queue_pool)
-        self._woken = False
+        super().__init__(config, host)
+        self.backend, self.name, self._catalog = backend, name, catalog
         self._subscriptions = {}  # subscription id -> topic
         self._topics = {}  # topic -> subscription id (one per channel)
         self._client_channels = {}  # client channel id -> (topic, encoding, type)
@@ -414,28 +411,8 @@ class FoxgloveSession:
     def send_json(self, obj):
         self._queue(None, (dumps(obj),))
 
-    def _queue(self, topic, frames):
-        if self.is_closed:
-            return
-        self._outbox.push(topic, frames)
-        if not self._woken:
-            self._woken = True
-            self._host.wake()
-
-    def backed_up(self, flag, in_flight=0):
-        self._outbox.set_backed_up(flag, in_flight)
-
-    def take_frame(self):
-        outbox = self._outbox
-        for level, text in outbox.reports_due(self.config):  # (by id: a newer report replaces the older)
-            outbox.push(None, (dumps({"op": "status", "level": LEVELS[level], "message": text, "id": level}),))
-        frame = outbox.take()
-        if frame is None:
-            self._woken = False
-        return frame
-
-    def close(self, reason):
-        self._host.close_after_sending(reason)
+    def report_frame(self, level, text):
+        return dumps({"op": "status", "level": LEVELS[level], "message": text, "id": level})  # (a newer replaces it)
 
     def closed(self):
         if self.is_closed:

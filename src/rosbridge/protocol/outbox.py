@@ -1,5 +1,6 @@
-"""What waits for a client's socket: its Outbox (protocol.Session's), whole messages, small before big, each topic
-kept fresh while the socket is backed up, bounded per client and for all clients together (QueuePool)."""
+"""What waits for a client's socket: its Outbox, whole messages, small before big, each topic kept fresh while the
+socket is backed up, bounded per client and for all clients together (QueuePool); and OutboxSession, the outgoing
+half of every protocol's session around it."""
 
 import collections
 import itertools
@@ -318,6 +319,54 @@ class Outbox:
         if self._pool is not None:
             self._release_sent()
             self._regrant()
+
+
+class OutboxSession:
+    """The outgoing half of a session, the same for every protocol (contract.ProtocolSession's backed_up,
+    take_frame and close): the frames of each message wait in the client's Outbox. The first message queued after
+    the host took the last frame wakes it (host.wake()), and it takes frames until take_frame gives None. What the
+    client's slow link cost it goes first, at most once a REPORT_INTERVAL, as the protocol's report_frame makes it."""
+
+    def __init__(self, config, host):
+        self.config, self._host = config, host
+        self.is_closed = False  # (nothing is queued once the client has left)
+        self._outbox = Outbox(config.max_queue, config.max_queue_bytes, host.clock, config.queue_pool)
+        self._reports: collections.deque = collections.deque()  # report frames: they go first
+        self._woken = False
+
+    def report_frame(self, level, text):
+        """The frame that tells the client `text` (outbox_report's), or None if it is not to be told."""
+        raise NotImplementedError
+
+    def _queue(self, topic, frames):
+        """Queues the frames of one message (topic None: not a topic's; such are never skipped)."""
+        if self.is_closed:
+            return
+        self._outbox.push(topic, frames)
+        if not self._woken:
+            self._woken = True
+            self._host.wake()
+
+    def backed_up(self, flag, in_flight=0):
+        """The host says whether the client's socket has stopped taking frames (then each topic keeps only what is
+        fresh), and how many bytes it was given that have not left yet."""
+        self._outbox.set_backed_up(flag, in_flight)
+
+    def take_frame(self):
+        """The next frame to write, or None when nothing waits (the next message queued wakes the host again)."""
+        due = self._outbox.reports_due(self.config)
+        if due:
+            self._reports.extend(frame for frame in itertools.starmap(self.report_frame, due) if frame is not None)
+        if self._reports:
+            return self._reports.popleft()
+        frame = self._outbox.take()
+        if frame is None:
+            self._woken = False
+        return frame
+
+    def close(self, reason):
+        """Closes the connection once what is queued is sent."""
+        self._host.close_after_sending(reason)
 
 
 def outbox_report(skipped, dropped, refused, config):

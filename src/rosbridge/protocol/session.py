@@ -20,7 +20,7 @@ from rosbridge.contract import SessionHost
 from rosbridge.errors import ClientError, RequestError, log_bug
 from rosbridge.protocol.encoded import COMPRESSIONS, service_response_frames, status_frame
 from rosbridge.protocol.ops import ID, OPS, check_fields
-from rosbridge.protocol.outbox import Outbox, QueuePool
+from rosbridge.protocol.outbox import OutboxSession, QueuePool
 from rosbridge.protocol.reassembly import Fragments, unpack_png
 from rosbridge.protocol.subscription import MAX_THROTTLE_RATE, Subscription
 
@@ -61,7 +61,7 @@ for _setting in settings.SETTINGS:
     setattr(Config, _setting.name, property(operator.attrgetter("settings." + _setting.name), doc=_setting.meaning))
 
 
-class Session:
+class Session(OutboxSession):
     """One websocket client: a contract.ProtocolSession and a contract.Client. Its connection, `host` (a
     contract.SessionHost), feeds it frames (handle_text / handle_binary), takes its queued frames (take_frame)
     once it is woken (host.wake()), and calls `closed` when the connection is gone.
@@ -71,8 +71,8 @@ class Session:
     so what is held stays small) and handled once it is done; then host.resume_reading() is called."""
 
     def __init__(self, backend, config, host: SessionHost, name="client"):
-        self.backend, self.config, self.name = backend, config, name
-        self._host = host
+        super().__init__(config, host)
+        self.backend, self.name = backend, name
         self._held = None  # frames received while an earlier request's ROS side is under way, in order
         self.subscriptions: dict[str, Subscription] = {}
         self.advertised: set[str] = set()
@@ -81,10 +81,6 @@ class Session:
         self.level = STATUS_LEVELS.index("error")
         self.authenticated = not config.authenticate
         self._auth_timer = None if self.authenticated else host.call_later(AUTH_TIMEOUT, self._auth_deadline)
-        self.is_closed = False
-        self._outgoing = Outbox(config.max_queue, config.max_queue_bytes, host.clock, config.queue_pool)
-        self._reports: collections.deque[str] = collections.deque()  # those status frames: they go first
-        self._woken = False
         # its fragment ops' unfinished messages count with every client's
         self._fragments = Fragments(
             config.max_message_size, config.fragment_timeout, host.unfinished, self._fragments_made_way
@@ -240,7 +236,7 @@ class Session:
                 self._host.clock,
                 self._host.call_later,
                 self.config.max_queue_bytes,
-                backlogged=lambda: len(self._outgoing) > 0,
+                backlogged=lambda: len(self._outbox) > 0,
                 off_loop=self._host.off_loop,
             )
         subscription.add(
@@ -381,38 +377,8 @@ class Session:
         """Queues a frame that belongs to no topic (str: text, bytes: binary)."""
         self._queue(None, (frame,))
 
-    def _queue(self, topic, frames):
-        """Queues the frames of one message (topic None: not a topic's; such are never skipped)."""
-        if self.is_closed:
-            return
-        self._outgoing.push(topic, frames)
-        if not self._woken:
-            self._woken = True
-            self._host.wake()
-
-    def backed_up(self, flag, in_flight=0):
-        """The server says whether the client's socket has stopped taking frames (then each topic keeps only
-        what is fresh: outbox.Outbox), and how many bytes it was given that have not left yet."""
-        self._outgoing.set_backed_up(flag, in_flight)
-
-    def take_frame(self):
-        """The next frame to write, or None when the queue is empty (the next send wakes the server again).
-        What a slow link made the bridge skip, drop or refuse is told first, at most once a REPORT_INTERVAL."""
-        self._reports.extend(
-            status_frame(level, text)
-            for level, text in self._outgoing.reports_due(self.config)
-            if STATUS_LEVELS.index(level) >= self.level
-        )
-        if self._reports:
-            return self._reports.popleft()
-        frame = self._outgoing.take()
-        if frame is None:
-            self._woken = False
-        return frame
-
-    def close(self, reason):
-        """Closes the connection once what is queued is sent."""
-        self._host.close_after_sending(reason)
+    def report_frame(self, level, text):
+        return status_frame(level, text) if STATUS_LEVELS.index(level) >= self.level else None
 
     def closed(self):
         """The connection is gone: release everything this client held on the ROS side."""
@@ -423,7 +389,7 @@ class Session:
         for subscription in self.subscriptions.values():
             subscription.close()
         self.subscriptions.clear()
-        self._outgoing.clear()
+        self._outbox.clear()
         self._fragments.clear()
         self._cancel(self._fragments_timer)
         self._cancel(self._auth_timer)
