@@ -1,15 +1,15 @@
 """The bridge's big buffers: how many bytes those shared by several holders take (SharedBuffers), and glibc's
 malloc.
 
-By default glibc maps a buffer of a few MB on its own and unmaps
-it when it is freed, or, once its adaptive threshold has grown past that size, gives the heap's top back when a
-message's buffers are freed together. Either way every camera image, cloud or map the bridge converts is written
-into fresh pages, which the kernel faults in one at a time: 3,500 faults for a 4.8 MB cloud,
-more CPU than converting it (bench/README.md, "Where the time goes"). Kept in the heap instead, the same pages
-serve the next message. The cost is bounded: at most REUSE_BYTES of freed memory kept per malloc arena (the loop's,
-and each encoding thread's), and a buffer bigger than that (a 16 MB map, its 40 MB of JSON) still mapped and given
-back at once: with 32 MB, the map's buffers stayed in the heap too, and a map sent again after clouds and maps
-peaked 13 % higher than the first (fragments of the kept memory did not fit it)."""
+glibc's malloc by default maps a buffer of a few MB on its own and unmaps it when it is freed, or, once its adaptive
+threshold has grown past that size, gives the heap's top back when a message's buffers are freed together. Either
+way every camera image, cloud or map the bridge converts is written into fresh pages, which the kernel faults in one
+at a time: 3,500 faults for a 4.8 MB cloud, more CPU than converting it (bench/README.md, "Where the time goes").
+Kept in the heap instead, the same pages serve the next message. The cost is bounded: at most REUSE_BYTES of freed
+memory kept per malloc arena (the loop's, and each encoding thread's), and a buffer bigger than that (a 16 MB map,
+its 40 MB of JSON) still mapped and given back at once: with 32 MB, the map's buffers stayed in the heap too, and a
+map sent again after clouds and maps peaked 13 % higher than the first (fragments of the kept memory did not fit
+it)."""
 
 import ctypes
 
