@@ -115,7 +115,7 @@ class Outbox:
         self._small, self._big = collections.deque(), collections.deque()  # units, oldest first
         self._dead = 0  # units skipped or dropped that are still in a lane (removed lazily)
         self._by_key = {}  # topic (or None) -> its waiting units, oldest first
-        self._key_bytes = collections.Counter()
+        self._key_bytes = {}  # topic -> bytes of its waiting units (a dict: a Counter's missing key costs a call)
         self._current = collections.deque()  # the rest of the fragments of the message being sent...
         self._current_key = None  # ...and its topic: only small messages of other topics go between them
         self.frames = 0  # frames waiting, the current message's included
@@ -147,7 +147,7 @@ class Outbox:
         unit = _Unit(key, frames, size, self._clock(), big, shared, own)
         (self._big if big else self._small).append(unit)
         waiting.append(unit)
-        self._key_bytes[key] += size
+        self._key_bytes[key] = self._key_bytes.get(key, 0) + size
         self.frames += len(frames)
         self.bytes += size
         self._own += own
@@ -238,8 +238,10 @@ class Outbox:
 
     def _forget(self, unit):
         key = unit.key
-        self._key_bytes[key] -= unit.size
-        if not self._key_bytes[key]:
+        left = self._key_bytes[key] - unit.size
+        if left:
+            self._key_bytes[key] = left
+        else:
             del self._key_bytes[key]
         if not self._by_key[key]:
             del self._by_key[key]
@@ -294,8 +296,10 @@ class Outbox:
     def reports_due(self, config):
         """(level, text) of what the client's slow link cost it since it was last told (outbox_report), if there
         is something to tell and REPORT_INTERVAL has passed; else nothing."""
+        if not (self.skipped or self.dropped or self.refused):  # (the usual case: no clock read at every frame)
+            return ()
         now = self._clock()
-        if not (self.skipped or self.dropped or self.refused) or now - self._reported_at < REPORT_INTERVAL:
+        if now - self._reported_at < REPORT_INTERVAL:
             return ()
         self._reported_at = now
         return tuple(outbox_report(*self.take_report(), config))
