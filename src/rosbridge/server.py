@@ -193,17 +193,19 @@ def main():
     loop = tornado.ioloop.IOLoop.current()
     rosapi = Rosapi(rosgraph.get_master_uri(), rospy.get_name(), globs, rospy.Time.now)
     writes = WriteTurns(loop.add_callback)
+    leases = DriverLeases(current.deadman_timeout) if current.deadman_timeout > 0 else None
     backend = RosBackend(
         loop,
         rosapi=rosapi,
         unregister_timeout=current.unregister_timeout,
         stop_drivers_leaving=current.deadman_timeout > 0,
         deliveries=writes.delivering,
+        driving_began=leases.driving_began if leases is not None else lambda: None,
     )
     bridge = Bridge(backend, config, writes, allowed_origins=origins, allowed_hosts=hosts)
     backend.set_client_count(0)
-    if current.deadman_timeout > 0:
-        DriverLeases(bridge, current.deadman_timeout).start()
+    if leases is not None:
+        leases.serve(bridge)
 
     web_root = current.web_root or str(Path(rospkg.RosPack().get_path("turtlesim")) / "web")
     if web_root.lower() == "none":

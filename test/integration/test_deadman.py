@@ -110,3 +110,40 @@ def test_off_with_a_timeout_of_zero(ros, node, off_bridge):
     ws.close()
     time.sleep(1.0)
     assert not recorder.zeros_after(ended)
+
+
+idle_bridge = bridge_fixture("deadman_idle_bridge", scope="function", deadman_timeout=TIMEOUT)
+
+
+def _loop_wakes(pid, seconds):
+    """How many times the bridge's loop thread (its main thread) slept and woke in `seconds`: a count, not a
+    time (what wakes an idle bridge costs the same on any machine)."""
+
+    def switches():
+        with open(f"/proc/{pid}/task/{pid}/status") as status:
+            return next(int(line.split()[1]) for line in status if line.startswith("voluntary_ctxt_switches"))
+
+    before = switches()
+    time.sleep(seconds)
+    return switches() - before
+
+
+def test_the_leases_wake_the_loop_only_while_someone_drives(ros, node, idle_bridge):
+    """A bridge left running for days with nobody driving is not woken to check leases (four times a second
+    before). Once a driver has come and gone, it sleeps again."""
+    from harness import node_pid
+
+    pid = node_pid(ros, "/deadman_idle_bridge")
+    time.sleep(1.0)  # (start-up settles)
+    assert _loop_wakes(pid, 3.0) <= 2
+    topic = "/deadman/idle/cmd_vel"
+    recorder = Recorder(node, topic, Twist)
+    ws = WsClient(f"ws://127.0.0.1:{idle_bridge}/")
+    ws.send({"op": "advertise", "topic": topic, "type": "geometry_msgs/Twist"})
+    wait_publisher_connected(ros, "/deadman_idle_bridge", topic, _me())
+    ws.send({"op": "publish", "topic": topic, "msg": {"linear": {"x": 2.0}}})
+    wait_for(lambda: recorder.got, 10, what="the moving command")
+    wait_for(lambda: recorder.zeros_after(0), TIMEOUT * 3, what="the dead-man stop of a silent driver")
+    ws.close()
+    time.sleep(TIMEOUT)  # (its unregister and last checks)
+    assert _loop_wakes(pid, 3.0) <= 2

@@ -31,12 +31,14 @@ class RosBackend(Backend):
         service_timeout=60.0,
         stop_drivers_leaving=False,
         deliveries=contextlib.nullcontext,
+        driving_began=lambda: None,
     ):
-        """deliveries(): a context that each delivery of topics' messages runs in (write_turns.WriteTurns)."""
+        """deliveries(): a context that each delivery of topics' messages runs in (write_turns.WriteTurns).
+        driving_began(): a client began to drive (Backend.drives became true for it; transport/deadman.py)."""
         self._stop_drivers_leaving = stop_drivers_leaving
         worker = self._worker = RosWorker(loop)
         links = TopicLinks(loop, lambda text: rospy.logwarn_throttle(60, "bridge topics: " + text))
-        self._publishers = Publishers(loop, worker, links, unregister_timeout)
+        self._publishers = Publishers(loop, worker, links, unregister_timeout, driving_began)
         self._subscribers = Subscribers(loop, worker, links, deliveries)
         self._calls = ServiceCalls(
             loop, rosapi, MAX_CALLS_RUNNING_PER_CLIENT, MAX_CALLS_RUNNING, MAX_CALLS_PENDING_PER_CLIENT

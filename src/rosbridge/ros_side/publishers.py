@@ -165,8 +165,10 @@ class Publishers:
     unregister_timeout seconds (MAX_LINGERING of them at most), so that a page reload finds its subscribers still
     connected. A client learns of a failure on the worker through session.ros_refused."""
 
-    def __init__(self, loop, worker, links, unregister_timeout):
+    def __init__(self, loop, worker, links, unregister_timeout, driving_began=lambda: None):
+        """driving_began(): a client began to drive (the dead-man stop watches it from then on)."""
         self._loop, self._worker, self._links, self._unregister_timeout = loop, worker, links, unregister_timeout
+        self._driving_began = driving_began
         self._entries = {}
         self._holders = Holders()
         self._inferring = {}  # topic -> [(session, msg, latch, queue_size)] waiting for the graph's type
@@ -250,6 +252,7 @@ class Publishers:
             driven = self._driven.get(session)
             if driven is None:  # (not setdefault: no new set for every message of a topic driven at 1 kHz)
                 driven = self._driven[session] = set()
+                self._driving_began()
             driven.add(topic)
 
     def _inferred(self, topic, error, type_name):

@@ -10,19 +10,28 @@ class DriverLeases:
     connection only looks open). A client that drives (Backend.drives) holds a lease that anything it sends
     renews; silent for half of `timeout`, it is pinged (a live client answers at once); silent for `timeout`,
     its velocity topics get one zero message each (Backend.stop_driving) until it drives again. A client that
-    leaves is stopped by the backend at once (RosBackend's stop_drivers_leaving). Checked every timeout / 4, and
-    at the moment a silent driver's lease ends."""
+    leaves is stopped by the backend at once (RosBackend's stop_drivers_leaving). Checked every timeout / 4 while
+    anyone drives, and at the moment a silent driver's lease ends; while nobody drives, not at all (an idle
+    bridge left running for days is not woken four times a second): the backend's driving_began starts it."""
 
-    def __init__(self, bridge, timeout):
-        self.bridge, self.timeout = bridge, timeout
+    def __init__(self, timeout):
+        self.timeout, self.bridge = timeout, None
         self._loop = tornado.ioloop.IOLoop.current()
+        self._timer = None  # the next check, while anyone drives
 
-    def start(self):
-        self._check()
+    def serve(self, bridge):
+        """The bridge whose clients' leases are kept (made after its backend, which tells driving_began)."""
+        self.bridge = bridge
+
+    def driving_began(self):
+        """A client began to drive (on the loop): its lease is checked from now on."""
+        if self._timer is None and self.bridge is not None:
+            self._timer = self._loop.call_later(self.timeout / 4, self._check)
 
     def _check(self):
+        self._timer = None
         now, backend = time.monotonic(), self.bridge.backend
-        wait = self.timeout / 4
+        wait = None
         for client in self.bridge.clients:
             if not backend.drives(client.session):
                 continue
@@ -32,6 +41,7 @@ class DriverLeases:
                 continue
             if silent >= self.timeout / 2:
                 client.ping()
-            if silent > 0:
-                wait = min(wait, self.timeout - silent)
-        self._loop.call_later(wait, self._check)
+            lease_left = self.timeout - silent if silent > 0 else self.timeout
+            wait = min(self.timeout / 4 if wait is None else wait, lease_left)
+        if wait is not None:
+            self._timer = self._loop.call_later(wait, self._check)
