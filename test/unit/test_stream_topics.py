@@ -317,6 +317,9 @@ class RoomlessStreams:
     def __init__(self):
         self.loop, self.viewers, self.waiting = Loop(), set(), {}
 
+    def joined(self, viewer):
+        self.viewers.add(viewer)
+
     def make_room(self, viewer, data):
         return False
 

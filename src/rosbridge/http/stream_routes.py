@@ -66,7 +66,10 @@ class Streams:
         self._giving_room = False
         # a viewer whose frame has not left for websocket_ping_timeout is gone (a dead link sends no FIN)
         self.stalled = bridge.settings.websocket_ping_timeout
-        tornado.ioloop.PeriodicCallback(self._look_at_writers, min(self.stalled / 6, CROWDED_STALL / 2) * 1000).start()
+        # (only while there are viewers: an idle bridge is not woken for them)
+        self._writers_watch = tornado.ioloop.PeriodicCallback(
+            self._look_at_writers, min(self.stalled / 6, CROWDED_STALL / 2) * 1000
+        )
 
     def _look_at_writers(self):
         for viewer in self.sending.stalled(time.monotonic(), self.stalled):
@@ -136,9 +139,17 @@ class Streams:
                 viewer.topic.want(viewer)
                 return
 
+    def joined(self, viewer):
+        """A viewer came (its request is being checked): until it has left, the writes are watched."""
+        self.viewers.add(viewer)
+        if not self._writers_watch.is_running():
+            self._writers_watch.start()
+
     def left(self, viewer):
         """The viewer takes no more frames."""
         self.viewers.discard(viewer)
+        if not self.viewers:
+            self._writers_watch.stop()
         self._room_waiters.pop(viewer, None)
         if viewer is self._given_room:
             self._given_room = None

@@ -41,7 +41,7 @@ class Viewer:
         self._level = 0  # the level of the last key asked
         self._poll = None
         self._expiry = None if until is None else streams.loop.call_later(max(0.0, until - time.time()), self._expired)
-        streams.viewers.add(self)
+        streams.joined(self)
 
     def _expired(self):
         self._expiry = None
