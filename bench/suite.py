@@ -731,6 +731,70 @@ def section_rates(run, table, rounds):
             )
 
 
+IDLE_SECONDS = 10
+
+
+def idle_cpu(run, server, url=None):
+    """A server's CPU in ms a second over IDLE_SECONDS with nothing to do: no client, or (url) one Foxglove client
+    subscribed to a topic published once a second (the graph, parameters and time are the server's to watch)."""
+    client = pub = None
+    if url is not None:
+        topic = run.topic("idle")
+        pub = run.role("ros_roles.py", "pub", "--topic", topic, "--kind", "twist", "--count", 1000, "--rate", 1)
+        client = run.role(
+            "ws_roles.py",
+            "subscribe",
+            "--url",
+            url,
+            "--topic",
+            topic,
+            "--kind",
+            "twist",
+            "--count",
+            10**6,
+            "--protocol",
+            "foxglove",
+            "--idle",
+            600,
+            "--timeout",
+            600,
+        )
+        run.ready(client, timeout=60)
+        run.ready(pub)
+        run.go(pub)
+    time.sleep(2.0)  # (start-up settles)
+    cpu = Cpu(server)
+    time.sleep(IDLE_SECONDS)
+    spent = cpu.window.seconds()
+    run.stop(*filter(None, (client, pub)))
+    return {"ms_per_s": spent * 1e3 / IDLE_SECONDS}
+
+
+def section_idle(run, table, rounds):
+    """What a bridge left running costs while nothing happens (a rover's runs for days), beside foxglove_bridge
+    left the same way: no client, then one idle Foxglove client."""
+    mine, theirs = {"none": [], "foxglove": []}, {"none": [], "foxglove": []}
+    for _ in range(rounds):
+        bridge, url, server = run.bridge()
+        mine["none"].append(idle_cpu(run, server))
+        mine["foxglove"].append(idle_cpu(run, server, url))
+        run.stop(bridge)
+        if not run.foxglove_missing:
+            proc, url, stat = run.foxglove()
+            theirs["none"].append(idle_cpu(run, stat))
+            theirs["foxglove"].append(idle_cpu(run, stat, url))
+            run.stop(proc)
+    for case, label in (("none", "no client"), ("foxglove", "one Foxglove client, its topic at 1 Hz")):
+        fox = medians(theirs[case])["ms_per_s"] if theirs[case] else None
+        table.row(
+            f"idle bridge, {label}: CPU per second",
+            medians(mine[case])["ms_per_s"],
+            "ms",
+            f"{peers.FOXGLOVE_NAME}, the same",
+            fox,
+        )
+
+
 def section_latency(run, table, rounds):
     plain, ceil, bridge_rtts, loop_rtts = [], [], [], []
     for _ in range(rounds):
@@ -1119,7 +1183,19 @@ def other_bench(run, script, title, code_block=False, python=PY, args=()):
     return f"### {title}\n\n" + (f"```\n{out}\n```" if code_block else out)
 
 
-SECTIONS = ("throughput", "rates", "latency", "fanout", "large", "cloud", "isolation", "turtlesim", "convert", "page")
+SECTIONS = (
+    "throughput",
+    "rates",
+    "latency",
+    "idle",
+    "fanout",
+    "large",
+    "cloud",
+    "isolation",
+    "turtlesim",
+    "convert",
+    "page",
+)
 
 
 def main():
@@ -1149,6 +1225,7 @@ def main():
             "throughput": lambda: section_throughput(run, table, a.rounds, a.count),
             "rates": lambda: section_rates(run, table, a.rounds),
             "latency": lambda: section_latency(run, table, a.rounds),
+            "idle": lambda: section_idle(run, table, a.rounds),
             "isolation": lambda: section_isolation(run, table),
             "fanout": lambda: section_fanout(run, table, a.rounds, a.fanout),
             "large": lambda: section_large(run, table, a.rounds, 120),
