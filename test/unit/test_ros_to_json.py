@@ -24,7 +24,7 @@ from test_json_values_properties import EACH_TYPE, messages
 from rosbridge.codec import BIG_BYTES
 from rosbridge.codec.fields import parse_slot_type
 from rosbridge.codec.json_values import dumps, to_json
-from rosbridge.codec.ros_to_json import SPLICE_MARK, joined, json_parts, json_text
+from rosbridge.codec.ros_to_json import SPLICE_MARK, check_whole, fixed_size, joined, json_parts, json_text
 from rosbridge.message_types import UnknownType, message_class
 
 from sensor_messages import occupancy_grid_cells
@@ -362,3 +362,26 @@ def test_a_traceback_through_a_generated_reader_shows_its_source_lines():
     ]
     assert generated and all(frame.line for frame in generated)
     assert "geometry_msgs/Twist" in generated[0].filename
+
+
+@pytest.mark.parametrize("cls", CLASSES, ids=lambda cls: cls._type)
+@EACH_TYPE
+@given(data=st.data())
+def test_a_fixed_size_is_every_message_s_length_and_whole_bytes_are_told_from_a_byte_more_or_less(cls, data):
+    """check_whole takes a type of fixed size by its length alone, without reading it: that length must be what
+    genpy writes for any message of the type. Whole bytes pass; a byte more or less is refused, read or not."""
+    wire_bytes = serialized(data.draw(messages(cls, any_wire_value=True)))
+    size = fixed_size(cls)
+    assert size is None or len(wire_bytes) == size
+    check_whole(cls, wire_bytes)
+    for wrong in ([wire_bytes[:-1]] if wire_bytes else []) + [wire_bytes + b"\x00"]:
+        with pytest.raises(ValueError, match=cls._type):
+            check_whole(cls, wrong)
+
+
+def test_a_type_with_a_string_or_an_open_array_has_no_fixed_size():
+    from geometry_msgs.msg import Twist
+    from sensor_msgs.msg import LaserScan
+
+    assert fixed_size(Twist) == 48
+    assert fixed_size(Header) is None and fixed_size(LaserScan) is None

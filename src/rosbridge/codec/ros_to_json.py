@@ -398,8 +398,41 @@ def json_parts(cls):
     return convert
 
 
+_fixed_sizes: dict = {}  # class -> fixed_size(class)
+
+
+def fixed_size(cls):
+    """The bytes that every serialized message of class cls takes, or None when that depends on its values (a
+    string or an array of no set length among its fields, nested ones' included)."""
+    if cls in _fixed_sizes:
+        return _fixed_sizes[cls]
+    total = 0
+    for slot_type in cls._slot_types:
+        base, is_array, count = parse_slot_type(slot_type)
+        if base in _CODES:
+            size = struct.calcsize("<" + _CODES[base])
+        elif base in _TIME_CODES:
+            size = struct.calcsize("<" + _TIME_CODES[base] * 2)
+        elif base in BUILTIN_TYPES:  # (string)
+            size = None
+        else:
+            size = fixed_size(message_class(base))
+        if size is None or (is_array and count is None):
+            total = None
+            break
+        total += size * (count if is_array else 1)
+    _fixed_sizes[cls] = total
+    return total
+
+
 def check_whole(cls, data):
-    """Raises ValueError unless `data` is exactly one serialized message of class cls (a client's bytes)."""
+    """Raises ValueError unless `data` is exactly one serialized message of class cls (a client's bytes). A type of
+    fixed size (a Twist: 48 bytes) is checked by its length alone: any bytes of that length read as one."""
+    size = fixed_size(cls)
+    if size is not None:
+        if len(data) != size:
+            raise ValueError(f"{len(data)} bytes, but a {cls._type} takes {size}")
+        return
     try:
         end = _reader(cls)(data, 0, [])[1]
     except (struct.error, IndexError, UnicodeDecodeError) as error:
