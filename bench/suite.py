@@ -2,6 +2,7 @@
 prints a markdown table of medians and writes bench/README.md. Start it with `bash bench/run`."""
 
 import argparse
+import itertools
 import json
 import os
 import re
@@ -741,24 +742,9 @@ def idle_cpu(run, server, url=None):
     if url is not None:
         topic = run.topic("idle")
         pub = run.role("ros_roles.py", "pub", "--topic", topic, "--kind", "twist", "--count", 1000, "--rate", 1)
-        client = run.role(
-            "ws_roles.py",
-            "subscribe",
-            "--url",
-            url,
-            "--topic",
-            topic,
-            "--kind",
-            "twist",
-            "--count",
-            10**6,
-            "--protocol",
-            "foxglove",
-            "--idle",
-            600,
-            "--timeout",
-            600,
-        )
+        flags = {"url": url, "topic": topic, "count": 10**6, "protocol": "foxglove", "idle": 600, "timeout": 600}
+        argv = itertools.chain.from_iterable((f"--{name}", value) for name, value in flags.items())
+        client = run.role("ws_roles.py", "subscribe", *argv)
         run.ready(client, timeout=60)
         run.ready(pub)
         run.go(pub)

@@ -34,10 +34,10 @@ def _twist(msg):
     return [twist.linear.x, twist.linear.y, twist.linear.z, twist.angular.x, twist.angular.y, twist.angular.z]
 
 
-def drive(ros, client_send, topic, type_name, recorder):
+def drive(ros, client_send, topic, type_name, recorder, bridge_node="/deadman_bridge"):
     """Advertises and publishes one moving command; returns once the recorder has it."""
     client_send({"op": "advertise", "topic": topic, "type": type_name})
-    wait_publisher_connected(ros, "/deadman_bridge", topic, _me())
+    wait_publisher_connected(ros, bridge_node, topic, _me())
     moving = {"linear": {"x": 2.0}, "angular": {"z": 1.0}}
     client_send({"op": "publish", "topic": topic, "msg": moving if type_name.endswith("/Twist") else {"twist": moving}})
     wait_for(lambda: any(_twist(msg)[0] == 2.0 for _, msg in recorder.got), 10, what="the moving command")
@@ -102,10 +102,7 @@ def test_off_with_a_timeout_of_zero(ros, node, off_bridge):
     topic = "/deadman/off/cmd_vel"
     recorder = Recorder(node, topic, Twist)
     ws = WsClient(f"ws://127.0.0.1:{off_bridge}/")
-    ws.send({"op": "advertise", "topic": topic, "type": "geometry_msgs/Twist"})
-    wait_publisher_connected(ros, "/deadman_off_bridge", topic, _me())
-    ws.send({"op": "publish", "topic": topic, "msg": {"linear": {"x": 2.0}}})
-    wait_for(lambda: recorder.got, 10, what="the moving command")
+    drive(ros, ws.send, topic, "geometry_msgs/Twist", recorder, "/deadman_off_bridge")
     ended = time.monotonic()
     ws.close()
     time.sleep(1.0)
@@ -139,10 +136,7 @@ def test_the_leases_wake_the_loop_only_while_someone_drives(ros, node, idle_brid
     topic = "/deadman/idle/cmd_vel"
     recorder = Recorder(node, topic, Twist)
     ws = WsClient(f"ws://127.0.0.1:{idle_bridge}/")
-    ws.send({"op": "advertise", "topic": topic, "type": "geometry_msgs/Twist"})
-    wait_publisher_connected(ros, "/deadman_idle_bridge", topic, _me())
-    ws.send({"op": "publish", "topic": topic, "msg": {"linear": {"x": 2.0}}})
-    wait_for(lambda: recorder.got, 10, what="the moving command")
+    drive(ros, ws.send, topic, "geometry_msgs/Twist", recorder, "/deadman_idle_bridge")
     wait_for(lambda: recorder.zeros_after(0), TIMEOUT * 3, what="the dead-man stop of a silent driver")
     ws.close()
     time.sleep(TIMEOUT)  # (its unregister and last checks)
