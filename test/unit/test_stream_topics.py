@@ -240,10 +240,10 @@ def test_a_picture_sent_to_several_viewers_counts_once_until_its_last_has_it():
     for viewer in ("a", "b", "c"):
         assert sending.crowding(shared, 0.0) == []
         sending.start(viewer, shared, 0.0)
-    assert sending.used == 60
+    assert sending.used == 60 and len(sending) == 3
     assert sending.crowding(other, 0.0) == [] and sending.crowding(bytes(41), 0.0) is None
     assert sending.done("a") and sending.done("b") and sending.used == 60
-    assert sending.done("c") and sending.used == 0
+    assert sending.done("c") and sending.used == 0 and not sending
     assert not sending.done("c")  # (a viewer gone after its picture left)
 
 

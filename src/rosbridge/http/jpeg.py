@@ -426,6 +426,10 @@ class Sending:
         self._pictures = heap.SharedBuffers()  # a hold per writer
         self._writers = {}  # writer -> (since, data), oldest first
 
+    def __len__(self):
+        """How many writers are writing."""
+        return len(self._writers)
+
     @property
     def used(self):
         """Bytes of the pictures being written, each once."""

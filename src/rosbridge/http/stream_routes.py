@@ -66,7 +66,7 @@ class Streams:
         self._giving_room = False
         # a viewer whose frame has not left for websocket_ping_timeout is gone (a dead link sends no FIN)
         self.stalled = bridge.settings.websocket_ping_timeout
-        # (only while there are viewers: an idle bridge is not woken for them)
+        # (only while there is something to watch: an idle bridge is not woken for it)
         self._writers_watch = tornado.ioloop.PeriodicCallback(
             self._look_at_writers, min(self.stalled / 6, CROWDED_STALL / 2) * 1000
         )
@@ -76,6 +76,8 @@ class Streams:
             viewer.end()
         if self._room_waiters:  # (a picture stalled for CROWDED_STALL meanwhile may make room: no frame need come)
             self._give_room()
+        if not (self.viewers or self.sending or self._room_waiters):  # (until a viewer comes again: joined)
+            self._writers_watch.stop()
 
     # ---- the pictures being sent
     def make_room(self, viewer, data):
@@ -140,7 +142,8 @@ class Streams:
                 return
 
     def joined(self, viewer):
-        """A viewer came (its request is being checked): until it has left, the writes are watched."""
+        """A viewer came (its request is being checked): the writes are watched until no viewer is left, nor
+        anything being written (a viewer that failed still writes its last part, dropped if it stalls)."""
         self.viewers.add(viewer)
         if not self._writers_watch.is_running():
             self._writers_watch.start()
@@ -148,8 +151,6 @@ class Streams:
     def left(self, viewer):
         """The viewer takes no more frames."""
         self.viewers.discard(viewer)
-        if not self.viewers:
-            self._writers_watch.stop()
         self._room_waiters.pop(viewer, None)
         if viewer is self._given_room:
             self._given_room = None
