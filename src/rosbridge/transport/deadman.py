@@ -31,7 +31,7 @@ class DriverLeases:
     def _check(self):
         self._timer = None
         now, backend = time.monotonic(), self.bridge.backend
-        wait = None
+        wait, driving = self.timeout / 4, False
         for client in self.bridge.clients:
             if not backend.drives(client.session):
                 continue
@@ -39,9 +39,10 @@ class DriverLeases:
             if silent >= self.timeout:
                 backend.stop_driving(client.session)
                 continue
+            driving = True
             if silent >= self.timeout / 2:
                 client.ping()
-            lease_left = self.timeout - silent if silent > 0 else self.timeout
-            wait = min(self.timeout / 4 if wait is None else wait, lease_left)
-        if wait is not None:
+            if silent > 0:
+                wait = min(wait, self.timeout - silent)
+        if driving:
             self._timer = self._loop.call_later(wait, self._check)
