@@ -3,8 +3,9 @@ each with why. test/unit/test_borrowed.py checks each against the installed vers
 rospy 1.15; Debian 13: Tornado 6.4, rospy 1.17), so that a version that moves one fails there, by name, and
 not somewhere in a client's connection.
 
-Everything else the bridge uses of Tornado (RequestHandler.detach, IOStream.read_bytes / write /
-set_close_callback, IOLoop.add_handler, TCPServer) and of rospy is their public API."""
+Everything else the bridge uses of Tornado (RequestHandler.detach, IOStream.socket / read_bytes / write /
+set_close_callback / close, IOLoop.add_handler / update_handler / remove_handler, TCPServer) and of rospy is their
+public API."""
 
 import rospy
 import rospy.core

@@ -1,7 +1,7 @@
 """The websocket clients on the event loop, after the handshake (handshake.BridgeSocket): a ClientConnection owns
-the connection's stream (Tornado's IOStream, through its public API) and moves bytes between it and two pure
-objects: rfc6455.FrameReader (what the client sent, frame by frame) and the client's protocol session (a rosbridge
-protocol.Session, or a foxglove.FoxgloveSession: contract.ProtocolSession).
+the connection's bytes in and out (client_io: the socket itself, or Tornado's stream for TLS) and moves them
+between it and two pure objects: rfc6455.FrameReader (what the client sent, frame by frame) and the client's
+protocol session (a rosbridge protocol.Session, or a foxglove.FoxgloveSession: contract.ProtocolSession).
 
 Threads: all of it runs on the loop's thread, but for deflating a big message for the clients whose link is slow
 (slow_link.deflated_payload), which runs on the bridge's deflate thread (off_loop.EncodingThread, `bridge.deflater`,
@@ -14,7 +14,6 @@ import functools
 import time
 
 import tornado.ioloop
-import tornado.iostream
 
 from rosbridge import borrowed, protocol
 from rosbridge.codec import BIG_BYTES
@@ -22,17 +21,12 @@ from rosbridge.errors import log_bug
 from rosbridge.foxglove import FoxgloveSession
 from rosbridge.protocol.encoded import SplicedFrame, Utf8Text
 from rosbridge.transport import rfc6455 as ws
+from rosbridge.transport.client_io import client_io
 from rosbridge.transport.slow_link import DEFLATE_MIN_BYTES, LinkMeter, deflated_payload, sends_deflated
-from rosbridge.transport.unsent import limit_unsent
 
-READ_CHUNK = 64 * 1024  # bytes asked of a client's stream per read: every frame complete in them is taken at once
 # Frames waiting for a client go to its socket together, up to this many bytes per write: one system call for a
 # burst of small messages instead of one each.
 WRITE_BATCH_BYTES = 64 * 1024
-# What the socket does not take at once goes to the stream in pieces of this many bytes (by reference): each one
-# written is progress, so that a slow link taking a map for longer than websocket_ping_timeout is not taken for
-# one that stopped reading.
-WRITE_PIECE_BYTES = 64 * 1024
 CLOSE_TIMEOUT = 5.0  # seconds a client has to answer our close frame before the connection is dropped
 
 
@@ -52,7 +46,7 @@ class Waiting(enum.Enum):
     """What a ClientConnection's reading waits for (None: nothing, it is taking the client's frames)."""
 
     READ = "read"
-    """The stream's next bytes: one read is asked."""
+    """The client's next bytes: one read is asked."""
     TURN = "turn"
     """The client's next turn (a timer): it had a turn's worth of frames (budget.py)."""
     SESSION = "session"
@@ -64,7 +58,7 @@ class Waiting(enum.Enum):
 class ClientConnection:
     """One websocket client after the handshake.
 
-    Reading: one read of the stream at a time, asked for only when every frame of the last one has been taken,
+    Reading: one read of the client's socket at a time, asked for only when every frame of the last one has been taken,
     so that what waits in the bridge is at most one frame being received and one read. The frames are taken in
     turns with the other clients: after a turn's worth (budget.py), or while the Session holds the client's
     next requests, the rest waits, and the client's socket with it (backpressure). A compressed message is
@@ -73,10 +67,10 @@ class ClientConnection:
     (bridge.unfinished), a client stalled in the middle of one making way for a client whose bytes keep coming
     (rfc6455.SharedBound: _made_way).
 
-    Writing: the Session's queued frames go to the stream while it takes them; once the stream is backed up (the
-    kernel holds at most unsent.UNSENT_LIMIT unsent), the rest stays in the Session's Outbox, which keeps each
-    topic fresh meanwhile, until the stream has drained. A client whose stream writes nothing for
-    websocket_ping_timeout meanwhile does not read: it is dropped (_check_stalled), and what waited for it with it.
+    Writing: the Session's queued frames go to the socket while it takes them; once it is backed up (the kernel
+    holds at most unsent.UNSENT_LIMIT unsent), the rest stays in the Session's Outbox, which keeps each topic fresh
+    meanwhile, until what was written has drained. A client whose socket takes nothing for websocket_ping_timeout
+    meanwhile does not read: it is dropped (_check_stalled), and what waited for it with it.
 
     Deflating, with a client that offered permessage-deflate (window_bits: the largest window negotiated, else
     None): every message with use_compression; else, with compress_slow_links, the messages of DEFLATE_MIN_BYTES
@@ -85,9 +79,9 @@ class ClientConnection:
     with use_compression) on the loop. RSV1 marks each compressed frame; the others go as they are."""
 
     def __init__(self, bridge, stream, peer, window_bits, subprotocol=None):
-        self.bridge, self._stream, self._window_bits = bridge, stream, window_bits
+        self.bridge, self._window_bits = bridge, window_bits
+        self._io = client_io(stream, self._received, self._drained, self._on_closed)
         self.peer, self.protocol_name = peer, subprotocol or "rosbridge"
-        self._send_direct = type(stream) is tornado.iostream.IOStream  # (not TLS: _send)
         settings = bridge.settings
         self._loop = tornado.ioloop.IOLoop.current()
         self._reader = ws.FrameReader(
@@ -117,19 +111,13 @@ class ClientConnection:
         self._deflating = 0  # the size of the frame taken last while it is being deflated off the loop...
         self._ready = None  # ...and once it is, (it, its payload): it goes first
         self._pong = None  # the pong of the latest ping, waiting for the socket to drain (_write_control)
-        self._stall_timer = None  # while the stream is backed up: when it must have written something (_check_stalled)
-        self._wrote_at = None  # when it last did
+        self._stall_timer = None  # while the socket is backed up: when it must have taken something (_check_stalled)
+        self._waited_since = None  # when the write it has not taken all of began
         self._pinger, self._ping_sent = None, None
         self._last_heard = self._opened = time.monotonic()  # when a read last brought something
 
     def start(self, handshake_answer):
-        stream = self._stream
-        stream.set_close_callback(self._on_stream_closed)
-        try:
-            stream.set_nodelay(True)
-            limit_unsent(stream.socket)
-            stream.write(handshake_answer)
-        except tornado.iostream.StreamClosedError:  # the client left at once
+        if not self._io.start(handshake_answer):  # the client left at once
             return
         self.bridge.client_opened(self)
         interval = self.bridge.settings.websocket_ping_interval
@@ -140,19 +128,16 @@ class ClientConnection:
 
     # ---- reading ---------------------------------------------------------------------------------
     def _read(self):
-        self._waiting = Waiting.READ
-        try:
-            self._stream.read_bytes(READ_CHUNK, partial=True).add_done_callback(self._received)
-        except tornado.iostream.StreamClosedError:
+        if self._io.read():
+            self._waiting = Waiting.READ
+        else:  # (the client has left: the close callback comes)
             self._waiting = Waiting.END
 
-    def _received(self, read):
-        # (Waiting.END: by _on_stream_closed or close meanwhile)
-        if self._waiting is Waiting.END or read.cancelled() or read.exception() is not None:
-            self._waiting = Waiting.END
+    def _received(self, data):
+        if self._waiting is Waiting.END:  # (by close meanwhile)
             return
         self._last_heard = time.monotonic()
-        self._reader.receive(read.result())
+        self._reader.receive(data)
         self._take_frames()
 
     @property
@@ -171,7 +156,7 @@ class ClientConnection:
         self._turn_timer, self._waiting = None, None
         reader, budget, session = self._reader, self.budget, self.session
         try:
-            while not self._stream.closed():
+            while not self._io.closed():
                 if session.holding:
                     self._waiting = Waiting.SESSION
                     return
@@ -207,7 +192,7 @@ class ClientConnection:
         except Exception:  # a bug: this client is dropped, the others go on
             self._waiting = Waiting.END
             log_bug("reading a websocket client's frames")
-            self._stream.close()
+            self._io.close()
 
     def _check_unfinished(self):
         """The message the client is sending must be whole within fragment_timeout of its first byte (a client
@@ -237,8 +222,8 @@ class ClientConnection:
         )
 
     def drop(self, code, reason):
-        """Ends the connection, reading nothing more: our close frame, then the stream closed once it is written
-        (or CLOSE_TIMEOUT later)."""
+        """Ends the connection, reading nothing more: our close frame, then the connection closed once it is
+        written (or CLOSE_TIMEOUT later)."""
         if self._turn_timer is not None:
             self._loop.remove_timeout(self._turn_timer)
             self._turn_timer = None
@@ -290,14 +275,14 @@ class ClientConnection:
 
     # ---- writing ---------------------------------------------------------------------------------
     def _flush(self):
-        """Writes the Session's queued frames until the stream is backed up; _drained goes on from there (and
+        """Writes the Session's queued frames until the socket is backed up; _drained goes on from there (and
         _deflated, after a frame that had to be deflated off the loop)."""
         if self._awaiting_drain or self._deflating:
             return
-        stream = self._stream
+        io = self._io
         one_at_a_time = bool(self.bridge.settings.delay_between_messages)
         big_sent = False  # (the Session's pool holds a big frame's bytes until it hears they left: _backed_up)
-        while not self._closing and not stream.closed():
+        while not self._closing and not io.closed():
             batch, size = [], 0
             while size < WRITE_BATCH_BYTES:
                 frame, payload = self._take()
@@ -309,13 +294,10 @@ class ClientConnection:
                 if one_at_a_time:
                     break
             if batch:
-                try:
-                    written = self._write(batch)
-                except tornado.iostream.StreamClosedError:  # (the close callback cleans up)
-                    return
-                if written is not None and stream.writing():
+                self._write(batch)
+                if io.writing():
                     self._write_waited = (time.monotonic(), size)
-                    self._await_drain(written)
+                    self._await_drain()
                     return
             if self._deflating:  # (_deflated goes on)
                 return
@@ -364,7 +346,7 @@ class ClientConnection:
     def _deflated(self, frame, payload):
         """A frame taken is deflated (payload None: that failed, and was logged; it goes as it is)."""
         self._deflating = 0
-        if self._stream.closed():
+        if self._io.closed():
             return
         self._ready = (frame, payload)
         self._backed_up()
@@ -372,29 +354,27 @@ class ClientConnection:
 
     def _backed_up(self):
         """Tells the Session whether the client's frames wait (each topic then keeps only what is fresh), and what
-        was taken that has not left: the batch the stream has not written, the frame being deflated."""
+        was taken that has not left: the batch the socket has not taken, the frame being deflated."""
         in_flight = (self._write_waited[1] if self._write_waited is not None else 0) + self._deflating
         self.session.backed_up(self._awaiting_drain or self._deflating > 0, in_flight)
 
-    def _await_drain(self, written):
-        """The stream holds what it could not write yet: _drained once it has all gone (`written`, the future of
-        its last write, is done), and the client dropped if nothing of it goes for websocket_ping_timeout."""
+    def _await_drain(self):
+        """Some of what was written waits for the socket: _drained once it has all gone, and the client dropped if
+        the socket takes nothing of it for websocket_ping_timeout."""
         self._awaiting_drain = True
         self._backed_up()
-        written.add_done_callback(self._drained)
-        self._wrote_at = time.monotonic()
+        self._io.when_drained()
+        self._waited_since = time.monotonic()
         if self._stall_timer is None:
             self._stall_timer = self._loop.call_later(self.bridge.settings.websocket_ping_timeout, self._check_stalled)
 
-    def _wrote(self, _):
-        self._wrote_at = time.monotonic()
-
     def _check_stalled(self):
         self._stall_timer = None
-        if not self._awaiting_drain or self._stream.closed():
+        if not self._awaiting_drain or self._io.closed():
             return
         timeout = self.bridge.settings.websocket_ping_timeout
-        left = self._wrote_at + timeout - time.monotonic()
+        progressed = max(self._waited_since, self._io.progressed_at or 0.0)
+        left = progressed + timeout - time.monotonic()
         if left > 0:
             self._stall_timer = self._loop.call_later(left, self._check_stalled)
             return
@@ -402,27 +382,24 @@ class ClientConnection:
             "stalled",
             f"a client dropped: it read nothing of what waited for it for websocket_ping_timeout ({timeout} s)",
         )
-        self._stream.close()  # (a close frame would wait behind what it does not read)
+        self._io.close()  # (a close frame would wait behind what it does not read)
 
-    def _drained(self, written):
+    def _drained(self):
         self._awaiting_drain = False
         if self._write_waited is not None:
             started, size = self._write_waited
             self._write_waited = None
             self._link.waited(size, time.monotonic() - started)
         self._backed_up()
-        if written.cancelled() or written.exception() is not None:
-            return
         if self._pong is not None:
             pong, self._pong = self._pong, None
             self._write_control(pong)
         self._flush()
 
     def _write(self, batch):
-        """Writes (frame, deflated payload or None) to the client; returns the future of the stream's last write,
-        or None when the kernel took everything at once (_send). Small ones are joined into one write; a big
+        """Writes (frame, deflated payload or None) to the client. Small ones are joined into one write; a big
         payload or part (an image) goes by reference, not copied: the same bytes for every client."""
-        joined, written = [], None
+        io, joined = self._io, []
         for frame, payload in batch:
             opcode = ws.TEXT if _is_text(frame) else ws.BINARY
             if payload is not None:
@@ -435,48 +412,24 @@ class ClientConnection:
                 if len(part) < BIG_BYTES:
                     joined.append(part)
                 else:
-                    written = self._send(b"".join(joined)) or written
+                    io.write(b"".join(joined))
                     joined.clear()
-                    written = self._send(part) or written
-        return self._send(b"".join(joined)) or written  # (its future is done once all before it is written too)
-
-    def _send(self, data):
-        """Sends data: straight to the socket while the stream holds nothing unsent, so that a message that the
-        kernel takes at once costs no future and no further turn of the loop (Tornado's write has both: a topic
-        at 1 kHz would pay them on every message); what the socket does not take, or all when it fails, through
-        the stream (in WRITE_PIECE_BYTES pieces, each written a sign of life: _wrote), which waits for the drain
-        or closes on the error. Returns the stream's future, or None.
-        Not for TLS (the SSL object's state is the stream's own): everything through the stream there."""
-        stream = self._stream
-        if self._send_direct and not stream.writing() and not stream.closed():
-            try:
-                sent = stream.socket.send(data)
-            except OSError:  # (full: the stream waits; broken: the stream's own write meets it and closes)
-                sent = 0
-            if sent == len(data):
-                return None
-            data = memoryview(data)[sent:]
-        if len(data) <= WRITE_PIECE_BYTES:
-            return stream.write(data)
-        view = memoryview(data)
-        for start in range(0, len(view), WRITE_PIECE_BYTES):
-            written = stream.write(view[start : start + WRITE_PIECE_BYTES])
-            written.add_done_callback(self._wrote)
-        return written
+                    io.write(part)
+        io.write(b"".join(joined))
 
     def _write_control(self, frame):
         """A pong. While the socket is backed up only the latest ping's pong waits, and goes once it has drained
         (RFC 6455 5.5.3 lets a pong answer the latest ping only): a client that pings but never reads grows
         nothing here (each pong written to a backed-up stream cost a write future of Tornado's: 100 MB for
         the 170,000 pongs of the megabyte this once allowed)."""
-        if self._closing or self._stream.closed():
+        if self._closing or self._io.closed():
             return
         if self._awaiting_drain:
             self._pong = frame
             return
-        written = self._send(frame)
-        if written is not None and self._stream.writing():
-            self._await_drain(written)
+        self._io.write(frame)
+        if self._io.writing():
+            self._await_drain()
 
     # ---- keeping alive, closing ------------------------------------------------------------------
     def _keep_alive(self):
@@ -486,37 +439,37 @@ class ClientConnection:
             self._ping_sent is not None
             and time.monotonic() - self._ping_sent > self.bridge.settings.websocket_ping_timeout
         ):
-            self._stream.close()
+            self._io.close()
         else:
             self.ping()
 
     def ping(self):
         """A ping, unless one is still unanswered: a live client answers it (browsers do by themselves)."""
-        if self._ping_sent is None and not self._closing and not self._stream.closed():
+        if self._ping_sent is None and not self._closing and not self._io.closed():
             self._ping_sent = time.monotonic()
-            self._stream.write(ws.control_frame(ws.PING))
+            self._io.write(ws.control_frame(ws.PING))
 
     def close(self, code=ws.NORMAL, reason="", then_drop=False):
         """Sends a close frame (code None: without a status) and stops sending anything else. The connection
         ends when the client answers it, or CLOSE_TIMEOUT later; with then_drop (the client closed, broke the
         protocol, or does not read), once the frame is written, and nothing more is read."""
-        stream = self._stream
-        if stream.closed():
+        io = self._io
+        if io.closed():
             return
         if then_drop:
             self._waiting = Waiting.END
         if not self._closing:
             self._closing = True
-            written = stream.write(ws.close_frame(code, reason))
+            io.write(ws.close_frame(code, reason))
             if then_drop:
-                written.add_done_callback(lambda _: stream.close())
+                io.close_once_written()
         elif then_drop:
-            stream.close()
+            io.close()
             return
         if self._drop_timer is None:
-            self._drop_timer = self._loop.call_later(CLOSE_TIMEOUT, stream.close)
+            self._drop_timer = self._loop.call_later(CLOSE_TIMEOUT, io.close)
 
-    def _on_stream_closed(self):
+    def _on_closed(self):
         for timer in (self._turn_timer, self._drop_timer, self._unfinished_timer, self._stall_timer):
             if timer is not None:
                 self._loop.remove_timeout(timer)
