@@ -76,6 +76,16 @@ def test_a_topic_keeps_its_order_when_its_sizes_vary():
     assert drain(box) == ["p1", "o1", "p2.0", "p3"]
 
 
+def test_a_topic_keeps_its_order_after_a_fragmented_message_of_its_own():
+    box, _ = outbox()
+    box.push("/map", big("m0", parts=3))
+    assert drain_one(box) == "m0.0"
+    box.push("/map", small("m1"))  # behind the rest of m0...
+    assert [drain_one(box), drain_one(box)] == ["m0.1", "m0.2"]
+    box.push("/map", small("m2"))  # ...and this one behind m1, though m0 has gone meanwhile
+    assert drain(box) == ["m1", "m2"]
+
+
 def test_backed_up_a_camera_keeps_only_its_newest_picture_and_the_client_is_told():
     box, clock = outbox()
     box.backed_up = True

@@ -143,7 +143,8 @@ class Outbox:
         waiting = self._by_key.get(key)
         if waiting is None:
             waiting = self._by_key[key] = collections.deque()
-        big = size >= SMALL_MESSAGE or bool(waiting and waiting[-1].big) or (key == self._current_key and self._current)
+        # (a bool, not the current message's deque, which empties as it is sent: what follows stays behind it)
+        big = size >= SMALL_MESSAGE or bool(waiting and waiting[-1].big or key == self._current_key and self._current)
         unit = _Unit(key, frames, size, self._clock(), big, shared, own)
         (self._big if big else self._small).append(unit)
         waiting.append(unit)
