@@ -112,6 +112,11 @@ class Outbox:
         self._own = 0
         self._allowed = max_bytes if pool is None else min(max_bytes, OWN_QUEUE_BYTES)
         self._sent, self._sent_bytes = [], 0  # the pool's holds of the buffers taken that may not have left yet
+        # Small one-frame messages queued while nothing else waits and the socket keeps up, as (key, frame, size),
+        # oldest first: what a client that keeps up is sent, taken in order without the lanes' bookkeeping
+        # (a unit, its topic's queue, a clock read). Anything else queued, or the socket backing up, makes them
+        # units first (_settle): while some pass, no unit waits.
+        self._passing = collections.deque()
         self._small, self._big = collections.deque(), collections.deque()  # units, oldest first
         self._dead = 0  # units skipped or dropped that are still in a lane (removed lazily)
         self._by_key = {}  # topic (or None) -> its waiting units, oldest first
@@ -129,6 +134,21 @@ class Outbox:
 
     def push(self, key, frames):
         """Queues the frames of one message (key: its topic, or None)."""
+        if len(frames) == 1 and not (self._by_key or self._current or self.backed_up):
+            size = len(frames[0])
+            if (
+                size < SMALL_MESSAGE
+                and self.frames < self.max_frames
+                and self.bytes + size <= self.max_bytes
+                and self._own + size <= self._allowed
+            ):
+                self._passing.append((key, frames[0], size))
+                self.frames += 1
+                self.bytes += size
+                self._own += size
+                return
+        if self._passing:
+            self._settle()
         size = sum(map(len, frames))
         if len(frames) > self.max_frames or size > self.max_bytes:
             self.refused[key] += 1
@@ -140,15 +160,7 @@ class Outbox:
                 self.dropped[key] += 1
                 return
             own -= sum(map(len, shared))
-        waiting = self._by_key.get(key)
-        if waiting is None:
-            waiting = self._by_key[key] = collections.deque()
-        # (a bool, not the current message's deque, which empties as it is sent: what follows stays behind it)
-        big = size >= SMALL_MESSAGE or bool(waiting and waiting[-1].big or key == self._current_key and self._current)
-        unit = _Unit(key, frames, size, self._clock(), big, shared, own)
-        (self._big if big else self._small).append(unit)
-        waiting.append(unit)
-        self._key_bytes[key] = self._key_bytes.get(key, 0) + size
+        waiting, unit = self._enqueue(key, frames, size, self._clock(), shared, own)
         self.frames += len(frames)
         self.bytes += size
         self._own += own
@@ -156,6 +168,27 @@ class Outbox:
             self._freshen(key, waiting, unit.queued_at)
         if self._over():
             self._bound(unit)
+
+    def _enqueue(self, key, frames, size, now, shared, own):
+        """A message's unit, in its lane and its topic's queue (already counted in frames, bytes and _own)."""
+        waiting = self._by_key.get(key)
+        if waiting is None:
+            waiting = self._by_key[key] = collections.deque()
+        # (a bool, not the current message's deque, which empties as it is sent: what follows stays behind it)
+        big = size >= SMALL_MESSAGE or bool(waiting and waiting[-1].big or key == self._current_key and self._current)
+        unit = _Unit(key, frames, size, now, big, shared, own)
+        (self._big if big else self._small).append(unit)
+        waiting.append(unit)
+        self._key_bytes[key] = self._key_bytes.get(key, 0) + size
+        return waiting, unit
+
+    def _settle(self):
+        """The messages passing become units, in their order (queued_at: now, a little after they came; it only
+        matters once the socket is backed up)."""
+        passing, self._passing = self._passing, collections.deque()
+        now = self._clock()
+        for key, frame, size in passing:
+            self._enqueue(key, (frame,), size, now, (), size)
 
     def _over(self):
         return self.frames > self.max_frames or self.bytes > self.max_bytes or self._own > self._allowed
@@ -173,6 +206,8 @@ class Outbox:
     def set_backed_up(self, flag, in_flight=0):
         """Whether the socket is backed up (then each topic keeps only what is fresh), and how many bytes the
         socket holds that have not left yet (they count against the pool until they have)."""
+        if self._passing:
+            self._settle()
         self.backed_up, self._in_flight = flag, in_flight
         if self._pool is not None:
             if not flag and self._sent:
@@ -252,6 +287,12 @@ class Outbox:
 
     def take(self):
         """The next frame to send, or None."""
+        if self._passing:
+            _, frame, size = self._passing.popleft()
+            self.frames -= 1
+            self.bytes -= size
+            self._own -= size
+            return frame
         current = self._current
         unit = self._next_unit(self._small)
         if unit is None and not current:
@@ -315,7 +356,7 @@ class Outbox:
         for unit in itertools.chain(self._small, self._big):
             if unit.frames is not None and unit.shared:
                 self._pool.release(unit.shared)
-        for lane in (self._small, self._big, self._current):
+        for lane in (self._small, self._big, self._current, self._passing):
             lane.clear()
         self._current_key = None
         self._by_key.clear()
