@@ -188,11 +188,12 @@ def field(page, name):
 
 
 def type_into(page, selector, text):
-    """Types text into an input as a person does, then leaves it (its change event)."""
+    """Types text over what an input holds as a person does, then leaves it: one change event (WebDriver's clear
+    would fire one of its own, sending an empty value first)."""
     from selenium.webdriver.common.keys import Keys
 
     element = page.driver.find_element(By.CSS_SELECTOR, selector)
-    element.clear()
+    element.send_keys(Keys.CONTROL, "a")
     element.send_keys(text, Keys.TAB)
 
 

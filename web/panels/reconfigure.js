@@ -27,6 +27,9 @@ export class ReconfigurePanel extends ListPanel {
     this.select = root.querySelector('select.reconfigure-node');
     this.formArea = root.querySelector('.reconfigure-form');
     this.statusLine = root.querySelector('.reconfigure-status');
+    // The edits go one at a time, in the order they were made: the bridge runs service calls side by side, and
+    // a quick second edit of a field could reach the node first and be undone by the first.
+    this.edits = Promise.resolve();
     [this.wanted] = readAddress(NODE_PARAM);
     this.subscriptions = [];
     this.fields = new Map();  // parameter name -> { type, set(value), note(text, kind) }
@@ -63,6 +66,7 @@ export class ReconfigurePanel extends ListPanel {
 
   attach(session) {
     this.openNode = null;
+    this.edits = Promise.resolve();  // (an edit left on the old session never settles)
     this.shown = null;  // (render again: the node's topics are subscribed anew on this session)
     super.attach(session);
   }
@@ -237,7 +241,10 @@ export class ReconfigurePanel extends ListPanel {
     const range = outside(value, field.min, field.max);
     say(range ? `${value} is ${range}: sent, the node decides…` : 'Sending…', range ? 'warn' : 'info');
     try {
-      const answer = await this.session.call(`${node}/set_parameters`, SERVICE_TYPE, { config });
+      const session = this.session;
+      const call = this.edits.then(() => session.call(`${node}/set_parameters`, SERVICE_TYPE, { config }));
+      this.edits = call.catch(() => {});
+      const answer = await call;
       if (node !== this.openNode) return;
       this.showConfig(answer.config);
       const got = valuesOf(answer.config).get(name);
