@@ -144,6 +144,24 @@ def test_the_bound_drops_whole_oldest_messages_big_first_and_says_so():
     assert box.take_report()[1] == {"/map": 1}
 
 
+def test_while_nothing_waits_and_the_socket_keeps_up_the_same_bounds_hold():
+    """Small messages queued to a client that keeps up skip the lanes (Outbox._passing), not the bounds."""
+    box, _ = outbox(max_frames=10)
+    for i in range(25):
+        box.push("/pose", small(f"p{i}"))
+    assert len(box) == 10 and box.take_report()[1] == {"/pose": 15}
+    assert drain(box) == [f"p{i}" for i in range(15, 25)]
+    box, _ = outbox(max_bytes=100)
+    for i in range(25):
+        box.push("/pose", small(f"p{i:09}"))  # (10 bytes each)
+    assert box.bytes == 100 and drain(box) == [f"p{i:09}" for i in range(15, 25)]
+    # With a pool, what the socket was given and has not sent counts too: here all the client may hold.
+    box = Outbox(1000, 64_000_000, Clock(), QueuePool(0))
+    box.set_backed_up(False, in_flight=OWN_QUEUE_BYTES)
+    box.push("/pose", small("p0"))
+    assert len(box) == 0 and box.take_report()[1] == {"/pose": 1}
+
+
 def test_a_message_larger_than_the_whole_bound_is_refused_not_cut():
     box, _ = outbox(max_bytes=3 * SMALL_MESSAGE)
     box.push("/map", big("map", parts=5))
