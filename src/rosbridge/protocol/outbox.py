@@ -136,12 +136,8 @@ class Outbox:
         """Queues the frames of one message (key: its topic, or None)."""
         if len(frames) == 1 and not (self._by_key or self._current or self.backed_up):
             size = len(frames[0])
-            if (
-                size < SMALL_MESSAGE
-                and self.frames < self.max_frames
-                and self.bytes + size <= self.max_bytes
-                and self._own + size <= self._allowed
-            ):
+            # (max_bytes too: _allowed is never above it, and with no unit waiting, bytes are all _own)
+            if size < SMALL_MESSAGE and self.frames < self.max_frames and self._own + size <= self._allowed:
                 self._passing.append((key, frames[0], size))
                 self.frames += 1
                 self.bytes += size
