@@ -9,7 +9,7 @@ import socket
 import pytest
 import tornado.iostream
 
-from rosbridge.transport.client_io import PlainSocket
+from rosbridge.transport.client_io import WRITE_PIECE_BYTES, PlainSocket
 
 
 class Events:
@@ -26,11 +26,23 @@ class Events:
         self.closed += 1
 
 
+class CountedSocket(socket.socket):
+    """A socket that keeps the size of what each sendmsg was handed."""
+
+    handed = []
+
+    def sendmsg(self, buffers, *args):
+        self.handed.append(sum(len(buffer) for buffer in buffers))
+        return super().sendmsg(buffers, *args)
+
+
 def tcp_pair():
-    """(the bridge's side, the client's side) of a loopback TCP connection."""
+    """(the bridge's side, a CountedSocket, the client's side) of a loopback TCP connection."""
     with socket.create_server(("127.0.0.1", 0)) as listener:
         client = socket.create_connection(listener.getsockname())
-        server, _ = listener.accept()
+        accepted, _ = listener.accept()
+        server = CountedSocket(fileno=accepted.detach())
+        server.handed = []
     server.setblocking(False)
     client.setblocking(False)
     return server, client
@@ -114,9 +126,9 @@ def test_bytes_sent_before_the_answer_come_first():
     run(test)
 
 
-def test_what_waits_for_a_slow_reader_arrives_whole_then_drained_is_told():
+def test_what_waits_for_a_slow_reader_arrives_whole_in_pieces_then_drained_is_told():
     async def test():
-        io, client, events, _ = await opened()
+        io, client, events, stream = await opened()
         await read_all(client, 6)
         blocks = [bytes([n]) * 300_000 for n in range(20)]  # 6 MB: far more than the socket takes at once
         for block in blocks:
@@ -131,6 +143,8 @@ def test_what_waits_for_a_slow_reader_arrives_whole_then_drained_is_told():
         await until(lambda: events.drained)
         assert not io.writing() and io.progressed_at is not None
         assert events.drained == 1
+        handed = stream.socket.handed  # (what waited, a piece each time the socket took more)
+        assert len(handed) > 6_000_000 // WRITE_PIECE_BYTES and max(handed) <= WRITE_PIECE_BYTES
         io.close()
         client.close()
 
