@@ -29,7 +29,9 @@ class Events:
 class CountedSocket(socket.socket):
     """A socket that keeps the size of what each sendmsg was handed."""
 
-    handed = []
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.handed = []
 
     def sendmsg(self, buffers, *args):
         self.handed.append(sum(len(buffer) for buffer in buffers))
@@ -37,12 +39,11 @@ class CountedSocket(socket.socket):
 
 
 def tcp_pair():
-    """(the bridge's side, a CountedSocket, the client's side) of a loopback TCP connection."""
+    """(the bridge's side, a CountedSocket; the client's side) of a loopback TCP connection."""
     with socket.create_server(("127.0.0.1", 0)) as listener:
         client = socket.create_connection(listener.getsockname())
         accepted, _ = listener.accept()
         server = CountedSocket(fileno=accepted.detach())
-        server.handed = []
     server.setblocking(False)
     client.setblocking(False)
     return server, client
