@@ -138,3 +138,11 @@ class Host:
         _, delay, fn = self.timers.pop(0)
         self.now += delay
         fn()
+
+
+def drain(session):
+    """Every frame a protocol session has queued, in order, taken as its connection takes them (take_frames)."""
+    out = []
+    while taken := session.take_frames(1 << 16):
+        out += taken
+    return out

@@ -28,8 +28,9 @@ class Client(typing.Protocol):
 
     is_closed: bool  # the client left: nothing more is sent to it
 
-    def deliver(self, message) -> None:
-        """A protocol/encoded.TopicMessage of a topic the client subscribes to."""
+    def deliver(self, messages: list) -> None:
+        """protocol/encoded.TopicMessage's of a topic the client subscribes to, in order: those one read of a
+        publisher brought (they share their stamp), or the topic's latched ones. Never empty."""
 
     def ros_refused(self, op: str, name: str, text: str) -> None:
         """The ROS side could not do what an earlier `op` on `name` asked (found out off the loop)."""
@@ -53,7 +54,7 @@ class Bound(typing.Protocol):
 
 class SessionHost(typing.Protocol):
     """What a protocol session may ask of its connection (transport/connection.ClientConnection). Protocol-neutral:
-    a session never writes; it queues frames, wakes its host, and the host takes them (ProtocolSession.take_frame)
+    a session never writes; it queues frames, wakes its host, and the host takes them (ProtocolSession.take_frames)
     when the client's socket can take them."""
 
     unfinished: Bound | None  # what the unfinished messages of all clients hold together (a session's fragments too)
@@ -68,7 +69,7 @@ class SessionHost(typing.Protocol):
         """The timer of `handle` (from call_later) does not run after all (nothing, if it has run)."""
 
     def wake(self) -> None:
-        """Frames are queued: the host takes them (ProtocolSession.take_frame) until there are none."""
+        """Frames are queued: the host takes them (ProtocolSession.take_frames) until there are none."""
 
     def close_after_sending(self, reason: str) -> None:
         """Closes the connection once the frames queued so far are sent; `reason` goes in the close frame."""
@@ -101,9 +102,10 @@ class ProtocolSession(typing.Protocol):
     def handle_binary(self, data: bytes) -> None:
         """A whole binary message from the client."""
 
-    def take_frame(self) -> object | None:
-        """The next frame to write (str or protocol/encoded.Utf8Text: text; bytes: binary; SplicedFrame: either),
-        or None when none is queued (the next one queued wakes the host again)."""
+    def take_frames(self, most_bytes: int) -> list:
+        """The next frames to write, in order (str or protocol/encoded.Utf8Text: text; bytes: binary; SplicedFrame:
+        either): at least one, and more while they come to less than most_bytes; none ([]) when none is queued
+        (the next one queued wakes the host again)."""
 
     def backed_up(self, flag: bool, in_flight: int = 0) -> None:
         """Whether the client's socket has stopped taking frames, and how many bytes taken from the session have

@@ -75,12 +75,12 @@ def test_a_method_missing_or_asked_otherwise_is_found():
         def handle_binary(self, payload):
             pass
 
-        def take_frame(self, size):
+        def take_frames(self):
             pass
 
     assert mismatches(Half, ProtocolSession) == [
         "backed_up: missing",
         "closed: missing",
         "handle_binary(self, payload) is not handle_binary(self, data: bytes) -> None",
-        "take_frame(self, size) is not take_frame(self) -> object | None",
+        "take_frames(self) is not take_frames(self, most_bytes: int) -> list",
     ]

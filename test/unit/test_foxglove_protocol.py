@@ -19,16 +19,18 @@ from rosbridge.globs import Globs
 from rosbridge.protocol import Config
 from rosbridge.protocol.encoded import SplicedFrame, TopicMessage
 
+from fakes import drain
+
 
 # ---- binary messages -------------------------------------------------------------------------------------
 def test_message_data_is_the_head_then_the_bytes_as_they_are():
-    frame = wire.message_data(7, 1_700_000_000_123_456_789, b"\x01\x02\x03")
+    frame = wire.message_data(wire.message_head(7, 1_700_000_000_123_456_789), b"\x01\x02\x03")
     assert frame == struct.pack("<BIQ", 1, 7, 1_700_000_000_123_456_789) + b"\x01\x02\x03"
 
 
 def test_a_big_message_is_not_copied_into_its_frame():
     data = bytes(1 << 20)
-    frame = wire.message_data(1, 0, data)
+    frame = wire.message_data(wire.message_head(1, 0), data)
     assert isinstance(frame, SplicedFrame) and frame.parts[1] is data and len(frame) == 13 + len(data)
 
 
@@ -152,10 +154,7 @@ class Client:
         self.session.handle_text(json.dumps(obj))
 
     def frames(self):
-        out = []
-        while (frame := self.session.take_frame()) is not None:
-            out.append(json.loads(frame) if isinstance(frame, str) else bytes(frame))
-        return out
+        return [json.loads(frame) if isinstance(frame, str) else bytes(frame) for frame in drain(self.session)]
 
 
 def test_a_client_gets_server_info_then_a_channel_for_every_topic_it_may_use():
@@ -299,7 +298,7 @@ def test_with_sim_time_the_clock_is_sent_and_stamps_the_messages():
     client.send({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": next(iter(catalog.channels))}]})
     ros_now[0] = 12_000_000_500
     host.timers.pop()()  # (the clock's tick)
-    client.session.deliver(TopicMessage("/a", None, b"", 1_700_000_000.0))
+    client.session.deliver([TopicMessage("/a", None, b"", 1_700_000_000.0)])
     assert client.frames() == [
         struct.pack("<BQ", 2, 12_000_000_500),
         struct.pack("<BIQ", 1, 1, 12_000_000_500),  # (stamped by the simulated clock, not the wall's)
@@ -413,11 +412,28 @@ def test_what_every_client_is_told_is_encoded_once():
     later = [Client(catalog=first.catalog, backend=first.backend) for _ in range(2)]
     told = []
     for client in later:
-        client.session.take_frame()  # (its serverInfo)
+        client.session.take_frames(0)  # (its serverInfo)
         client.send({"op": "subscribeConnectionGraph"})
-        told.append([client.session.take_frame() for _ in range(3)])
+        told.append([client.session.take_frames(0)[0] for _ in range(3)])
     assert [json.loads(frame)["op"] for frame in told[0]] == ["advertise", "advertiseServices", "connectionGraphUpdate"]
     assert all(a is b for a, b in zip(*told))
+
+
+def test_a_reads_messages_share_one_head_and_latched_ones_keep_their_own_receive_times():
+    client = Client()
+    client.backend.watchers[0](GraphState({"/a": ("std_msgs/Empty", "")}, {}, {}, {}, {}))
+    client.frames()
+    client.send({"op": "subscribe", "subscriptions": [{"id": 3, "channelId": next(iter(client.catalog.channels))}]})
+    read = [TopicMessage("/a", None, bytes([n]), 1_700_000_000.5) for n in range(3)]
+    latched = [TopicMessage("/a", None, b"x", 1_700_000_001.0), TopicMessage("/a", None, b"y", 1_700_000_002.0)]
+    client.session.deliver(read)
+    client.session.deliver(latched)
+    head = struct.Struct("<BIQ")
+    assert client.frames() == [
+        *(head.pack(1, 3, 1_700_000_000_500_000_000) + bytes([n]) for n in range(3)),
+        head.pack(1, 3, 1_700_000_001_000_000_000) + b"x",
+        head.pack(1, 3, 1_700_000_002_000_000_000) + b"y",
+    ]
 
 
 def test_a_slow_link_is_told_what_it_skipped_first_as_a_status_a_newer_one_replaces():
@@ -426,9 +442,9 @@ def test_a_slow_link_is_told_what_it_skipped_first_as_a_status_a_newer_one_repla
     client.frames()
     client.send({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": next(iter(client.catalog.channels))}]})
     client.session.backed_up(True)
-    client.session.deliver(TopicMessage("/a", None, b"", 1_700_000_000.0))
+    client.session.deliver([TopicMessage("/a", None, b"", 1_700_000_000.0)])
     client.host.now += 1.0  # (past the freshness horizon: the older one is skipped)
-    client.session.deliver(TopicMessage("/a", None, b"", 1_700_000_001.0))
+    client.session.deliver([TopicMessage("/a", None, b"", 1_700_000_001.0)])
     client.session.backed_up(False)
     status, data = client.frames()
     assert (status["op"], status["level"], status["id"]) == ("status", 1, "warning")

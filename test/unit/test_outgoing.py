@@ -334,3 +334,67 @@ def test_whatever_is_queued_and_taken_each_topic_keeps_its_order_and_the_counts_
         frames = {"small": 1, "big": 1, "fragmented": 3}
         assert len(taken) == sum(frames.get(op, 0) for op, _ in ops)
     assert (len(box), box.bytes) == (0, 0)
+
+
+def test_take_frames_takes_the_next_frame_and_more_while_under_the_bytes_asked():
+    box, _ = outbox()
+    box.push_each("/a", [b"0123456789"] * 10)
+    assert len(box.take_frames(0)) == 1  # (one at least, whatever is asked)
+    assert len(box.take_frames(25)) == 3  # (10, 20: under 25, one more)
+    assert len(box.take_frames(1 << 16)) == 6 and box.take_frames(1 << 16) == []
+    assert (len(box), box.bytes, box._own) == (0, 0, 0)
+    box.push("/map", big("m", parts=2))  # (not passing: a unit's frames, one at a time)
+    assert len(box.take_frames(1 << 16)) == 1 and len(box.take_frames(1 << 16)) == 1 and box.take_frames(0) == []
+
+
+RUN_OPS = st.lists(
+    st.tuples(st.sampled_from(["run", "big", "take", "backed up", "drained"]), st.integers(1, 12)), max_size=80
+)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    ops=RUN_OPS,
+    max_frames=st.sampled_from([6, 40, 1000]),
+    max_bytes=st.sampled_from([60, 64_000_000]),
+    most_bytes=st.sampled_from([0, 12, 1 << 16]),
+    pooled=st.booleans(),
+)
+def test_a_run_pushed_and_taken_in_one_go_is_its_messages_pushed_and_taken_one_by_one(
+    ops, max_frames, max_bytes, most_bytes, pooled
+):
+    """push_each and take_frames, which a Foxglove client's messages go by, keep every rule of push and take:
+    the same frames in the same order, the same counts, the same skipped and dropped."""
+    clock = Clock(1000.0)
+    in_one_go, one_by_one = (
+        Outbox(max_frames, max_bytes, clock, QueuePool(64_000_000) if pooled else None) for _ in range(2)
+    )
+    pushed = 0
+    for op, count in ops:
+        clock.now += 0.05
+        if op == "run":
+            frames = [f"r{pushed + n:03}".encode() for n in range(count)]  # (5 bytes each)
+            pushed += count
+            in_one_go.push_each("/a", frames)
+            for frame in frames:
+                one_by_one.push("/a", (frame,))
+        elif op == "big":
+            for box in (in_one_go, one_by_one):
+                box.push("/b", big(f"b{pushed}"))
+            pushed += 1
+        elif op == "take":
+            taken = in_one_go.take_frames(most_bytes)
+            if taken:
+                assert taken == [one_by_one.take() for _ in taken]
+            else:
+                assert one_by_one.take() is None
+        else:
+            for box in (in_one_go, one_by_one):
+                box.set_backed_up(op == "backed up")
+        assert (len(in_one_go), in_one_go.bytes, in_one_go._own) == (len(one_by_one), one_by_one.bytes, one_by_one._own)
+    assert in_one_go.take_report() == one_by_one.take_report()
+    for box in (in_one_go, one_by_one):
+        box.set_backed_up(False)
+    assert [bytes(f) for f in iter(lambda: in_one_go.take(), None)] == [
+        bytes(f) for f in iter(lambda: one_by_one.take(), None)
+    ]

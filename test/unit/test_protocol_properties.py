@@ -19,7 +19,7 @@ from rosbridge.globs import Globs
 from rosbridge.protocol import encoded as frames
 from rosbridge.protocol import session as protocol
 
-from fakes import Host
+from fakes import Host, drain
 
 SETTINGS = settings(
     max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large]
@@ -125,7 +125,7 @@ class Harness:
         """Every frame queued since the last call, decoded (strict JSON: NaN/Infinity are refused; binary
         frames are CBOR)."""
         out = []
-        while (frame := self.session.take_frame()) is not None:
+        for frame in drain(self.session):
             if isinstance(frame, bytes) and not isinstance(frame, frames.Utf8Text):
                 out.append(cbor2.loads(frame))
                 continue
@@ -140,7 +140,7 @@ class Harness:
         """Delivers `count` messages on /chatter and runs due timers (advancing the clock to each) until none
         is left or a timer storm shows; returns the frames sent."""
         for n in range(count):
-            self.session.deliver(received("/chatter", std_msgs.msg.String(f"m{n}"), self.host.now))
+            self.session.deliver([received("/chatter", std_msgs.msg.String(f"m{n}"), self.host.now)])
         for _ in range(100):
             if not self.host.timers:
                 break

@@ -367,13 +367,21 @@ class FoxgloveSession(OutboxSession):
             reply(False, str(error))
 
     # ---- from the ROS side (contract.Client) ------------------------------------------------------
-    def deliver(self, message):
-        sub_id = self._topics.get(message.topic)
-        if sub_id is not None:
-            clock = self._catalog.sim_clock
-            stamp = clock.now_ns() if clock is not None else int(message.stamp * 1e9)
-            frame = wire.message_data(sub_id, stamp, message.data)
-            self._queue(message.topic, (frame,))
+    def deliver(self, messages):
+        topic = messages[0].topic
+        sub_id = self._topics.get(topic)
+        if sub_id is None:
+            return
+        clock = self._catalog.sim_clock
+        frames, stamp, head = [], None, b""
+        for message in messages:
+            if clock is not None:
+                head = wire.message_head(sub_id, clock.now_ns())
+            elif message.stamp != stamp:  # (one read's messages share their stamp: one head for them all)
+                stamp = message.stamp
+                head = wire.message_head(sub_id, int(stamp * 1e9))
+            frames.append(wire.message_data(head, message.data))
+        self._queue_each(topic, frames)
 
     def ros_refused(self, op, name, text):
         if op == "subscribe" and name in self._topics:

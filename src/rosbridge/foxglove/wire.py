@@ -22,10 +22,15 @@ _CHANNEL_HEAD = struct.Struct("<BI")
 U32_MAX = 2**32 - 1
 
 
-def message_data(subscription_id, receive_ns, data):
-    """One message for one subscription: its bytes as they came from TCPROS, after a 13-byte head. A big one
-    (an image) is not copied: the frame refers to the same bytes for every client."""
-    head = _MESSAGE_HEAD.pack(MESSAGE_DATA, subscription_id, receive_ns)
+def message_head(subscription_id, receive_ns):
+    """The 13-byte head of a message for one subscription (opcode, subscription id, receive time): the same for
+    every message one read brought, which share their receive time."""
+    return _MESSAGE_HEAD.pack(MESSAGE_DATA, subscription_id, receive_ns)
+
+
+def message_data(head, data):
+    """One message for one subscription: its bytes as they came from TCPROS, after its head. A big one (an image)
+    is not copied: the frame refers to the same bytes for every client."""
     if len(data) >= BIG_BYTES:
         return SplicedFrame((head, data), text=False)
     return head + data

@@ -107,9 +107,10 @@ class _Subscriber:
             self._backend.unsubscribe(self, topic)
         self._backend.release(self)
 
-    def deliver(self, message):
-        if not self.is_closed:
-            self._on_message(message)
+    def deliver(self, messages):
+        for message in messages:
+            if not self.is_closed:
+                self._on_message(message)
 
     def ros_refused(self, op, name, text):
         self.refused[name] = text

@@ -145,9 +145,9 @@ class CloudTopic(NoOpClient):
         _wake_all(waiting)
 
     # ---- contract.Client
-    def deliver(self, message):
-        self.seq += 1
-        self.latest = message
+    def deliver(self, messages):
+        self.seq += len(messages)
+        self.latest = messages[-1]
         self.clouds.answers.forget(self.topic)
         self._wake()
 

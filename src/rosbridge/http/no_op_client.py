@@ -8,7 +8,7 @@ class NoOpClient:
 
     is_closed = False
 
-    def deliver(self, message):
+    def deliver(self, messages):
         pass
 
     def ros_refused(self, op, name, text):

@@ -102,7 +102,11 @@ class StreamTopic(NoOpClient):
             viewer.fail(503, f"the subscription to {self.topic} ended")
 
     # ---- contract.Client
-    def deliver(self, message):
+    def deliver(self, messages):
+        for message in messages:
+            self._arrived(message)
+
+    def _arrived(self, message):
         if self.is_closed:
             return
         self._seq += 1

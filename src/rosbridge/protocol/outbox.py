@@ -132,17 +132,46 @@ class Outbox:
     def __len__(self):
         return self.frames
 
-    def push(self, key, frames):
-        """Queues the frames of one message (key: its topic, or None)."""
-        if len(frames) == 1 and not (self._by_key or self._current or self.backed_up):
-            size = len(frames[0])
+    def push_frame(self, key, frame):
+        """Queues a message of one frame (key: its topic, or None)."""
+        if not (self._by_key or self._current or self.backed_up):
+            size = len(frame)
             # (max_bytes too: _allowed is never above it, and with no unit waiting, bytes are all _own)
             if size < SMALL_MESSAGE and self.frames < self.max_frames and self._own + size <= self._allowed:
-                self._passing.append((key, frames[0], size))
+                self._passing.append((key, frame, size))
                 self.frames += 1
                 self.bytes += size
                 self._own += size
                 return
+        self._push(key, (frame,))
+
+    def push_each(self, key, frames):
+        """Queues messages of one frame each (a topic's, one read's), in order: as push_frame each, in one go
+        while they all pass."""
+        if not (self._by_key or self._current or self.backed_up):
+            sizes = list(map(len, frames))
+            size = sum(sizes)
+            if (
+                max(sizes) < SMALL_MESSAGE
+                and self.frames + len(frames) <= self.max_frames
+                and self._own + size <= self._allowed
+            ):
+                self._passing.extend(zip(itertools.repeat(key), frames, sizes))
+                self.frames += len(frames)
+                self.bytes += size
+                self._own += size
+                return
+        for frame in frames:
+            self.push_frame(key, frame)
+
+    def push(self, key, frames):
+        """Queues the frames of one message (key: its topic, or None)."""
+        if len(frames) == 1:
+            self.push_frame(key, frames[0])
+        else:
+            self._push(key, frames)
+
+    def _push(self, key, frames):
         if self._passing:
             self._settle()
         size = sum(map(len, frames))
@@ -281,6 +310,24 @@ class Outbox:
         self.bytes -= unit.size
         self._own -= unit.own
 
+    def take_frames(self, most_bytes):
+        """The next frames to send, in order: the next one, and while the frames taken come to less than
+        most_bytes, those of the small messages after it that passed (queued while the socket kept up); none
+        ([]) when nothing waits."""
+        passing = self._passing
+        if not passing:
+            frame = self.take()
+            return [] if frame is None else [frame]
+        frames, size = [], 0
+        while passing and (size < most_bytes or not frames):
+            _, frame, frame_size = passing.popleft()
+            frames.append(frame)
+            size += frame_size
+        self.frames -= len(frames)
+        self.bytes -= size
+        self._own -= size
+        return frames
+
     def take(self):
         """The next frame to send, or None."""
         if self._passing:
@@ -365,8 +412,8 @@ class Outbox:
 
 class OutboxSession:
     """The outgoing half of a session, the same for every protocol (contract.ProtocolSession's backed_up,
-    take_frame and close): the frames of each message wait in the client's Outbox. The first message queued after
-    the host took the last frame wakes it (host.wake()), and it takes frames until take_frame gives None. What the
+    take_frames and close): the frames of each message wait in the client's Outbox. The first message queued after
+    the host took the last frame wakes it (host.wake()), and it takes frames until take_frames gives none. What the
     client's slow link cost it goes first, at most once a REPORT_INTERVAL, as the protocol's report_frame makes it."""
 
     def __init__(self, config, host):
@@ -382,29 +429,39 @@ class OutboxSession:
 
     def _queue(self, topic, frames):
         """Queues the frames of one message (topic None: not a topic's; such are never skipped)."""
-        if self.is_closed:
-            return
-        self._outbox.push(topic, frames)
-        if not self._woken:
-            self._woken = True
-            self._host.wake()
+        if not self.is_closed:
+            self._outbox.push(topic, frames)
+            if not self._woken:
+                self._wake_host()
+
+    def _queue_each(self, topic, frames):
+        """Queues messages of one frame each, in order, as _queue."""
+        if not self.is_closed:
+            self._outbox.push_each(topic, frames)
+            if not self._woken:
+                self._wake_host()
+
+    def _wake_host(self):
+        self._woken = True
+        self._host.wake()
 
     def backed_up(self, flag, in_flight=0):
         """The host says whether the client's socket has stopped taking frames (then each topic keeps only what is
         fresh), and how many bytes it was given that have not left yet."""
         self._outbox.set_backed_up(flag, in_flight)
 
-    def take_frame(self):
-        """The next frame to write, or None when nothing waits (the next message queued wakes the host again)."""
+    def take_frames(self, most_bytes):
+        """The next frames to write (Outbox.take_frames), or none ([]) when nothing waits (the next message queued
+        wakes the host again)."""
         due = self._outbox.reports_due(self.config)
         if due:
             self._reports.extend(frame for frame in itertools.starmap(self.report_frame, due) if frame is not None)
         if self._reports:
-            return self._reports.popleft()
-        frame = self._outbox.take()
-        if frame is None:
+            return [self._reports.popleft()]
+        frames = self._outbox.take_frames(most_bytes)
+        if not frames:
             self._woken = False
-        return frame
+        return frames
 
     def close(self, reason):
         """Closes the connection once what is queued is sent."""

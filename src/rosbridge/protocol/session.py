@@ -347,11 +347,12 @@ class Session(OutboxSession):
         self.level = STATUS_LEVELS.index(req["level"])
 
     # ---- from the ROS side ----------------------------------------------------------------------
-    def deliver(self, message):
-        """A TopicMessage for a topic this client subscribes to."""
-        subscription = self.subscriptions.get(message.topic)
+    def deliver(self, messages):
+        """TopicMessages of a topic this client subscribes to (contract.Client.deliver)."""
+        subscription = self.subscriptions.get(messages[0].topic)
         if subscription is not None:
-            subscription.deliver(message)
+            for message in messages:
+                subscription.deliver(message)
 
     def ros_refused(self, op, name, text):
         """The ROS side could not do what an earlier `op` on `name` asked; it found out later, off the loop."""

@@ -95,20 +95,19 @@ class TopicSubscriber:
             if self.active:  # (every client may leave as one batch is written)
                 self._deliver_batch(messages[start : start + DELIVERY_BATCH], latched_by)
 
-    def _deliver_batch(self, messages, latched_by):
+    def _deliver_batch(self, serialized, latched_by):
         topic, cls, stamp = self.topic, self._class, time.time()
+        messages = [TopicMessage(topic, cls, data, stamp) for data in serialized]
+        if latched_by is not None:
+            if latched_by not in self.latched:  # a new publisher: forget those gone
+                self.latched_messages()
+            self.latched[latched_by] = messages[-1]
         with self._deliveries():
-            for data in messages:
-                message = TopicMessage(topic, cls, data, stamp)
-                if latched_by is not None:
-                    if latched_by not in self.latched:  # a new publisher: forget those gone
-                        self.latched_messages()
-                    self.latched[latched_by] = message
-                for session in self._clients(topic):
-                    try:
-                        session.deliver(message)
-                    except Exception:  # one client's failure must not starve the others
-                        log_bug(f"delivering {topic}")
+            for session in self._clients(topic):
+                try:
+                    session.deliver(messages)
+                except Exception:  # one client's failure must not starve the others
+                    log_bug(f"delivering {topic}")
 
 
 class Subscribers:
@@ -140,7 +139,7 @@ class Subscribers:
         entry.asked[session] = type_name
         latched = entry.latched_messages()
         if latched:
-            self._loop.add_callback(lambda: [session.deliver(message) for message in latched])
+            self._loop.add_callback(session.deliver, latched)
 
     def _made(self, entry, error, made_type):
         topic = entry.topic

@@ -22,7 +22,13 @@ from rosbridge.foxglove import FoxgloveSession
 from rosbridge.protocol.encoded import SplicedFrame, Utf8Text
 from rosbridge.transport import rfc6455 as ws
 from rosbridge.transport.client_io import client_io
-from rosbridge.transport.slow_link import DEFLATE_MIN_BYTES, LinkMeter, deflated_payload, sends_deflated
+from rosbridge.transport.slow_link import (
+    DEFLATE_MIN_BYTES,
+    LinkMeter,
+    deflated_payload,
+    deflates_some,
+    sends_deflated,
+)
 
 # Frames waiting for a client go to its socket together, up to this many bytes per write: one system call for a
 # burst of small messages instead of one each.
@@ -109,7 +115,7 @@ class ClientConnection:
         self._write_waited = None  # (when, bytes) of the write the socket has not taken all of yet
         self._link = LinkMeter()
         self._deflating = 0  # the size of the frame taken last while it is being deflated off the loop...
-        self._ready = None  # ...and once it is, (it, its payload): it goes first
+        self._ready = None  # ...and once it is, it (a _Deflated, or as it is if that failed): it goes first
         self._pong = None  # the pong of the latest ping, waiting for the socket to drain (_write_control)
         self._stall_timer = None  # while the socket is backed up: when it must have taken something (_check_stalled)
         self._waited_since = None  # when the write it has not taken all of began
@@ -124,7 +130,7 @@ class ClientConnection:
         if interval:
             self._pinger = tornado.ioloop.PeriodicCallback(self._keep_alive, interval * 1000)
             self._pinger.start()
-        self._take_frames()
+        self._handle_frames()
 
     # ---- reading ---------------------------------------------------------------------------------
     def _read(self):
@@ -138,7 +144,7 @@ class ClientConnection:
             return
         self._last_heard = time.monotonic()
         self._reader.receive(data)
-        self._take_frames()
+        self._handle_frames()
 
     @property
     def unauthenticated_since(self):
@@ -151,7 +157,7 @@ class ClientConnection:
         frames back for its budget (a client over its budget is not silent)."""
         return now - self._last_heard if self._waiting in (Waiting.READ, Waiting.SESSION) else 0.0
 
-    def _take_frames(self):
+    def _handle_frames(self):
         """Handles the frames received, one turn's worth at most; reads again once none is left."""
         self._turn_timer, self._waiting = None, None
         reader, budget, session = self._reader, self.budget, self.session
@@ -178,7 +184,7 @@ class ClientConnection:
                         return
                 delay = budget.after_frame(size)
                 if delay is not None:  # (0: the other clients' turn first)
-                    self._waiting, self._turn_timer = Waiting.TURN, self._loop.call_later(delay, self._take_frames)
+                    self._waiting, self._turn_timer = Waiting.TURN, self._loop.call_later(delay, self._handle_frames)
                     return
         except ws.ProtocolError as error:
             self._waiting = Waiting.END
@@ -261,9 +267,9 @@ class ClientConnection:
         self.wake()
 
     def resume_reading(self):
-        """The session handles the client's requests again (it held them: _take_frames)."""
+        """The session handles the client's requests again (it held them: _handle_frames)."""
         if self._waiting is Waiting.SESSION:
-            self._loop.add_callback(self._take_frames)
+            self._loop.add_callback(self._handle_frames)
 
     def off_loop(self, fn, then):
         self.bridge.encoder.run(fn, then)
@@ -283,25 +289,25 @@ class ClientConnection:
         one_at_a_time = bool(self.bridge.settings.delay_between_messages)
         big_sent = False  # (the Session's pool holds a big frame's bytes until it hears they left: _backed_up)
         while not self._closing and not io.closed():
-            batch, size = [], 0
+            batch, size, emptied = [], 0, False
             while size < WRITE_BATCH_BYTES:
-                frame, payload = self._take()
-                if frame is None:
+                frames = self._take(0 if one_at_a_time else WRITE_BATCH_BYTES - size)
+                if not frames:
+                    emptied = True
                     break
-                batch.append((frame, payload))
-                size += len(frame if payload is None else payload)
-                big_sent = big_sent or len(frame) >= BIG_BYTES
+                batch += frames
+                size += sum(map(len, frames))
                 if one_at_a_time:
                     break
             if batch:
-                self._write(batch)
+                big_sent = self._write(batch) or big_sent
                 if io.writing():
                     self._write_waited = (time.monotonic(), size)
                     self._await_drain()
                     return
             if self._deflating:  # (_deflated goes on)
                 return
-            if frame is None:  # the queue is empty: the next frame queued wakes us again
+            if emptied:  # the queue is empty: the next frame queued wakes us again
                 if big_sent:
                     self._backed_up()
                 if self._close_reason is not None:
@@ -311,44 +317,41 @@ class ClientConnection:
                 self._loop.call_later(self.bridge.settings.delay_between_messages, self._flush)
                 return
 
-    def _take(self):
-        """The next frame to write and its deflated payload (None: it goes as it is), or (None, None): the
-        Session's queue is empty, or the frame just taken is being deflated off the loop (_deflating)."""
+    def _take(self, most_bytes):
+        """The next frames to write (session.take_frames; one deflated is a _Deflated), or none ([]): the Session's
+        queue is empty, or the frame just taken is being deflated off the loop (_deflating)."""
         if self._ready is not None:
             ready, self._ready = self._ready, None
-            return ready
-        while True:
-            frame = self.session.take_frame()
-            if frame is None:
-                return None, None
-            if isinstance(frame, str):
-                try:
-                    frame = Utf8Text(frame.encode())
-                except UnicodeEncodeError:  # a bug (dumps escapes what UTF-8 lacks): skip it, go on
-                    log_bug("encoding an outgoing frame")
-                    continue
-            break
-        if self._window_bits is None or not sends_deflated(
-            len(frame), self.bridge.settings.use_compression, self._link
-        ):
-            return frame, None
+            return [ready]
+        every_message = self.bridge.settings.use_compression
+        if self._window_bits is None or not deflates_some(every_message, self._link):
+            return self.session.take_frames(most_bytes)  # (as they are: _write encodes a str)
+        while True:  # one at a time: each may be deflated
+            frames = self.session.take_frames(0)
+            if not frames:
+                return frames
+            frame = _utf8(frames[0])
+            if frame is not None:
+                break
+        if not sends_deflated(len(frame), every_message, self._link):
+            return [frame]
         if len(frame) < DEFLATE_MIN_BYTES:  # (use_compression: made here, in well under a millisecond)
-            return frame, deflated_payload(frame, self._window_bits)
+            return [_Deflated(frame, deflated_payload(frame, self._window_bits))]
         payload = deflated_payload(
             frame, self._window_bits, self.bridge.deflater.run, functools.partial(self._deflated, frame)
         )
         if payload is not None:  # (made already, for another client)
-            return frame, payload
+            return [_Deflated(frame, payload)]
         self._deflating = len(frame)
         self._backed_up()
-        return None, None
+        return []
 
     def _deflated(self, frame, payload):
         """A frame taken is deflated (payload None: that failed, and was logged; it goes as it is)."""
         self._deflating = 0
         if self._io.closed():
             return
-        self._ready = (frame, payload)
+        self._ready = frame if payload is None else _Deflated(frame, payload)
         self._backed_up()
         self._flush()
 
@@ -397,25 +400,34 @@ class ClientConnection:
         self._flush()
 
     def _write(self, batch):
-        """Writes (frame, deflated payload or None) to the client. Small ones are joined into one write; a big
-        payload or part (an image) goes by reference, not copied: the same bytes for every client."""
-        io, joined = self._io, []
-        for frame, payload in batch:
-            opcode = ws.TEXT if _is_text(frame) else ws.BINARY
-            if payload is not None:
-                parts = (payload,)
-                joined.append(ws.frame_header(len(payload), opcode, compressed=True))
+        """Writes the frames (each as _take gives it) to the client: True if a big part went, which the Session's
+        pool holds until it hears it left. Small ones are joined into one write; a big payload or part (an image)
+        goes by reference, not copied: the same bytes for every client."""
+        io, joined, big = self._io, [], False
+        for frame in batch:
+            kind = type(frame)
+            if kind is bytes and len(frame) < BIG_BYTES:  # (binary, small: a Foxglove client's message, the usual)
+                joined += (ws.frame_header(len(frame), ws.BINARY), frame)
+                continue
+            if kind is _Deflated:
+                parts = (frame.payload,)
+                joined.append(ws.frame_header(len(frame), _opcode(frame.frame), compressed=True))
+                big = big or len(frame.frame) >= BIG_BYTES
             else:
-                parts = frame.parts if isinstance(frame, SplicedFrame) else (frame,)
-                joined.append(ws.frame_header(len(frame), opcode))
+                if kind is str and (frame := _utf8(frame)) is None:
+                    continue
+                parts = frame.parts if kind is SplicedFrame else (frame,)
+                joined.append(ws.frame_header(len(frame), _opcode(frame)))
             for part in parts:
                 if len(part) < BIG_BYTES:
                     joined.append(part)
                 else:
+                    big = True
                     io.write(b"".join(joined))
                     joined.clear()
                     io.write(part)
         io.write(b"".join(joined))
+        return big
 
     def _write_control(self, frame):
         """A pong. While the socket is backed up only the latest ping's pong waits, and goes once it has drained
@@ -483,7 +495,30 @@ class ClientConnection:
         self.bridge.client_closed(self)
 
 
-def _is_text(frame):
+class _Deflated:
+    """A frame taken, and the payload it goes as: deflated (permessage-deflate)."""
+
+    __slots__ = ("frame", "payload")
+
+    def __init__(self, frame, payload):
+        self.frame, self.payload = frame, payload
+
+    def __len__(self):
+        return len(self.payload)
+
+
+def _utf8(frame):
+    """A frame as the session queued it, a str one encoded (None: it cannot be, a bug: it is skipped)."""
+    if type(frame) is not str:
+        return frame
+    try:
+        return Utf8Text(frame.encode())
+    except UnicodeEncodeError:  # (dumps escapes what UTF-8 lacks)
+        log_bug("encoding an outgoing frame")
+        return None
+
+
+def _opcode(frame):
     if isinstance(frame, SplicedFrame):
-        return frame.text
-    return isinstance(frame, (str, Utf8Text))
+        return ws.TEXT if frame.text else ws.BINARY
+    return ws.TEXT if isinstance(frame, Utf8Text) else ws.BINARY

@@ -54,6 +54,11 @@ def sends_deflated(size, every_message, link):
     return every_message or size >= DEFLATE_MIN_BYTES and link.slow
 
 
+def deflates_some(every_message, link):
+    """Whether some message may go deflated now (sends_deflated, whatever its size)."""
+    return every_message or link.slow
+
+
 def deflated_payload(frame, max_window_bits, off_loop=None, then=None):
     """The payload of `frame` (a Utf8Text, SplicedFrame or bytes) as one permessage-deflate message, with a window
     of at most max_window_bits (rfc6455.deflate_message: no context, so the same bytes for every client).
