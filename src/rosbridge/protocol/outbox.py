@@ -316,7 +316,7 @@ class Outbox:
         ([]) when nothing waits."""
         passing = self._passing
         if not passing:
-            frame = self.take()
+            frame = self._take_queued()
             return [] if frame is None else [frame]
         frames, size = [], 0
         while passing and (size < most_bytes or not frames):
@@ -328,14 +328,8 @@ class Outbox:
         self._own -= size
         return frames
 
-    def take(self):
-        """The next frame to send, or None."""
-        if self._passing:
-            _, frame, size = self._passing.popleft()
-            self.frames -= 1
-            self.bytes -= size
-            self._own -= size
-            return frame
+    def _take_queued(self):
+        """The next frame of the lanes (nothing passing waits), or None."""
         current = self._current
         unit = self._next_unit(self._small)
         if unit is None and not current:
