@@ -20,7 +20,7 @@ import tornado.web
 from rosbridge import protocol
 from rosbridge.accepting import BoundedHTTPServer, accept_connections
 from rosbridge.auth import UrlMacs
-from rosbridge.borrowed import handle_connection, keep_rosout_setting_cached
+from rosbridge.borrowed import end_registration_thread_at_shutdown, handle_connection, keep_rosout_setting_cached
 from rosbridge.foxglove import Catalog
 from rosbridge.globs import Globs, parse_globs
 from rosbridge.heap import reuse_big_buffers
@@ -284,6 +284,7 @@ def stop_on_signals(loop):
     for number in (signal.SIGINT, signal.SIGTERM):
         loop.asyncio_loop.add_signal_handler(number, rospy.signal_shutdown, f"signal {number.name}")
     rospy.on_shutdown(lambda: loop.add_callback(loop.stop))
+    end_registration_thread_at_shutdown()
 
 
 if __name__ == "__main__":

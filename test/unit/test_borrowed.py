@@ -5,6 +5,7 @@ import inspect
 import os
 
 import pytest
+import rospy.core
 import rospy.impl.masterslave
 import rospy.impl.paramserver
 import rospy.impl.registration
@@ -52,6 +53,13 @@ def test_rospy_node_handler_asks_its_protocol_handlers_in_order():
     assert "self.protocol_handlers" in inspect.getsource(rospy.impl.masterslave.ROSHandler.__init__)
     assert "handler" in inspect.signature(rospy.impl.registration.RegManager.__init__).parameters
     assert isinstance(rospy.impl.registration.get_registration_listeners().listeners, list)
+
+
+def test_rospy_registration_thread_waits_on_a_condition_until_shutdown():
+    assert "self.cond = threading.Condition()" in inspect.getsource(rospy.impl.registration.RegManager.__init__)
+    run = inspect.getsource(rospy.impl.registration.RegManager.run)
+    assert "cond.wait(" in run and "is_shutdown()" in run
+    assert callable(rospy.core.add_shutdown_hook)
 
 
 def test_rosbag_keeps_an_index_entry_per_message_written_that_can_be_cleared(tmp_path):
