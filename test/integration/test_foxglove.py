@@ -107,6 +107,17 @@ def test_message_data_is_the_bytes_rospy_serialized(ros, bridge):
         assert abs(int(message["timestamp"]) / 1e9 - __import__("time").time()) < 30
 
 
+@pytest.mark.parametrize("length", [108, 109, 70_000])  # frames of 125 and 126 bytes (the two shorter headers' last
+# and first), and one long enough to go by reference
+def test_message_data_is_whole_whatever_its_frame_header(ros, bridge, length):
+    topic, text = f"/fg/text{length}", "t" * length
+    with ros.spawn(["rostopic", "pub", "-r", "5", topic, "std_msgs/String", f"data: {text}"], f"text{length}"):
+        wait_for(lambda: topic in dict(ros.master().getTopicTypes()), 30, what=topic)
+        result = run(ros, ws_url(bridge), {"do": "messages", "topic": topic, "count": 2})
+    for message in result["messages"]["messages"]:
+        assert base64.b64decode(message["data"]) == struct.pack("<I", length) + text.encode()
+
+
 def test_channels_come_and_go_with_the_graph(ros, bridge):
     with ros.spawn(["rostopic", "pub", "-r", "2", "/fg/new", "std_msgs/String", "data: hi"], "pub-new") as pub:
         proc = ros.spawn(

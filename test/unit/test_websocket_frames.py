@@ -377,6 +377,8 @@ def test_server_frames():
     assert ws.frame_header(5, ws.TEXT) == b"\x81\x05"
     assert ws.frame_header(300, ws.BINARY) == b"\x82\x7e\x01\x2c"
     assert ws.frame_header(70_000, ws.TEXT, compressed=True) == b"\xc1\x7f" + struct.pack("!Q", 70_000)
+    assert [ws.SHORT_BINARY_HEADERS[n] for n in (0, 61, 125)] == [ws.frame_header(n, ws.BINARY) for n in (0, 61, 125)]
+    assert len(ws.SHORT_BINARY_HEADERS) == ws.SHORT_PAYLOAD == 126
     assert ws.close_frame(1009, "message too big") == b"\x88\x11\x03\xf1message too big"
     assert ws.close_frame() == b"\x88\x00"
     assert ws.control_frame(ws.PONG, b"hi") == b"\x8a\x02hi"

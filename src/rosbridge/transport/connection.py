@@ -33,6 +33,7 @@ from rosbridge.transport.slow_link import (
 # Frames waiting for a client go to its socket together, up to this many bytes per write: one system call for a
 # burst of small messages instead of one each.
 WRITE_BATCH_BYTES = 64 * 1024
+_SHORT_HEADERS = ws.SHORT_BINARY_HEADERS
 CLOSE_TIMEOUT = 5.0  # seconds a client has to answer our close frame before the connection is dropped
 
 
@@ -406,8 +407,8 @@ class ClientConnection:
         io, joined, big = self._io, [], False
         for frame in batch:
             kind = type(frame)
-            if kind is bytes and len(frame) < BIG_BYTES:  # (binary, small: a Foxglove client's message, the usual)
-                joined += (ws.frame_header(len(frame), ws.BINARY), frame)
+            if kind is bytes and (size := len(frame)) < BIG_BYTES:  # (binary, small: a Foxglove client's message)
+                joined += (_SHORT_HEADERS[size] if size < ws.SHORT_PAYLOAD else ws.frame_header(size, ws.BINARY), frame)
                 continue
             if kind is _Deflated:
                 parts = (frame.payload,)
