@@ -22,15 +22,28 @@ DRIVE_TYPES = frozenset(("geometry_msgs/Twist", "geometry_msgs/TwistStamped"))  
 # goes on with the last one it got, so a driver that goes away is stopped (Backend.stop_driving)
 
 
+class Read(typing.Protocol):
+    """What one read of a topic's publisher brought (protocol/encoded.TopicRead): one message or more, never
+    none."""
+
+    topic: str
+    datas: list  # the messages' bytes, in order, as TCPROS carried them
+    stamp: float  # when they were received (seconds, wall clock)
+
+    @property
+    def messages(self) -> list:
+        """Their protocol/encoded.TopicMessages, made once for all clients."""
+
+
 class Client(typing.Protocol):
     """What the ROS side may call on a client (protocol.Session), on the loop only: other threads hand their
     results to the loop first (IOLoop.add_callback; ros_side/__init__.py says who does)."""
 
     is_closed: bool  # the client left: nothing more is sent to it
 
-    def deliver(self, messages: list) -> None:
-        """protocol/encoded.TopicMessage's of a topic the client subscribes to, in order: those one read of a
-        publisher brought (they share their stamp), or the topic's latched ones. Never empty."""
+    def deliver(self, read: "Read") -> None:
+        """Messages of a topic the client subscribes to: those one read of a publisher brought, or one that a
+        publisher latches."""
 
     def ros_refused(self, op: str, name: str, text: str) -> None:
         """The ROS side could not do what an earlier `op` on `name` asked (found out off the loop)."""

@@ -17,21 +17,25 @@ from rosbridge.foxglove.catalog import Catalog
 from rosbridge.foxglove.session import MAX_PARAMETER_NAMES, MAX_PARAMETER_REQUESTS, FoxgloveSession
 from rosbridge.globs import Globs
 from rosbridge.protocol import Config
-from rosbridge.protocol.encoded import SplicedFrame, TopicMessage
+from rosbridge.protocol.encoded import SplicedFrame, TopicRead
 
 from fakes import drain
 
 
 # ---- binary messages -------------------------------------------------------------------------------------
 def test_message_data_is_the_head_then_the_bytes_as_they_are():
-    frame = wire.message_data(wire.message_head(7, 1_700_000_000_123_456_789), b"\x01\x02\x03")
-    assert frame == struct.pack("<BIQ", 1, 7, 1_700_000_000_123_456_789) + b"\x01\x02\x03"
+    head = wire.message_head(7, 1_700_000_000_123_456_789)
+    assert wire.message_data(head, [b"\x01\x02\x03", b""]) == [
+        struct.pack("<BIQ", 1, 7, 1_700_000_000_123_456_789) + b"\x01\x02\x03",
+        struct.pack("<BIQ", 1, 7, 1_700_000_000_123_456_789),
+    ]
 
 
 def test_a_big_message_is_not_copied_into_its_frame():
     data = bytes(1 << 20)
-    frame = wire.message_data(wire.message_head(1, 0), data)
+    small, frame = wire.message_data(wire.message_head(1, 0), [b"x", data])
     assert isinstance(frame, SplicedFrame) and frame.parts[1] is data and len(frame) == 13 + len(data)
+    assert small == struct.pack("<BIQ", 1, 1, 0) + b"x"
 
 
 def test_client_binary_messages_parse_and_bad_ones_are_named():
@@ -298,7 +302,7 @@ def test_with_sim_time_the_clock_is_sent_and_stamps_the_messages():
     client.send({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": next(iter(catalog.channels))}]})
     ros_now[0] = 12_000_000_500
     host.timers.pop()()  # (the clock's tick)
-    client.session.deliver([TopicMessage("/a", None, b"", 1_700_000_000.0)])
+    client.session.deliver(TopicRead("/a", None, [b""], 1_700_000_000.0))
     assert client.frames() == [
         struct.pack("<BQ", 2, 12_000_000_500),
         struct.pack("<BIQ", 1, 1, 12_000_000_500),  # (stamped by the simulated clock, not the wall's)
@@ -424,10 +428,11 @@ def test_a_reads_messages_share_one_head_and_latched_ones_keep_their_own_receive
     client.backend.watchers[0](GraphState({"/a": ("std_msgs/Empty", "")}, {}, {}, {}, {}))
     client.frames()
     client.send({"op": "subscribe", "subscriptions": [{"id": 3, "channelId": next(iter(client.catalog.channels))}]})
-    read = [TopicMessage("/a", None, bytes([n]), 1_700_000_000.5) for n in range(3)]
-    latched = [TopicMessage("/a", None, b"x", 1_700_000_001.0), TopicMessage("/a", None, b"y", 1_700_000_002.0)]
+    read = TopicRead("/a", None, [bytes([n]) for n in range(3)], 1_700_000_000.5)
     client.session.deliver(read)
-    client.session.deliver(latched)
+    assert read._messages is None  # (the bytes go as they came: no TopicMessage is made for them)
+    for data, stamp in ((b"x", 1_700_000_001.0), (b"y", 1_700_000_002.0)):  # (two publishers' latched ones)
+        client.session.deliver(TopicRead("/a", None, [data], stamp))
     head = struct.Struct("<BIQ")
     assert client.frames() == [
         *(head.pack(1, 3, 1_700_000_000_500_000_000) + bytes([n]) for n in range(3)),
@@ -442,9 +447,9 @@ def test_a_slow_link_is_told_what_it_skipped_first_as_a_status_a_newer_one_repla
     client.frames()
     client.send({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": next(iter(client.catalog.channels))}]})
     client.session.backed_up(True)
-    client.session.deliver([TopicMessage("/a", None, b"", 1_700_000_000.0)])
+    client.session.deliver(TopicRead("/a", None, [b""], 1_700_000_000.0))
     client.host.now += 1.0  # (past the freshness horizon: the older one is skipped)
-    client.session.deliver([TopicMessage("/a", None, b"", 1_700_000_001.0)])
+    client.session.deliver(TopicRead("/a", None, [b""], 1_700_000_001.0))
     client.session.backed_up(False)
     status, data = client.frames()
     assert (status["op"], status["level"], status["id"]) == ("status", 1, "warning")

@@ -13,7 +13,7 @@ from std_msgs.msg import Int32, String
 from rosbridge.contract import Backend
 from rosbridge.globs import Globs
 from rosbridge.protocol import session as protocol
-from rosbridge.protocol.encoded import SplicedFrame, TopicMessage, Utf8Text
+from rosbridge.protocol.encoded import SplicedFrame, TopicRead, Utf8Text
 from rosbridge.settings import Settings
 
 from fakes import Host, OffLoop, drain
@@ -87,10 +87,10 @@ class Harness:
 
 
 def received(topic, msg, stamp):
-    """A TopicMessage as the bridge makes it from what rospy received: the message's serialized bytes."""
+    """A read of one message as the bridge makes it from what TCPROS carried: the message's serialized bytes."""
     buffer = io.BytesIO()
     msg.serialize(buffer)
-    return TopicMessage(topic, type(msg), buffer.getvalue(), stamp)
+    return TopicRead(topic, type(msg), [buffer.getvalue()], stamp)
 
 
 def message(topic="/t", data=1, stamp=1.5):
@@ -211,7 +211,7 @@ def test_one_encoding_for_every_client():
         s.send({"op": "subscribe", "topic": "/t"})
     msg = message(data=42)
     for s in sessions:
-        s.session.deliver([msg])
+        s.session.deliver(msg)
     frames = [s.frames() for s in sessions]
     assert frames[0][0] is frames[1][0] is frames[2][0]  # the same bytes object
     assert isinstance(frames[0][0], Utf8Text)
@@ -220,12 +220,12 @@ def test_one_encoding_for_every_client():
 
 def test_fragment_size_and_compressions(h):
     h.send({"op": "subscribe", "topic": "/t", "fragment_size": 10})
-    h.session.deliver([message(data=123456)])
+    h.session.deliver(message(data=123456))
     parts = h.replies()
     assert {p["op"] for p in parts} == {"fragment"} and len(parts) == parts[0]["total"] > 1
     assert json.loads("".join(p["data"] for p in parts))["msg"] == {"data": 123456}
     h.send({"op": "subscribe", "topic": "/t", "compression": "cbor-raw"})
-    h.session.deliver([message(data=1, stamp=12.25)])
+    h.session.deliver(message(data=1, stamp=12.25))
     import cbor2
 
     frame = h.frames()
@@ -236,7 +236,7 @@ def test_fragment_size_and_compressions(h):
 def test_throttle_keeps_the_latest_and_queue_length_keeps_more(h):
     h.send({"op": "subscribe", "topic": "/t", "throttle_rate": 1000})
     for n in range(5):
-        h.session.deliver([message(data=n)])
+        h.session.deliver(message(data=n))
     assert [r["msg"]["data"] for r in h.replies()] == [0]
     h.advance(1.0)
     assert [r["msg"]["data"] for r in h.replies()] == [4]  # the latest, not lost
@@ -246,7 +246,7 @@ def test_throttle_keeps_the_latest_and_queue_length_keeps_more(h):
     q = Harness()
     q.send({"op": "subscribe", "topic": "/t", "throttle_rate": 1000, "queue_length": 2})
     for n in range(5):
-        q.session.deliver([message(data=n)])
+        q.session.deliver(message(data=n))
     received = [r["msg"]["data"] for r in q.replies()]
     for _ in range(2):  # a client that reads what it is sent
         q.advance(1.0)
@@ -259,9 +259,9 @@ def test_a_throttled_subscription_waits_for_a_slow_client_and_sends_the_newest()
     picture, not the ones it missed."""
     h = Harness()
     h.send({"op": "subscribe", "topic": "/camera", "throttle_rate": 10, "queue_length": 1})
-    h.session.deliver([message("/camera", data=0)])
+    h.session.deliver(message("/camera", data=0))
     for n in range(1, 100):  # the client reads nothing meanwhile
-        h.session.deliver([message("/camera", data=n)])
+        h.session.deliver(message("/camera", data=n))
         h.advance(0.05)
     assert [r["msg"]["data"] for r in h.replies()] == [0]  # what was queued before it fell behind
     h.advance(0.05)
@@ -272,7 +272,7 @@ def test_slow_client_drops_oldest_whole_messages_and_is_told_at_the_default_leve
     h = Harness(max_queue=3)
     h.send({"op": "subscribe", "topic": "/t"})
     for n in range(10):
-        h.session.deliver([message(data=n)])
+        h.session.deliver(message(data=n))
     replies = h.replies()
     assert replies[0]["op"] == "status" and replies[0]["level"] == "error"
     assert "dropped 7 whole message(s)" in replies[0]["msg"] and "/t 7" in replies[0]["msg"]
@@ -287,9 +287,9 @@ def test_a_big_message_is_encoded_off_the_loop_once_and_the_topic_keeps_its_orde
         h.send({"op": "subscribe", "topic": "/other"})
     big = received("/map", String("m" * (1 << 20)), 0.0)
     for h in (first, second):
-        h.session.deliver([big])
-        h.session.deliver([received("/map", String("after"), 0.0)])
-        h.session.deliver([received("/other", String("other"), 0.0)])
+        h.session.deliver(big)
+        h.session.deliver(received("/map", String("after"), 0.0))
+        h.session.deliver(received("/other", String("other"), 0.0))
     for h in (first, second):  # the other topic goes on; the map's next waits behind it
         assert [(r["topic"], r["msg"]["data"]) for r in h.replies()] == [("/other", "other")]
     assert off_loop.count == 1  # one encoding for both clients
@@ -301,8 +301,8 @@ def test_a_big_message_is_encoded_off_the_loop_once_and_the_topic_keeps_its_orde
 def test_a_failed_encoding_off_the_loop_skips_that_message_only():
     h = Harness(off_loop=lambda fn, then: then(None))
     h.send({"op": "subscribe", "topic": "/map"})
-    h.session.deliver([received("/map", String("m" * (1 << 20)), 0.0)])
-    h.session.deliver([received("/map", String("after"), 0.0)])
+    h.session.deliver(received("/map", String("m" * (1 << 20)), 0.0))
+    h.session.deliver(received("/map", String("after"), 0.0))
     assert [r["msg"]["data"] for r in h.replies()] == ["after"]
 
 
@@ -312,13 +312,13 @@ def test_backed_up_client_gets_the_newest_of_each_topic_and_is_told_once_a_secon
     h.send({"op": "subscribe", "topic": "/t"})
     h.session.backed_up(True)
     for n in range(2000):  # more than a topic's backlog bound: the older are skipped
-        h.session.deliver([message(data=n)])
+        h.session.deliver(message(data=n))
     replies = h.replies()
     assert replies[0]["level"] == "warning" and replies[0]["msg"].startswith("skipped ")
     data = [r["msg"]["data"] for r in replies[1:]]
     assert data == list(range(2000 - len(data), 2000)) and len(data) < 2000
-    h.session.deliver([message(data=2000)])
-    h.session.deliver([message(data=2001)])
+    h.session.deliver(message(data=2000))
+    h.session.deliver(message(data=2001))
     assert [r["op"] for r in h.replies()] == ["publish", "publish"]  # (no second report within the second)
 
 
@@ -511,12 +511,25 @@ def test_auth_without_a_secret_refuses_everyone():
 def test_closed_session_releases_and_stops_sending(h):
     h.send({"op": "subscribe", "topic": "/t"})
     h.session.closed()
-    h.session.deliver([message()])
+    h.session.deliver(message())
     assert h.frames() == [] and h.backend.calls[-1] == ("release",)
 
 
+def test_a_reads_messages_are_made_once_when_asked_and_its_last_alone_shares_its_own():
+    read = TopicRead("/t", Int32, [b"\x01\0\0\0", b"\x02\0\0\0"], 1.5)
+    messages = read.messages
+    assert [(m.topic, m.msg_class, m.data, m.stamp) for m in messages] == [
+        ("/t", Int32, b"\x01\0\0\0", 1.5),
+        ("/t", Int32, b"\x02\0\0\0", 1.5),
+    ]
+    assert read.messages is messages
+    last = read.last()
+    assert (last.topic, last.datas, last.stamp) == ("/t", [b"\x02\0\0\0"], 1.5) and last.messages == messages[1:]
+    assert last.messages[0] is messages[1] and last.last() is last
+
+
 def test_string_messages_keep_unicode():
-    msg = received("/s", String("grüß 🐢"), 0.0)
+    (msg,) = received("/s", String("grüß 🐢"), 0.0).messages
     assert json.loads(msg.frames("none", None)[0])["msg"]["data"] == "grüß 🐢"
 
 
@@ -526,7 +539,7 @@ def test_a_camera_image_goes_out_with_its_base64_as_a_part_of_its_own():
     from rosbridge.codec.json_values import dumps, to_json
 
     image = Image(height=480, width=640, encoding="rgb8", step=1920, data=bytes(range(256)) * 3600)
-    msg = received("/camera", image, 0.0)
+    (msg,) = received("/camera", image, 0.0).messages
     (frame,) = msg.frames("none", None)
     assert isinstance(frame, SplicedFrame) and frame.text
     assert bytes(frame) == dumps({"op": "publish", "topic": "/camera", "msg": to_json(image)}).encode()

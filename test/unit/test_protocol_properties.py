@@ -140,7 +140,7 @@ class Harness:
         """Delivers `count` messages on /chatter and runs due timers (advancing the clock to each) until none
         is left or a timer storm shows; returns the frames sent."""
         for n in range(count):
-            self.session.deliver([received("/chatter", std_msgs.msg.String(f"m{n}"), self.host.now)])
+            self.session.deliver(received("/chatter", std_msgs.msg.String(f"m{n}"), self.host.now))
         for _ in range(100):
             if not self.host.timers:
                 break

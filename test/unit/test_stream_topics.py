@@ -11,7 +11,7 @@ import pytest
 from sensor_msgs.msg import Image as RosImage
 
 from rosbridge.http import camera_encoder, jpeg, stream_requests, stream_topics, stream_viewers
-from rosbridge.protocol.encoded import TopicMessage
+from rosbridge.protocol.encoded import TopicRead
 
 from fakes import Loop
 
@@ -78,7 +78,7 @@ def image_message(index, encoding="rgb8"):
     msg.header.stamp.secs = index
     out = io.BytesIO()
     msg.serialize(out)
-    return TopicMessage("/cam", RosImage, out.getvalue(), 1000.0 + index)
+    return TopicRead("/cam", RosImage, [out.getvalue()], 1000.0 + index)
 
 
 @pytest.fixture
@@ -96,7 +96,7 @@ def encoder(topic):
 def test_viewers_of_one_size_and_quality_share_one_encode_of_each_frame(topic):
     first, second = FakeViewer(topic), FakeViewer(topic)
     assert encoder(topic).jobs == []  # nothing is made before a frame comes
-    topic.deliver([image_message(1)])
+    topic.deliver(image_message(1))
     assert len(encoder(topic).jobs) == 1 and encoder(topic).jobs[0][1] == [((64, 48), 80, False)]
     encoder(topic).finish()
     assert first.got == second.got and first.got[0][1][1] is second.got[0][1][1]  # the very same bytes
@@ -108,7 +108,7 @@ def test_viewers_of_one_size_and_quality_share_one_encode_of_each_frame(topic):
 def test_different_sizes_are_made_in_one_job_each_once(topic):
     keys = [((64, 48), 80, False), ((32, 24), 80, False), ((64, 48), 50, False), ((64, 48), 80, True)]
     viewers = [FakeViewer(topic, key) for key in keys * 2]
-    topic.deliver([image_message(1)])
+    topic.deliver(image_message(1))
     assert len(encoder(topic).jobs) == 1 and sorted(encoder(topic).jobs[0][1]) == sorted(keys)
     encoder(topic).finish()
     assert all(viewer.got[0][1][1] == f"1 {viewer.key}".encode() for viewer in viewers)
@@ -116,7 +116,7 @@ def test_different_sizes_are_made_in_one_job_each_once(topic):
 
 def test_at_most_MAX_KEYS_PER_JOB_variants_a_job_the_rest_in_the_next(topic):
     viewers = [FakeViewer(topic, ((8 + i, 6), 80, False)) for i in range(stream_topics.MAX_KEYS_PER_JOB + 3)]
-    topic.deliver([image_message(1)])
+    topic.deliver(image_message(1))
     assert len(encoder(topic).jobs[0][1]) == stream_topics.MAX_KEYS_PER_JOB
     encoder(topic).finish()
     assert len(encoder(topic).jobs) == 1 and len(encoder(topic).jobs[0][1]) == 3
@@ -130,7 +130,7 @@ def test_a_job_is_bounded_in_pixels_and_makes_each_size_once(topic):
     big = ((4096, 2048), 100, False)  # (8.4 Mpx: the largest there is)
     small = [((640, 480), quality, False) for quality in (90, 80)] + [((320, 240), 80, False)]
     viewers = [FakeViewer(topic, key) for key in [big, small[0], ((4000, 2048), 100, False), *small[1:]]]
-    topic.deliver([image_message(1)])
+    topic.deliver(image_message(1))
     jobs = []
     while encoder(topic).jobs:
         jobs.append(encoder(topic).jobs[0][1])
@@ -151,8 +151,8 @@ def test_topics_take_turns_at_the_encoder():
     )
     flood = [FakeViewer(flooded, ((4096 - 16 * index, 2048), 100, False)) for index in range(24)]
     viewer = FakeViewer(other)
-    flooded.deliver([image_message(1)])
-    other.deliver([image_message(1)])
+    flooded.deliver(image_message(1))
+    other.deliver(image_message(1))
     assert [len(keys) for _, keys, _ in shared.encoder.jobs] == [1, 1]
     shared.encoder.finish()
     shared.encoder.finish()
@@ -165,7 +165,7 @@ def test_the_variants_a_frame_keeps_are_bounded_in_bytes(topic, monkeypatch):
     monkeypatch.setattr(stream_topics, "MAX_VARIANT_BYTES", 250)
     keys = [((8 + index, 6), 80, False) for index in range(6)]
     viewers = [FakeViewer(topic, key) for key in keys]
-    topic.deliver([image_message(1)])
+    topic.deliver(image_message(1))
     _, asked, done = encoder(topic).jobs.pop()
     done({key: ("image/jpeg", bytes(100)) for key in asked})  # (600 bytes made)
     frame = topic.latest
@@ -178,9 +178,9 @@ def test_the_variants_a_frame_keeps_are_bounded_in_bytes(topic, monkeypatch):
 
 def test_one_job_at_a_time_and_the_newest_frame_wins(topic):
     viewer = FakeViewer(topic)
-    topic.deliver([image_message(1)])
+    topic.deliver(image_message(1))
     for index in (2, 3, 4):  # frames arriving while the first is being made: no job of their own
-        topic.deliver([image_message(index)])
+        topic.deliver(image_message(index))
     assert len(encoder(topic).jobs) == 1
     encoder(topic).finish()
     assert [seq for seq, _ in viewer.got] == [1]  # (made: it goes out at once)
@@ -193,7 +193,7 @@ def test_one_job_at_a_time_and_the_newest_frame_wins(topic):
 def test_a_viewer_that_is_writing_gets_the_newest_frame_after_never_a_backlog(topic):
     slow, fast = FakeViewer(topic), FakeViewer(topic)
     for index in range(1, 6):
-        topic.deliver([image_message(index)])
+        topic.deliver(image_message(index))
         encoder(topic).finish()
         fast.written()
     assert [seq for seq, _ in fast.got] == [1, 2, 3, 4, 5]
@@ -205,7 +205,7 @@ def test_a_viewer_that_is_writing_gets_the_newest_frame_after_never_a_backlog(to
 
 def test_a_frame_that_cannot_be_made_is_told_to_the_viewer(topic):
     viewer = FakeViewer(topic)
-    topic.deliver([image_message(1, encoding="yuv422")])
+    topic.deliver(image_message(1, encoding="yuv422"))
     made = encoder(topic).jobs  # (the fake encoder makes anything: read what the real one does)
     picture, keys, done = made.pop()
     done(camera_encoder._encode(picture, keys))
@@ -223,7 +223,7 @@ def test_the_subscription_lingers_after_the_last_viewer_then_goes(topic):
     topic.remove(again)
     shared.loop.run_timers()
     assert topic.is_closed and shared.topics == {} and shared.backend.unsubscribed == ["/cam"]
-    topic.deliver([image_message(1)])  # (a message still on its way)
+    topic.deliver(image_message(1))  # (a message still on its way)
     assert encoder(topic).jobs == []
 
 

@@ -367,21 +367,14 @@ class FoxgloveSession(OutboxSession):
             reply(False, str(error))
 
     # ---- from the ROS side (contract.Client) ------------------------------------------------------
-    def deliver(self, messages):
-        topic = messages[0].topic
+    def deliver(self, read):
+        topic = read.topic
         sub_id = self._topics.get(topic)
         if sub_id is None:
             return
         clock = self._catalog.sim_clock
-        frames, stamp, head = [], None, b""
-        for message in messages:
-            if clock is not None:
-                head = wire.message_head(sub_id, clock.now_ns())
-            elif message.stamp != stamp:  # (one read's messages share their stamp: one head for them all)
-                stamp = message.stamp
-                head = wire.message_head(sub_id, int(stamp * 1e9))
-            frames.append(wire.message_data(head, message.data))
-        self._queue_each(topic, frames)
+        receive_ns = clock.now_ns() if clock is not None else int(read.stamp * 1e9)
+        self._queue_each(topic, wire.message_data(wire.message_head(sub_id, receive_ns), read.datas))
 
     def ros_refused(self, op, name, text):
         if op == "subscribe" and name in self._topics:

@@ -28,12 +28,11 @@ def message_head(subscription_id, receive_ns):
     return _MESSAGE_HEAD.pack(MESSAGE_DATA, subscription_id, receive_ns)
 
 
-def message_data(head, data):
-    """One message for one subscription: its bytes as they came from TCPROS, after its head. A big one (an image)
-    is not copied: the frame refers to the same bytes for every client."""
-    if len(data) >= BIG_BYTES:
-        return SplicedFrame((head, data), text=False)
-    return head + data
+def message_data(head, datas):
+    """The frames of messages for one subscription that share their head (one read's): each message's bytes as
+    they came from TCPROS, after the head. A big one (an image) is not copied: its frame refers to the same bytes
+    for every client."""
+    return [head + data if len(data) < BIG_BYTES else SplicedFrame((head, data), text=False) for data in datas]
 
 
 def time_frame(ns):

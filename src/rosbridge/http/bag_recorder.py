@@ -107,8 +107,8 @@ class _Subscriber:
             self._backend.unsubscribe(self, topic)
         self._backend.release(self)
 
-    def deliver(self, messages):
-        for message in messages:
+    def deliver(self, read):
+        for message in read.messages:
             if not self.is_closed:
                 self._on_message(message)
 

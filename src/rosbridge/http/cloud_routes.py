@@ -145,9 +145,9 @@ class CloudTopic(NoOpClient):
         _wake_all(waiting)
 
     # ---- contract.Client
-    def deliver(self, messages):
-        self.seq += len(messages)
-        self.latest = messages[-1]
+    def deliver(self, read):
+        self.seq += len(read.datas)
+        self.latest = read.messages[-1]
         self.clouds.answers.forget(self.topic)
         self._wake()
 

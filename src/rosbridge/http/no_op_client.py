@@ -8,7 +8,7 @@ class NoOpClient:
 
     is_closed = False
 
-    def deliver(self, messages):
+    def deliver(self, read):
         pass
 
     def ros_refused(self, op, name, text):

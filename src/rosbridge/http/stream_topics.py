@@ -102,8 +102,8 @@ class StreamTopic(NoOpClient):
             viewer.fail(503, f"the subscription to {self.topic} ended")
 
     # ---- contract.Client
-    def deliver(self, messages):
-        for message in messages:
+    def deliver(self, read):
+        for message in read.messages:
             self._arrived(message)
 
     def _arrived(self, message):

@@ -71,6 +71,34 @@ def text_frames(text, compression, fragment_size):
 OFF_LOOP_BYTES = 1 << 20  # a message this big is encoded off the event loop (a map takes seconds as JSON)
 
 
+class TopicRead:
+    """What one read of a topic's publisher brought: the messages' bytes (`datas`, in order), which share their
+    receipt time `stamp` (seconds); or one message a publisher latches. Their TopicMessages, which rosbridge
+    clients encode, are made once, when a client first asks (`messages`): a Foxglove client sends the bytes as they
+    came, and never does."""
+
+    __slots__ = ("topic", "msg_class", "datas", "stamp", "_messages")
+
+    def __init__(self, topic, msg_class, datas, stamp):
+        self.topic, self.msg_class, self.datas, self.stamp = topic, msg_class, datas, stamp
+        self._messages = None
+
+    @property
+    def messages(self):
+        if self._messages is None:
+            self._messages = [TopicMessage(self.topic, self.msg_class, data, self.stamp) for data in self.datas]
+        return self._messages
+
+    def last(self):
+        """The read of its last message alone, the same TopicMessage: what a latching publisher gives a client
+        that subscribes later."""
+        if len(self.datas) == 1:
+            return self
+        last = TopicRead(self.topic, self.msg_class, self.datas[-1:], self.stamp)
+        last._messages = self.messages[-1:]
+        return last
+
+
 class TopicMessage:
     """One ROS message from a topic, as rospy received it (msg_class: its genpy class; data: its serialized bytes),
     encoded lazily and at most once per encoding for all its subscribers. stamp: its receipt time in seconds (sent

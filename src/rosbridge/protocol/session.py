@@ -347,11 +347,11 @@ class Session(OutboxSession):
         self.level = STATUS_LEVELS.index(req["level"])
 
     # ---- from the ROS side ----------------------------------------------------------------------
-    def deliver(self, messages):
-        """TopicMessages of a topic this client subscribes to (contract.Client.deliver)."""
-        subscription = self.subscriptions.get(messages[0].topic)
+    def deliver(self, read):
+        """Messages of a topic this client subscribes to (contract.Client.deliver)."""
+        subscription = self.subscriptions.get(read.topic)
         if subscription is not None:
-            for message in messages:
+            for message in read.messages:
                 subscription.deliver(message)
 
     def ros_refused(self, op, name, text):

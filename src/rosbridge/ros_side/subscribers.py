@@ -6,7 +6,7 @@ import rospy
 
 from rosbridge.errors import RequestError, log_bug, refusal_text
 from rosbridge.message_types import message_class
-from rosbridge.protocol.encoded import TopicMessage
+from rosbridge.protocol.encoded import TopicRead
 from rosbridge.ros_side.holders import Holders
 
 # messages delivered before the clients write them: one read may bring thousands of small ones (after the loop was
@@ -79,8 +79,8 @@ class TopicSubscriber:
         if self._subscriber is not None:
             self._subscriber.unregister()
 
-    def latched_messages(self):
-        """The latched messages of the publishers still linked (loop)."""
+    def latched_reads(self):
+        """The latched message of each publisher still linked, as a TopicRead of its own (loop)."""
         for link in [link for link in self.latched if link.done]:
             del self.latched[link]
         return list(self.latched.values())
@@ -96,16 +96,16 @@ class TopicSubscriber:
                 self._deliver_batch(messages[start : start + DELIVERY_BATCH], latched_by)
 
     def _deliver_batch(self, serialized, latched_by):
-        topic, cls, stamp = self.topic, self._class, time.time()
-        messages = [TopicMessage(topic, cls, data, stamp) for data in serialized]
+        topic = self.topic
+        read = TopicRead(topic, self._class, serialized, time.time())
         if latched_by is not None:
             if latched_by not in self.latched:  # a new publisher: forget those gone
-                self.latched_messages()
-            self.latched[latched_by] = messages[-1]
+                self.latched_reads()
+            self.latched[latched_by] = read.last()
         with self._deliveries():
             for session in self._clients(topic):
                 try:
-                    session.deliver(messages)
+                    session.deliver(read)
                 except Exception:  # one client's failure must not starve the others
                     log_bug(f"delivering {topic}")
 
@@ -137,9 +137,8 @@ class Subscribers:
             return
         self._holders.add(topic, session)
         entry.asked[session] = type_name
-        latched = entry.latched_messages()
-        if latched:
-            self._loop.add_callback(session.deliver, latched)
+        for read in entry.latched_reads():
+            self._loop.add_callback(session.deliver, read)
 
     def _made(self, entry, error, made_type):
         topic = entry.topic
@@ -178,7 +177,7 @@ class Subscribers:
 
     def latched_messages(self, topic):
         entry = self._entries.get(topic)
-        return entry.latched_messages() if entry is not None else []
+        return [read.messages[0] for read in entry.latched_reads()] if entry is not None else []
 
     def release(self, session):
         for topic in self._holders.names_of(session):
