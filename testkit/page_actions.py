@@ -1,14 +1,21 @@
 """What a person does on the console page, for the browser tests and the page bench alike (a page: an object with
 `driver`, Selenium's WebDriver, and `js(script, *args)`)."""
 
+from selenium.common.exceptions import StaleElementReferenceException
 from selenium.webdriver.common.by import By
 
 from harness import wait_for
 
 
 def text_of(page, selector):
-    found = page.driver.find_elements(By.CSS_SELECTOR, selector)
-    return found[0].text if found else ""
+    """The displayed text of the first element `selector` finds, or "" if none. The page may replace that element
+    between finding it and reading it (a table redrawn as messages come): it is then found again."""
+    while True:
+        found = page.driver.find_elements(By.CSS_SELECTOR, selector)
+        try:
+            return found[0].text if found else ""
+        except StaleElementReferenceException:
+            continue
 
 
 def open_topic(page, topic):

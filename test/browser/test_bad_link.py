@@ -7,19 +7,14 @@ import time
 
 import pytest
 from selenium.webdriver.common.action_chains import ActionChains
-from selenium.webdriver.common.by import By
 from selenium.webdriver.common.keys import Keys
 from selenium.webdriver.support.ui import Select
 
 from harness import ARTIFACTS, wait_for
+from page_actions import text_of
 from sensor_messages import CAMERA, Publishing
 
 pytestmark = pytest.mark.alone  # (they time what a driver sees: tools/test runs them with nothing beside them)
-
-
-def text_of(page, selector):
-    found = page.driver.find_elements(By.CSS_SELECTOR, selector)
-    return found[0].text if found else ""
 
 
 def options(page, select_id):

@@ -9,6 +9,7 @@ from selenium.webdriver.common.by import By
 from selenium.webdriver.support.ui import Select
 
 from harness import ARTIFACTS, wait_for
+from page_actions import text_of
 from sensor_messages import CAMERA, Publishing
 
 
@@ -32,11 +33,6 @@ def press(page, selector):
         "arguments[0].dispatchEvent(new PointerEvent('pointerdown', {bubbles: true}))",
         page.driver.find_element(By.CSS_SELECTOR, selector),
     )
-
-
-def text_of(page, selector):
-    found = page.driver.find_elements(By.CSS_SELECTOR, selector)
-    return found[0].text if found else ""
 
 
 def talker(node, topic, hz):
