@@ -92,11 +92,12 @@ class Host:
     """A contract.SessionHost for a protocol session under test. Its clock is `now`; its timers wait in `timers`
     ([due, delay, fn], in the order set) until the test runs them (advance, run_next); it keeps what the session
     asked: `cancelled` timers, `close_reasons`, `resumes`. off_loop: an OffLoop or the like, else each job runs at
-    once; unfinished: a shared bound (rfc6455.SharedBound), else none."""
+    once; unfinished: a shared bound (rfc6455.SharedBound), else none. With `writes_now` set, it writes what the
+    session offers it at once (write_now) to `written`, as a socket that keeps up; else all is queued."""
 
-    def __init__(self, now=1000.0, off_loop=None, unfinished=None):
-        self.now, self.unfinished, self._off_loop = now, unfinished, off_loop
-        self.timers, self.cancelled, self.close_reasons, self.resumes = [], [], [], 0
+    def __init__(self, now=1000.0, off_loop=None, unfinished=None, writes_now=False):
+        self.now, self.unfinished, self._off_loop, self.writes_now = now, unfinished, off_loop, writes_now
+        self.timers, self.cancelled, self.close_reasons, self.resumes, self.written = [], [], [], 0, []
 
     def clock(self):
         return self.now
@@ -112,6 +113,12 @@ class Host:
 
     def wake(self):
         """(the test takes the session's frames when it wants)"""
+
+    def write_now(self, frames, size):
+        assert size == sum(map(len, frames))
+        if self.writes_now:
+            self.written += frames
+        return self.writes_now
 
     def close_after_sending(self, reason):
         self.close_reasons.append(reason)

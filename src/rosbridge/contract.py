@@ -12,7 +12,7 @@ objects) is done off the loop: a refusal found out there comes later, through `C
 import abc
 import dataclasses
 import typing
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 from rosbridge.globs import allowed
 
@@ -83,6 +83,11 @@ class SessionHost(typing.Protocol):
 
     def wake(self) -> None:
         """Frames are queued: the host takes them (ProtocolSession.take_frames) until there are none."""
+
+    def write_now(self, frames: Sequence[object], size: int) -> bool:
+        """Writes the frames (as take_frames gives them; `size` bytes in all, small ones) to the client at once if
+        nothing of its waits to be written and they go as they are (not deflated, not paced): True. False: nothing
+        is written (the session queues them)."""
 
     def close_after_sending(self, reason: str) -> None:
         """Closes the connection once the frames queued so far are sent; `reason` goes in the close frame."""

@@ -19,7 +19,7 @@ from rosbridge.globs import Globs
 from rosbridge.protocol import Config
 from rosbridge.protocol.encoded import SplicedFrame, TopicRead
 
-from fakes import drain
+from fakes import Host, drain
 
 
 # ---- binary messages -------------------------------------------------------------------------------------
@@ -91,32 +91,6 @@ def test_bad_parameter_values_are_refused_naming_the_field(entry, words):
 
 
 # ---- a session over a recording backend ------------------------------------------------------------------
-class Host:
-    def __init__(self):
-        self.now, self.timers, self.closed_with, self.resumed = 1000.0, [], None, 0
-        self.delays = []  # of every call_later
-
-    def clock(self):
-        return self.now
-
-    def call_later(self, delay, fn):
-        self.timers.append(fn)
-        self.delays.append(delay)
-        return fn
-
-    def cancel_later(self, handle):
-        self.timers.remove(handle)
-
-    def wake(self):
-        pass
-
-    def close_after_sending(self, reason):
-        self.closed_with = reason
-
-    def resume_reading(self):
-        self.resumed += 1
-
-
 class Backend:
     """Records what a session asks; replies are kept for the test to give."""
 
@@ -259,10 +233,9 @@ def test_parameter_updates_reach_the_clients_that_subscribe_to_them():
     client = Client()
     client.frames()
     client.send({"op": "subscribeParameterUpdates", "parameterNames": ["/speed"]})
-    poll = client.host.timers.pop()
-    poll()
+    client.host.run_next()
     client.backend.replies.pop()(True, {"/speed": 1.0, "/other": 1})  # (the first poll: what later ones compare to)
-    client.host.timers.pop()()
+    client.host.run_next()
     client.backend.replies.pop()(True, {"/speed": 2.5, "/other": 2})
     assert client.frames() == [
         {"op": "parameterValues", "parameters": [{"name": "/speed", "value": 2.5, "type": "float64"}]}
@@ -301,13 +274,13 @@ def test_with_sim_time_the_clock_is_sent_and_stamps_the_messages():
     client.frames()
     client.send({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": next(iter(catalog.channels))}]})
     ros_now[0] = 12_000_000_500
-    host.timers.pop()()  # (the clock's tick)
+    host.run_next()  # (the clock's tick)
     client.session.deliver(TopicRead("/a", None, [b""], 1_700_000_000.0))
     assert client.frames() == [
         struct.pack("<BQ", 2, 12_000_000_500),
         struct.pack("<BIQ", 1, 1, 12_000_000_500),  # (stamped by the simulated clock, not the wall's)
     ]
-    host.timers.pop()()  # (the time did not move: nothing sent)
+    host.run_next()  # (the time did not move: nothing sent)
     assert client.frames() == []
     client.session.closed()
     assert host.timers == []  # (the last client left: the tick stops)
@@ -345,7 +318,7 @@ def test_after_a_subscribe_or_an_advertise_the_client_waits_for_its_ros_side():
         assert client.session.holding, request
         pending.pop()()
         assert not client.session.holding
-    assert client.host.resumed == 4
+    assert client.host.resumes == 4
     client.send({"op": "getParameters", "parameterNames": ["/a"], "id": "x"})
     assert not client.session.holding and not pending
 
@@ -357,14 +330,14 @@ def test_the_parameter_poll_reads_only_what_clients_subscribe_to_and_spaces_itse
     monkeypatch.setattr(catalog_module, "time", types.SimpleNamespace(monotonic=lambda: now[0]))
     first = Client()
     first.send({"op": "subscribeParameterUpdates", "parameterNames": ["/b", "/a"]})
-    first.host.timers.pop()()
+    first.host.run_next()
     assert first.backend.calls[-1][:2] == ("get_parameters", ["/a", "/b"])
     now[0] += 0.5  # (the poll took 0.5 s: the next one waits 5 s)
     first.backend.replies.pop()(True, {"/a": 1})
-    assert first.host.delays[-1] == 0.5 * catalog_module.POLL_SPACING
+    assert first.host.timers[-1][1] == 0.5 * catalog_module.POLL_SPACING
     second = Client(catalog=first.catalog, backend=first.backend)
     second.send({"op": "subscribeParameterUpdates", "parameterNames": []})  # (every parameter)
-    first.host.timers.pop()()
+    first.host.run_next()
     assert first.backend.calls[-1][:2] == ("get_parameters", None)
 
 
@@ -423,18 +396,20 @@ def test_what_every_client_is_told_is_encoded_once():
     assert all(a is b for a, b in zip(*told))
 
 
-def test_a_reads_messages_share_one_head_and_latched_ones_keep_their_own_receive_times():
+@pytest.mark.parametrize("writes_now", [False, True])  # (queued, or written at once to a client that keeps up)
+def test_a_reads_messages_share_one_head_and_latched_ones_keep_their_own_receive_times(writes_now):
     client = Client()
     client.backend.watchers[0](GraphState({"/a": ("std_msgs/Empty", "")}, {}, {}, {}, {}))
     client.frames()
     client.send({"op": "subscribe", "subscriptions": [{"id": 3, "channelId": next(iter(client.catalog.channels))}]})
+    client.host.writes_now = writes_now
     read = TopicRead("/a", None, [bytes([n]) for n in range(3)], 1_700_000_000.5)
     client.session.deliver(read)
     assert read._messages is None  # (the bytes go as they came: no TopicMessage is made for them)
     for data, stamp in ((b"x", 1_700_000_001.0), (b"y", 1_700_000_002.0)):  # (two publishers' latched ones)
         client.session.deliver(TopicRead("/a", None, [data], stamp))
     head = struct.Struct("<BIQ")
-    assert client.frames() == [
+    assert client.host.written + client.frames() == [
         *(head.pack(1, 3, 1_700_000_000_500_000_000) + bytes([n]) for n in range(3)),
         head.pack(1, 3, 1_700_000_001_000_000_000) + b"x",
         head.pack(1, 3, 1_700_000_002_000_000_000) + b"y",

@@ -169,6 +169,26 @@ def test_while_nothing_waits_and_the_socket_keeps_up_the_same_bounds_hold():
     assert len(box) == 0 and box.take_report()[1] == {"/pose": 1}
 
 
+def test_frames_bypass_only_an_outbox_where_nothing_waits_or_is_to_be_told_and_within_its_bounds():
+    """(OutboxSession then has the host write them at once: size_to_bypass gives their bytes.)"""
+    box, _ = outbox(max_frames=2, max_bytes=100)
+    assert box.size_to_bypass((b"ab", b"cde")) == 5
+    assert box.size_to_bypass((b"a", b"b", b"c")) is None  # more frames than the bound
+    assert box.size_to_bypass((b"x" * 101,)) is None  # more bytes
+    box.push("/pose", small("p0"))
+    assert box.size_to_bypass((b"ab",)) is None  # (it would pass the one waiting)
+    drain(box)
+    box.backed_up = True
+    assert box.size_to_bypass((b"ab",)) is None
+    box.backed_up = False
+    box.skipped["/pose"] += 1
+    assert box.size_to_bypass((b"ab",)) is None  # (the report goes first)
+    box.take_report()
+    assert box.size_to_bypass((b"ab",)) == 2
+    box, _ = outbox()
+    assert box.size_to_bypass((b"x" * SMALL_MESSAGE,)) is None  # (a big one is held in the pool until it has left)
+
+
 def test_a_message_larger_than_the_whole_bound_is_refused_not_cut():
     box, _ = outbox(max_bytes=3 * SMALL_MESSAGE)
     box.push("/map", big("map", parts=5))

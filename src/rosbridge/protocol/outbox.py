@@ -145,6 +145,18 @@ class Outbox:
                 return
         self._push(key, (frame,))
 
+    def size_to_bypass(self, frames):
+        """The bytes of `frames` (one message's, or one-frame messages) if they may go to the socket without waiting
+        here, else None: nothing waits, the socket keeps up, nothing is left to report, and they would pass (small,
+        within the bounds)."""
+        if self.frames or self.backed_up or self.skipped or self.dropped or self.refused:
+            return None
+        sizes = list(map(len, frames))
+        size = sum(sizes)
+        if max(sizes) < SMALL_MESSAGE and len(sizes) <= self.max_frames and size <= self._allowed:
+            return size
+        return None
+
     def push_each(self, key, frames):
         """Queues messages of one frame each (a topic's, one read's), in order: as push_frame each, in one go
         while they all pass."""
@@ -407,7 +419,9 @@ class Outbox:
 class OutboxSession:
     """The outgoing half of a session, the same for every protocol (contract.ProtocolSession's backed_up,
     take_frames and close): the frames of each message wait in the client's Outbox. The first message queued after
-    the host took the last frame wakes it (host.wake()), and it takes frames until take_frames gives none. What the
+    the host took the last frame wakes it (host.wake()), and it takes frames until take_frames gives none. While
+    nothing waits, here or in the host, a message's frames are not queued: the host writes them at once
+    (host.write_now). What the
     client's slow link cost it goes first, at most once a REPORT_INTERVAL, as the protocol's report_frame makes it."""
 
     def __init__(self, config, host):
@@ -424,6 +438,8 @@ class OutboxSession:
     def _queue(self, topic, frames):
         """Queues the frames of one message (topic None: not a topic's; such are never skipped)."""
         if not self.is_closed:
+            if not self._woken and self._write_now(frames):
+                return
             self._outbox.push(topic, frames)
             if not self._woken:
                 self._wake_host()
@@ -431,9 +447,17 @@ class OutboxSession:
     def _queue_each(self, topic, frames):
         """Queues messages of one frame each, in order, as _queue."""
         if not self.is_closed:
+            if not self._woken and self._write_now(frames):
+                return
             self._outbox.push_each(topic, frames)
             if not self._woken:
                 self._wake_host()
+
+    def _write_now(self, frames):
+        """Has the host write the frames at once if nothing of this client's waits, here (Outbox.size_to_bypass) or
+        in the host (host.write_now): a client that keeps up costs no queueing, wake and take for each message."""
+        size = self._outbox.size_to_bypass(frames)
+        return size is not None and self._host.write_now(frames, size)
 
     def _wake_host(self):
         self._woken = True

@@ -100,6 +100,7 @@ class ClientConnection:
             evicted=self._made_way,
         )
         self.budget = bridge.budgets.budget(peer)
+        self._answered = False  # the handshake's answer is written (start): only then may a frame be (write_now)
         if subprotocol is not None:
             self.session = FoxgloveSession(
                 bridge.backend, bridge.config, self, bridge.foxglove, name=peer, session_id=bridge.session_id
@@ -126,6 +127,7 @@ class ClientConnection:
     def start(self, handshake_answer):
         if not self._io.start(handshake_answer):  # the client left at once
             return
+        self._answered = True
         self.bridge.client_opened(self)
         interval = self.bridge.settings.websocket_ping_interval
         if interval:
@@ -262,6 +264,28 @@ class ClientConnection:
     def wake(self):
         """The session has frames queued: they are written once the current delivery ends (write_turns)."""
         self.bridge.writes.wake(self._flush)
+
+    def write_now(self, frames, size):
+        if (
+            not self._answered
+            or self._awaiting_drain
+            or self._deflating
+            or self._ready is not None
+            or self._closing
+            or self._close_reason is not None
+            or self.bridge.settings.delay_between_messages
+        ):
+            return False
+        if self._window_bits is not None and deflates_some(self.bridge.settings.use_compression, self._link):
+            return False
+        io = self._io
+        if io.closed() or io.writing():
+            return False
+        self._write(frames)
+        if io.writing():
+            self._write_waited = (time.monotonic(), size)
+            self._await_drain()
+        return True
 
     def close_after_sending(self, reason):
         self._close_reason = reason

@@ -31,7 +31,7 @@ class WriteTurns:
 
     def __exit__(self, *_):
         self._delivering -= 1
-        if not self._delivering:
+        if not self._delivering and self._woken:
             self._write()
 
     def _write(self):
