@@ -93,7 +93,8 @@ class Host:
     ([due, delay, fn], in the order set) until the test runs them (advance, run_next); it keeps what the session
     asked: `cancelled` timers, `close_reasons`, `resumes`. off_loop: an OffLoop or the like, else each job runs at
     once; unfinished: a shared bound (rfc6455.SharedBound), else none. With `writes_now` set, it writes what the
-    session offers it at once (write_now) to `written`, as a socket that keeps up; else all is queued."""
+    session offers it at once (write_now) to `written` (the frames of each write), as a socket that keeps up; else
+    all is queued."""
 
     def __init__(self, now=1000.0, off_loop=None, unfinished=None, writes_now=False):
         self.now, self.unfinished, self._off_loop, self.writes_now = now, unfinished, off_loop, writes_now
@@ -117,7 +118,7 @@ class Host:
     def write_now(self, frames, size):
         assert size == sum(map(len, frames))
         if self.writes_now:
-            self.written += frames
+            self.written.append(list(frames))
         return self.writes_now
 
     def close_after_sending(self, reason):

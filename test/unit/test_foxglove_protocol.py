@@ -409,11 +409,43 @@ def test_a_reads_messages_share_one_head_and_latched_ones_keep_their_own_receive
     for data, stamp in ((b"x", 1_700_000_001.0), (b"y", 1_700_000_002.0)):  # (two publishers' latched ones)
         client.session.deliver(TopicRead("/a", None, [data], stamp))
     head = struct.Struct("<BIQ")
-    assert client.host.written + client.frames() == [
+    if writes_now:  # (the first read in one write; each latched one in its own)
+        assert [len(frames) for frames in client.host.written] == [3, 1, 1] and client.frames() == []
+    assert [frame for frames in client.host.written for frame in frames] + client.frames() == [
         *(head.pack(1, 3, 1_700_000_000_500_000_000) + bytes([n]) for n in range(3)),
         head.pack(1, 3, 1_700_000_001_000_000_000) + b"x",
         head.pack(1, 3, 1_700_000_002_000_000_000) + b"y",
     ]
+
+
+def test_a_read_is_written_at_once_only_while_nothing_of_the_clients_waits_and_what_waits_keeps_its_order():
+    client = Client()
+    client.backend.watchers[0](GraphState({"/a": ("std_msgs/Empty", ""), "/b": ("std_msgs/Empty", "")}, {}, {}, {}, {}))
+    client.frames()
+    channels = iter(client.catalog.channels)
+    client.send({"op": "subscribe", "subscriptions": [{"id": n, "channelId": next(channels)} for n in (1, 2)]})
+    client.host.writes_now = True
+
+    def deliver(data, topic="/a"):
+        client.session.deliver(TopicRead(topic, None, [data], 1_700_000_000.0))
+
+    def data(frames):
+        return [frame[13:] for frame in frames]
+
+    deliver(b"0")
+    assert data(client.host.written.pop()) == [b"0"] and client.frames() == []
+    client.host.writes_now = False  # (its socket is busy)
+    deliver(b"1")
+    client.host.writes_now = True
+    deliver(b"2")  # (behind 1, though the host could write it)
+    assert client.host.written == [] and data(client.frames()) == [b"1", b"2"]
+    deliver(b"3")  # (all taken: at once again)
+    assert data(client.host.written.pop()) == [b"3"]
+    deliver(b"x" * (1 << 16), topic="/b")  # (big: queued, held in the pool until it has left)
+    assert client.host.written == [] and len(client.frames()) == 1
+    client.session.backed_up(True)
+    deliver(b"4")  # (backed up: queued, kept fresh)
+    assert client.host.written == [] and data(client.frames()) == [b"4"]
 
 
 def test_a_slow_link_is_told_what_it_skipped_first_as_a_status_a_newer_one_replaces():

@@ -322,27 +322,14 @@ def test_backed_up_client_gets_the_newest_of_each_topic_and_is_told_once_a_secon
     assert [r["op"] for r in h.replies()] == ["publish", "publish"]  # (no second report within the second)
 
 
-def test_a_client_that_keeps_up_is_written_at_once_and_what_waits_keeps_its_order():
-    """While nothing of the client's waits, here or in its host, a message is written at once (host.write_now);
-    once one waits, the next ones queue behind it until all are taken."""
+def test_a_read_of_several_messages_is_queued_to_go_in_one_write_though_the_client_keeps_up():
+    """(A Foxglove client's read may go to the socket at once, in one write: test_foxglove_protocol. A rosbridge
+    client's messages are queued one by one: written at once, each would be a write of its own.)"""
     h = Harness(writes_now=True)
     h.send({"op": "subscribe", "topic": "/t"})
-    h.session.deliver(message(data=0))
-    assert [json.loads(frame)["msg"]["data"] for frame in h.host.written] == [0] and h.frames() == []
-    h.host.writes_now = False  # (its socket is busy)
-    h.session.deliver(message(data=1))
-    h.host.writes_now = True
-    h.session.deliver(message(data=2))  # (behind 1, though the host could write it)
-    assert len(h.host.written) == 1 and [r["msg"]["data"] for r in h.replies()] == [1, 2]
-    h.session.deliver(message(data=3))  # (all taken: at once again)
-    assert json.loads(h.host.written.pop())["msg"]["data"] == 3 and h.frames() == []
-    h.send({"op": "subscribe", "topic": "/big"})
-    h.host.written.clear()
-    h.session.deliver(received("/big", String("x" * (1 << 16)), 0.0))  # (big: queued)
-    assert h.host.written == [] and len(h.replies()) == 1
-    h.session.backed_up(True)
-    h.session.deliver(message(data=4))  # (backed up: queued, kept fresh)
-    assert h.host.written == [] and [r["msg"]["data"] for r in h.replies()] == [4]
+    datas = [received("/t", Int32(n), 1.5).datas[0] for n in range(3)]
+    h.session.deliver(TopicRead("/t", Int32, datas, 1.5))
+    assert h.host.written == [] and [r["msg"]["data"] for r in h.replies()] == [0, 1, 2]
 
 
 def test_status_level_filters(h):

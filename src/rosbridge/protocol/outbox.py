@@ -420,8 +420,8 @@ class OutboxSession:
     """The outgoing half of a session, the same for every protocol (contract.ProtocolSession's backed_up,
     take_frames and close): the frames of each message wait in the client's Outbox. The first message queued after
     the host took the last frame wakes it (host.wake()), and it takes frames until take_frames gives none. While
-    nothing waits, here or in the host, a message's frames are not queued: the host writes them at once
-    (host.write_now). What the
+    nothing waits, here or in the host, a read's one-frame messages (_queue_each) are not queued: the host writes
+    them at once (host.write_now). What the
     client's slow link cost it goes first, at most once a REPORT_INTERVAL, as the protocol's report_frame makes it."""
 
     def __init__(self, config, host):
@@ -438,26 +438,22 @@ class OutboxSession:
     def _queue(self, topic, frames):
         """Queues the frames of one message (topic None: not a topic's; such are never skipped)."""
         if not self.is_closed:
-            if not self._woken and self._write_now(frames):
-                return
             self._outbox.push(topic, frames)
             if not self._woken:
                 self._wake_host()
 
     def _queue_each(self, topic, frames):
-        """Queues messages of one frame each, in order, as _queue."""
+        """Queues messages of one frame each (one read's), in order, as _queue. While nothing of this client's
+        waits, here (Outbox.size_to_bypass) or in the host, the host writes them at once instead, in one write
+        (host.write_now): no queueing, wake and take for a read. (Not so in _queue: a rosbridge client's messages
+        come one by one, and a read's would each be a write of its own.)"""
         if not self.is_closed:
-            if not self._woken and self._write_now(frames):
-                return
+            if not self._woken and (size := self._outbox.size_to_bypass(frames)) is not None:
+                if self._host.write_now(frames, size):
+                    return
             self._outbox.push_each(topic, frames)
             if not self._woken:
                 self._wake_host()
-
-    def _write_now(self, frames):
-        """Has the host write the frames at once if nothing of this client's waits, here (Outbox.size_to_bypass) or
-        in the host (host.write_now): a client that keeps up costs no queueing, wake and take for each message."""
-        size = self._outbox.size_to_bypass(frames)
-        return size is not None and self._host.write_now(frames, size)
 
     def _wake_host(self):
         self._woken = True
