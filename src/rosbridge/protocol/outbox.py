@@ -421,8 +421,8 @@ class OutboxSession:
     take_frames and close): the frames of each message wait in the client's Outbox. The first message queued after
     the host took the last frame wakes it (host.wake()), and it takes frames until take_frames gives none. While
     nothing waits, here or in the host, a read's one-frame messages (_queue_each) are not queued: the host writes
-    them at once (host.write_now). What the
-    client's slow link cost it goes first, at most once a REPORT_INTERVAL, as the protocol's report_frame makes it."""
+    them at once (host.write_now). What the client's slow link cost it goes first, at most once a REPORT_INTERVAL,
+    as the protocol's report_frame makes it."""
 
     def __init__(self, config, host):
         self.config, self._host = config, host
