@@ -1,6 +1,14 @@
-"""The rospy-free parts of the ROS side: who holds what, and the early replay's thread rules."""
+"""The rospy-free parts of the ROS side: who holds what, the early replay's thread rules, and the proxy for the
+bridge's own looks at the master."""
+
+import threading
+import xmlrpc.client
+
+import pytest
+from rosgraph.xmlrpc import ThreadingXMLRPCServer
 
 from rosbridge.ros_side.holders import Holders
+from rosbridge.ros_side.master_proxy import ANSWERS_KEPT, MasterError, api_proxy, succeeded
 from rosbridge.ros_side.publishers import REPLAY_BYTES, REPLAY_WINDOW, EarlyReplay
 
 from fakes import Clock
@@ -66,3 +74,61 @@ def test_early_replay_keeps_the_newest_messages_within_replay_bytes():
     assert [m[0] for m in replay.replay()] == [2, 3, 4]
     replay.record(bytes(REPLAY_BYTES + 1))  # (too big to keep)
     assert [m[0] for m in replay.replay()] == [2, 3, 4]
+
+
+@pytest.fixture
+def xmlrpc_server():
+    """rosgraph's XML-RPC server, the master's, on loopback; `answer` is what its one method returns, and
+    `encodings` the Accept-Encoding of each request."""
+    server = ThreadingXMLRPCServer(("127.0.0.1", 0), log_requests=False)
+    server.answer = [1, "", "small"]
+    server.encodings = []
+    server.register_function(lambda caller: server.answer, "getSystemState")
+    handler = server.RequestHandlerClass
+    parse_request = handler.parse_request
+
+    def recording(request):
+        parsed = parse_request(request)
+        server.encodings.append(request.headers.get("Accept-Encoding"))
+        return parsed
+
+    handler.parse_request = recording
+    threading.Thread(target=server.serve_forever, args=(0.05,), daemon=True).start()
+    try:
+        yield server
+    finally:
+        handler.parse_request = parse_request
+        server.shutdown()
+        server.server_close()
+
+
+def test_an_answer_seen_lately_is_not_parsed_again(xmlrpc_server):
+    proxy = api_proxy("http://127.0.0.1:%d/" % xmlrpc_server.server_address[1])
+    first = proxy.getSystemState("/me")
+    assert first == [1, "", "small"] and proxy.getSystemState("/me") is first
+    answers = [[1, "", "x" * n] for n in (3000, 3001, 3002)]
+    for answer in answers:
+        xmlrpc_server.answer = answer
+        assert proxy.getSystemState("/me") == answer
+    xmlrpc_server.answer = [1, "", "small"]
+    assert proxy.getSystemState("/me") is first  # (within ANSWERS_KEPT)
+    xmlrpc_server.answer = [1, "", "x" * 4000]
+    proxy.getSystemState("/me")
+    xmlrpc_server.answer = answers[0]
+    assert proxy.getSystemState("/me") == answers[0]  # (forgotten, parsed again)
+    assert len(proxy("transport")._answers) == ANSWERS_KEPT
+
+
+def test_answers_are_asked_unzipped(xmlrpc_server):
+    """The master gzips answers over 1,400 bytes for a client that accepts it (Python's own client does)."""
+    proxy = api_proxy("http://127.0.0.1:%d/" % xmlrpc_server.server_address[1])
+    xmlrpc_server.answer = [1, "", "x" * 10_000]
+    assert proxy.getSystemState("/me") == xmlrpc_server.answer
+    xmlrpc.client.ServerProxy("http://127.0.0.1:%d/" % xmlrpc_server.server_address[1]).getSystemState("/me")
+    assert xmlrpc_server.encodings == ["identity", "gzip"]
+
+
+def test_an_error_code_from_the_master_is_an_error():
+    assert succeeded([1, "ok", ["value"]]) == ["value"]
+    with pytest.raises(MasterError, match="no such service"):
+        succeeded([-1, "no such service", 0])

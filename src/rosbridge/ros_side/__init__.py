@@ -4,7 +4,8 @@ every client with reference counts (holders.py).
 Files: backend.py (RosBackend, the protocol's backend: a short front over the rest), publishers.py (client ->
 ROS topics), subscribers.py (ROS -> client topics), links.py (the topics' TCPROS connections with other nodes,
 on the loop), services.py (calls out, and services that clients provide), worker.py (the thread for work that
-can block), recovery.py (registering again with a restarted master), holders.py (who holds what; pure).
+can block), recovery.py (registering again with a restarted master), master_proxy.py (XML-RPC for the
+threads that poll the master), holders.py (who holds what; pure).
 
 Threads, what each may touch, and how work crosses between them:
 - The event loop (one thread): every Session, RosBackend and the managers' tables; every topic connection

@@ -12,6 +12,7 @@ import rospy
 from rosbridge.contract import GraphState
 from rosbridge.errors import ClientError, log_bug
 from rosbridge.message_types import message_class, service_class
+from rosbridge.ros_side.master_proxy import MasterError, api_proxy, succeeded
 from rosbridge.ros_side.rosapi import PROBE_THREADS, probe_service_type
 
 GRAPH_POLL = 0.5  # s: channels appear and go within a second
@@ -75,8 +76,8 @@ class GraphWatch:
         change: a provider that does not answer is not asked again at every poll). A master proxy of its own:
         one XML-RPC connection cannot carry two calls at once."""
         try:
-            uri = rosgraph.Master(rospy.get_name()).lookupService(name) if nodes else ""
-        except (rosgraph.MasterError, OSError):  # (gone since the master listed it)
+            uri = succeeded(api_proxy(rosgraph.get_master_uri()).lookupService(rospy.get_name(), name)) if nodes else ""
+        except (MasterError, OSError):  # (gone since the master listed it)
             return ""
         return probe_service_type(name, uri) if uri else ""
 
@@ -92,21 +93,20 @@ class GraphWatch:
         and definitions only when who publishes, subscribes or provides what has changed. (A poll is most of what
         an idle Foxglove client costs the bridge: twice a second.)"""
         if self._master is None:  # (kept: its connection to the master too, instead of a new one at every poll)
-            self._master = rosgraph.Master(rospy.get_name())
-        master = self._master
+            self._master = api_proxy(rosgraph.get_master_uri())
+        master, me = self._master, rospy.get_name()
         try:
-            system = master.getSystemState()
+            system = succeeded(master.getSystemState(me))
         except Exception:
             self._master = None  # (the master restarted, or the connection broke: a new one next time)
             raise
         if system == self._last_system and self._last_state is not None:
             return self._last_state
         self._last_system, self._last_state = system, None
-        self._last_state = self._state(master, *system)
+        self._last_state = self._state(dict(succeeded(master.getTopicTypes(me))), *system)
         return self._last_state
 
-    def _state(self, master, publications, subscriptions, services):
-        types = dict(master.getTopicTypes())
+    def _state(self, types, publications, subscriptions, services):
         publishers = {topic: frozenset(nodes) for topic, nodes in publications}
         subscribers = {topic: frozenset(nodes) for topic, nodes in subscriptions}
         topics = {}
