@@ -276,15 +276,10 @@ class ClientConnection:
             or self.bridge.settings.delay_between_messages
         ):
             return False
-        if self._window_bits is not None and deflates_some(self.bridge.settings.use_compression, self._link):
-            return False
-        io = self._io
-        if io.closed() or io.writing():
+        if not self._sends_as_they_are() or self._io.closed() or self._io.writing():
             return False
         self._write(frames)
-        if io.writing():
-            self._write_waited = (time.monotonic(), size)
-            self._await_drain()
+        self._awaits_drain(size)
         return True
 
     def close_after_sending(self, reason):
@@ -326,9 +321,7 @@ class ClientConnection:
                     break
             if batch:
                 big_sent = self._write(batch) or big_sent
-                if io.writing():
-                    self._write_waited = (time.monotonic(), size)
-                    self._await_drain()
+                if self._awaits_drain(size):
                     return
             if self._deflating:  # (_deflated goes on)
                 return
@@ -348,9 +341,9 @@ class ClientConnection:
         if self._ready is not None:
             ready, self._ready = self._ready, None
             return [ready]
+        if self._sends_as_they_are():
+            return self.session.take_frames(most_bytes)  # (_write encodes a str)
         every_message = self.bridge.settings.use_compression
-        if self._window_bits is None or not deflates_some(every_message, self._link):
-            return self.session.take_frames(most_bytes)  # (as they are: _write encodes a str)
         while True:  # one at a time: each may be deflated
             frames = self.session.take_frames(0)
             if not frames:
@@ -370,6 +363,19 @@ class ClientConnection:
         self._deflating = len(frame)
         self._backed_up()
         return []
+
+    def _sends_as_they_are(self):
+        """No frame of this client's is deflated now: it did not offer deflate, or the link is fast enough."""
+        return self._window_bits is None or not deflates_some(self.bridge.settings.use_compression, self._link)
+
+    def _awaits_drain(self, size):
+        """After a write of size bytes: whether the socket left some of it unsent (then _drained goes on, once it
+        has all gone)."""
+        if not self._io.writing():
+            return False
+        self._write_waited = (time.monotonic(), size)
+        self._await_drain()
+        return True
 
     def _deflated(self, frame, payload):
         """A frame taken is deflated (payload None: that failed, and was logged; it goes as it is)."""
