@@ -151,9 +151,10 @@ def test_unfinished_messages_are_dropped_after_fragment_timeout_and_their_memory
         f"held +{held:.0f} MB, closed after {closed:.1f} s, then +{after_first:.0f} MB; again +{held_again:.0f} MB,"
         f" closed after {closed_again:.1f} s, then +{after_second:.0f} MB"
     )
-    # (what three more hold at once varies with how their reads interleave in the heap: 40-51 MB; once they are
-    # closed, the bridge is back within 0-11 MB each time, where kept, 30 MB more would stay every round)
-    assert held > 25 and after_first < 20 and after_second < 20
+    # (what three more hold at once varies with how their reads interleave in the heap: 33-51 MB; once they are
+    # closed, the bridge is back within 0-6 MB, or within 17-21 MB when the heap keeps one 10 MB block, in about one
+    # run in four; where kept, 30 MB more would stay every round)
+    assert held > 25 and after_first < 25 and after_second < 25
     assert timeout <= closed < timeout + 2 and timeout <= closed_again < timeout + 2
 
 
