@@ -64,12 +64,13 @@ def register_again(master_uri):
     subscriptions who publishes now (the master's answer), as a master's publisherUpdate would."""
     master, me = api_proxy(master_uri), rospy.get_name()
     node_uri = get_node_uri()
+    node = api_proxy(node_uri)  # (one connection for every subscription's update)
     topics = get_topic_manager()
     for topic, type_name in topics.get_publications():
         master.registerPublisher(me, topic, type_name, node_uri)
     for topic, type_name in topics.get_subscriptions():
         code, _, publishers = master.registerSubscriber(me, topic, type_name, node_uri)
         if code == 1:
-            api_proxy(node_uri).publisherUpdate("/master", topic, publishers)
+            node.publisherUpdate("/master", topic, publishers)
     for service, service_uri in get_service_manager().get_services():
         master.registerService(me, service, service_uri, node_uri)
