@@ -1,5 +1,5 @@
-"""Stand-ins for time, Tornado's IOLoop and a protocol session's connection in the unit tests of pure parts: what
-a test moves by hand. Only these are faked; everything else the tests touch is the real code."""
+"""Stand-ins for time, Tornado's IOLoop, a protocol session's connection and the ROS side in the unit tests of pure
+parts: what a test moves by hand. Only these are faked; everything else the tests touch is the real code."""
 
 import queue
 import time
@@ -154,3 +154,24 @@ def drain(session):
     while taken := session.take_frames(1 << 16):
         out += taken
     return out
+
+
+class BackendRecorder:
+    """A stand-in for contract.Backend: records whatever a session asks; replies are kept for the test to give."""
+
+    def __init__(self):
+        self.calls, self.replies, self.watchers = [], [], []
+
+    def __getattr__(self, name):
+        def record(*args):
+            self.calls.append((name, *args[1:]))
+            if callable(args[-1]) and name not in ("watch_graph", "unwatch_graph"):
+                self.replies.append(args[-1])
+
+        return record
+
+    def watch_graph(self, listener):
+        self.watchers.append(listener)
+
+    def unwatch_graph(self, listener):
+        self.watchers.remove(listener)

@@ -4,12 +4,13 @@ it, and the connection's end is told once, with the socket and Tornado's stream 
 connections) closed."""
 
 import asyncio
-import socket
 
 import pytest
 import tornado.iostream
 
 from rosbridge.transport.client_io import WRITE_PIECE_BYTES, PlainSocket
+
+from loopback import read_all, run, tcp_pair, until
 
 
 class Events:
@@ -26,42 +27,6 @@ class Events:
         self.closed += 1
 
 
-class CountedSocket(socket.socket):
-    """A socket that keeps the size of what each sendmsg was handed, and what send took."""
-
-    def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs)
-        self.handed, self.sent_at_once = [], 0
-
-    def send(self, data, *args):
-        sent = super().send(data, *args)
-        self.sent_at_once += sent
-        return sent
-
-    def sendmsg(self, buffers, *args):
-        self.handed.append(sum(len(buffer) for buffer in buffers))
-        return super().sendmsg(buffers, *args)
-
-
-def tcp_pair():
-    """(the bridge's side, a CountedSocket; the client's side) of a loopback TCP connection."""
-    with socket.create_server(("127.0.0.1", 0)) as listener:
-        client = socket.create_connection(listener.getsockname())
-        accepted, _ = listener.accept()
-        server = CountedSocket(fileno=accepted.detach())
-    server.setblocking(False)
-    client.setblocking(False)
-    return server, client
-
-
-async def until(condition, timeout=5.0):
-    for _ in range(int(timeout / 0.01)):
-        if condition():
-            return
-        await asyncio.sleep(0.01)
-    raise AssertionError("timed out")
-
-
 async def opened(early=b""):
     """A started PlainSocket, with the client's side, its events and the stream it took over. `early`: bytes the
     client sent before the answer."""
@@ -74,24 +39,6 @@ async def opened(early=b""):
     io = PlainSocket(stream, events.on_received, events.on_drained, events.on_closed)
     assert io.start(b"answer")
     return io, client, events, stream
-
-
-async def read_all(client, size):
-    got = bytearray()
-    loop = asyncio.get_running_loop()
-    while len(got) < size:
-        chunk = await loop.sock_recv(client, 1 << 20)
-        assert chunk, "the bridge closed early"
-        got += chunk
-    return bytes(got)
-
-
-def run(test):
-    loop = asyncio.new_event_loop()  # not asyncio.run: it would leave no current loop for the tests after
-    try:
-        loop.run_until_complete(asyncio.wait_for(test(), 20))
-    finally:
-        loop.close()
 
 
 async def next_read(io, events):

@@ -19,7 +19,7 @@ from rosbridge.globs import Globs
 from rosbridge.protocol import Config
 from rosbridge.protocol.encoded import SplicedFrame, TopicRead
 
-from fakes import Host, drain
+from fakes import BackendRecorder, Host, drain
 
 
 # ---- binary messages -------------------------------------------------------------------------------------
@@ -91,27 +91,6 @@ def test_bad_parameter_values_are_refused_naming_the_field(entry, words):
 
 
 # ---- a session over a recording backend ------------------------------------------------------------------
-class Backend:
-    """Records what a session asks; replies are kept for the test to give."""
-
-    def __init__(self):
-        self.calls, self.replies, self.watchers = [], [], []
-
-    def __getattr__(self, name):
-        def record(*args):
-            self.calls.append((name, *args[1:]))
-            if callable(args[-1]) and name not in ("watch_graph", "unwatch_graph"):
-                self.replies.append(args[-1])
-
-        return record
-
-    def watch_graph(self, listener):
-        self.watchers.append(listener)
-
-    def unwatch_graph(self, listener):
-        self.watchers.remove(listener)
-
-
 TWIST_DEF = "geometry_msgs/Vector3 linear\n..."
 GRAPH = GraphState(
     topics={"/turtle1/cmd_vel": ("geometry_msgs/Twist", TWIST_DEF), "/odd": ("x/Unknown", None)},
@@ -124,7 +103,7 @@ GRAPH = GraphState(
 
 class Client:
     def __init__(self, catalog=None, backend=None, **config):
-        self.host, self.backend = Host(), backend or Backend()
+        self.host, self.backend = Host(), backend or BackendRecorder()
         self.catalog = catalog or Catalog(self.backend, Globs(), self.host.call_later, self.host.cancel_later)
         self.session = FoxgloveSession(self.backend, Config(**config), self.host, self.catalog, session_id="s1")
 
@@ -245,7 +224,7 @@ def test_parameter_updates_reach_the_clients_that_subscribe_to_them():
 
 
 def test_params_glob_hides_parameters():
-    host, backend = Host(), Backend()
+    host, backend = Host(), BackendRecorder()
     catalog = Catalog(backend, Globs.parse(params_glob="[/public/*]"), host.call_later, host.cancel_later)
     client = Client(catalog=catalog, backend=backend)
     client.frames()
@@ -266,7 +245,7 @@ def test_too_many_asset_fetches_at_once_are_refused():
 
 
 def test_with_sim_time_the_clock_is_sent_and_stamps_the_messages():
-    host, backend, ros_now = Host(), Backend(), [0]
+    host, backend, ros_now = Host(), BackendRecorder(), [0]
     catalog = Catalog(backend, Globs(), host.call_later, host.cancel_later, sim_now_ns=lambda: ros_now[0])
     client = Client(catalog=catalog, backend=backend)
     assert "time" in client.frames()[0]["capabilities"]
