@@ -93,8 +93,8 @@ class Host:
     ([due, delay, fn], in the order set) until the test runs them (advance, run_next); it keeps what the session
     asked: `cancelled` timers, `close_reasons`, `resumes`. off_loop: an OffLoop or the like, else each job runs at
     once; unfinished: a shared bound (rfc6455.SharedBound), else none. With `writes_now` set, it writes what the
-    session offers it at once (write_now) to `written` (the frames of each write), as a socket that keeps up; else
-    all is queued."""
+    session offers it at once (may_write_now, write_now) to `written` (the frames of each write), as a socket that
+    keeps up, and never says they have left (backed_up); else all is queued."""
 
     def __init__(self, now=1000.0, off_loop=None, unfinished=None, writes_now=False):
         self.now, self.unfinished, self._off_loop, self.writes_now = now, unfinished, off_loop, writes_now
@@ -115,11 +115,12 @@ class Host:
     def wake(self):
         """(the test takes the session's frames when it wants)"""
 
-    def write_now(self, frames, size):
-        assert size == sum(map(len, frames))
-        if self.writes_now:
-            self.written.append(list(frames))
+    def may_write_now(self):
         return self.writes_now
+
+    def write_now(self, frames, size):
+        assert self.writes_now and size == sum(map(len, frames))
+        self.written.append(list(frames))
 
     def close_after_sending(self, reason):
         self.close_reasons.append(reason)

@@ -84,10 +84,15 @@ class SessionHost(typing.Protocol):
     def wake(self) -> None:
         """Frames are queued: the host takes them (ProtocolSession.take_frames) until there are none."""
 
-    def write_now(self, frames: Sequence[object], size: int) -> bool:
-        """Writes the frames (as take_frames gives them; `size` bytes in all, small ones) to the client at once if
-        nothing of its waits to be written and they go as they are (not deflated, not paced): True. False: nothing
-        is written (the session queues them)."""
+    def may_write_now(self) -> bool:
+        """Whether write_now may be called, in this turn of the loop: nothing of the client's waits to be written,
+        and frames go as they are (not deflated, not paced)."""
+
+    def write_now(self, frames: Sequence[object], size: int) -> None:
+        """Writes the frames (as take_frames gives them; `size` bytes in all) to the client at once, as if they had
+        been queued and taken; only when may_write_now() said so. The session holds their shared buffers in its
+        pool (protocol/outbox.Outbox.take_at_once): the host tells it when they have left (backed_up(False)), as
+        for frames it took."""
 
     def close_after_sending(self, reason: str) -> None:
         """Closes the connection once the frames queued so far are sent; `reason` goes in the close frame."""

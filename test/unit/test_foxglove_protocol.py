@@ -420,8 +420,13 @@ def test_a_read_is_written_at_once_only_while_nothing_of_the_clients_waits_and_w
     assert client.host.written == [] and data(client.frames()) == [b"1", b"2"]
     deliver(b"3")  # (all taken: at once again)
     assert data(client.host.written.pop()) == [b"3"]
-    deliver(b"x" * (1 << 16), topic="/b")  # (big: queued, held in the pool until it has left)
-    assert client.host.written == [] and len(client.frames()) == 1
+    picture = b"x" * (1 << 16)
+    deliver(picture, topic="/b")  # (big: at once too, its bytes held in the pool until they have left)
+    [[frame]] = client.host.written
+    assert frame.parts[1] is picture and client.session.config.queue_pool.shared == len(picture)
+    client.host.written.clear()
+    client.session.backed_up(False)
+    assert client.session.config.queue_pool.shared == 0
     client.session.backed_up(True)
     deliver(b"4")  # (backed up: queued, kept fresh)
     assert client.host.written == [] and data(client.frames()) == [b"4"]

@@ -170,23 +170,42 @@ def test_while_nothing_waits_and_the_socket_keeps_up_the_same_bounds_hold():
 
 
 def test_frames_bypass_only_an_outbox_where_nothing_waits_or_is_to_be_told_and_within_its_bounds():
-    """(OutboxSession then has the host write them at once: size_to_bypass gives their bytes.)"""
+    """(OutboxSession then has the host write them at once: take_at_once gives their bytes.)"""
     box, _ = outbox(max_frames=2, max_bytes=100)
-    assert box.size_to_bypass((b"ab", b"cde")) == 5
-    assert box.size_to_bypass((b"a", b"b", b"c")) is None  # more frames than the bound
-    assert box.size_to_bypass((b"x" * 101,)) is None  # more bytes
+    assert box.take_at_once((b"ab", b"cde")) == 5
+    assert box.take_at_once((b"a", b"b", b"c")) is None  # more frames than the bound
+    assert box.take_at_once((b"x" * 101,)) is None  # more bytes
     box.push("/pose", small("p0"))
-    assert box.size_to_bypass((b"ab",)) is None  # (it would pass the one waiting)
+    assert box.take_at_once((b"ab",)) is None  # (it would pass the one waiting)
     drain(box)
     box.backed_up = True
-    assert box.size_to_bypass((b"ab",)) is None
+    assert box.take_at_once((b"ab",)) is None
     box.backed_up = False
     box.skipped["/pose"] += 1
-    assert box.size_to_bypass((b"ab",)) is None  # (the report goes first)
+    assert box.take_at_once((b"ab",)) is None  # (the report goes first)
     box.take_report()
-    assert box.size_to_bypass((b"ab",)) == 2
+    assert box.take_at_once((b"ab",)) == 2
     box, _ = outbox()
-    assert box.size_to_bypass((b"x" * SMALL_MESSAGE,)) is None  # (a big one is held in the pool until it has left)
+    assert box.take_at_once((b"x" * SMALL_MESSAGE,)) == SMALL_MESSAGE  # (a big one too, without a pool)
+
+
+def test_a_big_frame_taken_at_once_is_held_in_the_pool_until_the_socket_has_it():
+    pool = QueuePool(3_000_000)
+    box = Outbox(1000, 64_000_000, Clock(), pool)
+    picture = b"P" * 1_000_000
+    frames = (SplicedFrame((b"head", picture), text=False), b"x" * 10)
+    assert box.take_at_once(frames) == 1_000_014 and pool.shared == len(picture)
+    box.set_backed_up(True, in_flight=1_000_014)  # (the socket holds some of it: its own bytes are granted)
+    assert pool.shared == len(picture) and pool.granted == 0
+    box.set_backed_up(False)
+    assert pool.shared == 0 and len(box) == 0 and box.take_report() == ({}, {}, {})
+    # What does not fit the pool beside the other clients' buffers is not taken at once (then queued, it is dropped).
+    other = Outbox(1000, 64_000_000, Clock(), pool)
+    other.push(None, (b"O" * 2_500_000,))
+    assert box.take_at_once((picture,)) is None and pool.shared == 2_500_000
+    # Nor what is beyond the client's own bound.
+    small_bound = Outbox(1000, 999_999, Clock(), QueuePool(3_000_000))
+    assert small_bound.take_at_once((picture,)) is None
 
 
 def test_a_message_larger_than_the_whole_bound_is_refused_not_cut():

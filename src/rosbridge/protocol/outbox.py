@@ -145,17 +145,26 @@ class Outbox:
                 return
         self._push(key, (frame,))
 
-    def size_to_bypass(self, frames):
-        """The bytes of `frames` (one message's, or one-frame messages) if they may go to the socket without waiting
-        here, else None: nothing waits, the socket keeps up, nothing is left to report, and they would pass (small,
-        within the bounds)."""
+    def take_at_once(self, frames):
+        """The bytes of `frames` (one message's, or one-frame messages) if they may go to the socket now, as if queued
+        and taken at once: nothing waits, the socket keeps up, nothing is left to report, and they are within the
+        bounds. Their shared buffers (a big message's) are then held in the pool, as a taken message's are, until they
+        have left (set_backed_up(False)). Else None, and nothing is held."""
         if self.frames or self.backed_up or self.skipped or self.dropped or self.refused:
             return None
         sizes = list(map(len, frames))
         size = sum(sizes)
-        if max(sizes) < SMALL_MESSAGE and len(sizes) <= self.max_frames and size <= self._allowed:
-            return size
-        return None
+        if len(sizes) > self.max_frames:
+            return None
+        if max(sizes) < SMALL_MESSAGE or self._pool is None:  # (no shared buffers to hold)
+            return size if size <= self._allowed else None
+        shared = tuple(itertools.chain.from_iterable(map(shared_buffers, frames)))
+        held = sum(map(len, shared))
+        if size > self.max_bytes or size - held > self._allowed or not self._pool.hold(shared):
+            return None
+        self._sent.extend(shared)
+        self._sent_bytes += held
+        return size
 
     def push_each(self, key, frames):
         """Queues messages of one frame each (a topic's, one read's), in order: as push_frame each, in one go
@@ -420,8 +429,8 @@ class OutboxSession:
     """The outgoing half of a session, the same for every protocol (contract.ProtocolSession's backed_up,
     take_frames and close): the frames of each message wait in the client's Outbox. The first message queued after
     the host took the last frame wakes it (host.wake()), and it takes frames until take_frames gives none. While
-    nothing waits, here or in the host, a read's one-frame messages (_queue_each) are not queued: the host writes
-    them at once (host.write_now). What the client's slow link cost it goes first, at most once a REPORT_INTERVAL,
+    nothing waits, here or in the host, a read's messages (_queue_each) are not queued: the host writes them at
+    once (host.write_now). What the client's slow link cost it goes first, at most once a REPORT_INTERVAL,
     as the protocol's report_frame makes it."""
 
     def __init__(self, config, host):
@@ -444,13 +453,17 @@ class OutboxSession:
 
     def _queue_each(self, topic, frames):
         """Queues messages of one frame each (one read's), in order, as _queue. While nothing of this client's
-        waits, here (Outbox.size_to_bypass) or in the host, the host writes them at once instead, in one write
-        (host.write_now): no queueing, wake and take for a read. (Not so in _queue: a rosbridge client's messages
-        come one by one, and a read's would each be a write of its own.)"""
+        waits, here (Outbox.take_at_once) or in the host (host.may_write_now), the host writes them at once
+        instead, in one write (host.write_now): no queueing, wake and take for a read, an image's too. (Not so in
+        _queue: a rosbridge client's messages come one by one, and a read's would each be a write of its own.)"""
         if not self.is_closed:
-            if not self._woken and (size := self._outbox.size_to_bypass(frames)) is not None:
-                if self._host.write_now(frames, size):
-                    return
+            if (
+                not self._woken
+                and self._host.may_write_now()
+                and (size := self._outbox.take_at_once(frames)) is not None
+            ):
+                self._host.write_now(frames, size)
+                return
             self._outbox.push_each(topic, frames)
             if not self._woken:
                 self._wake_host()

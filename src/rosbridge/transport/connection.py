@@ -100,7 +100,7 @@ class ClientConnection:
             evicted=self._made_way,
         )
         self.budget = bridge.budgets.budget(peer)
-        self._answered = False  # the handshake's answer is written (start): only then may a frame be (write_now)
+        self._answered = False  # the handshake's answer is written (start): only then may a frame be (may_write_now)
         if subprotocol is not None:
             self.session = FoxgloveSession(
                 bridge.backend, bridge.config, self, bridge.foxglove, name=peer, session_id=bridge.session_id
@@ -265,22 +265,26 @@ class ClientConnection:
         """The session has frames queued: they are written once the current delivery ends (write_turns)."""
         self.bridge.writes.wake(self._flush)
 
+    def may_write_now(self):
+        return (
+            self._answered
+            and not (
+                self._awaiting_drain
+                or self._deflating
+                or self._ready is not None
+                or self._closing
+                or self._close_reason is not None
+                or self.bridge.settings.delay_between_messages
+            )
+            and self._sends_as_they_are()
+            and not self._io.closed()
+            and not self._io.writing()
+        )
+
     def write_now(self, frames, size):
-        if (
-            not self._answered
-            or self._awaiting_drain
-            or self._deflating
-            or self._ready is not None
-            or self._closing
-            or self._close_reason is not None
-            or self.bridge.settings.delay_between_messages
-        ):
-            return False
-        if not self._sends_as_they_are() or self._io.closed() or self._io.writing():
-            return False
-        self._write(frames)
-        self._awaits_drain(size)
-        return True
+        big = self._write(frames)
+        if not self._awaits_drain(size) and big:
+            self._backed_up()  # (the socket took them all: the pool's holds on their big buffers go)
 
     def close_after_sending(self, reason):
         self._close_reason = reason
