@@ -22,10 +22,14 @@ class CountedSocket(socket.socket):
         return super().sendmsg(buffers, *args)
 
 
-def tcp_pair():
-    """(the bridge's side, a CountedSocket; the client's side) of a loopback TCP connection."""
+def tcp_pair(receive_buffer=None):
+    """(the bridge's side, a CountedSocket; the client's side) of a loopback TCP connection; `receive_buffer`: the
+    client's SO_RCVBUF, set before it connects (the window it offers then follows it)."""
     with socket.create_server(("127.0.0.1", 0)) as listener:
-        client = socket.create_connection(listener.getsockname())
+        client = socket.socket()
+        if receive_buffer is not None:
+            client.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, receive_buffer)
+        client.connect(listener.getsockname())
         accepted, _ = listener.accept()
         server = CountedSocket(fileno=accepted.detach())
     server.setblocking(False)

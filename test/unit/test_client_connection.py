@@ -26,10 +26,10 @@ ANSWER = b"HTTP/1.1 101 Switching Protocols\r\n\r\n"
 STAMP = 1_700_000_000.0
 
 
-def bridge_for_one_client():
+def bridge_for_one_client(**settings):
     """What a ClientConnection asks of the server (server.py's), on the current loop, with a recording backend."""
     loop = tornado.ioloop.IOLoop.current()
-    config, backend = Config(), BackendRecorder()
+    config, backend = Config(**settings), BackendRecorder()
     return types.SimpleNamespace(
         config=config,
         settings=config.settings,
@@ -45,11 +45,11 @@ def bridge_for_one_client():
     )
 
 
-async def subscribed_to_a_camera():
+async def subscribed_to_a_camera(**settings):
     """(the connection, the client's socket, the bridge) once the client has subscribed to /camera and has read
-    everything before."""
-    server, client = tcp_pair()
-    bridge = bridge_for_one_client()
+    everything before. The client's socket takes a megabyte unread (the socket's receive buffer)."""
+    server, client = tcp_pair(receive_buffer=1 << 20)
+    bridge = bridge_for_one_client(**settings)
     connection = ClientConnection(bridge, tornado.iostream.IOStream(server), "peer", None, "foxglove.websocket.v1")
     connection.start(ANSWER)
     bridge.backend.watchers[0](GraphState({"/camera": ("sensor_msgs/Image", "")}, {}, {}, {}, {}))
@@ -79,7 +79,7 @@ def image_frame(picture):
 def test_an_image_the_socket_takes_whole_is_let_go_of_at_once():
     async def test():
         connection, client, bridge = await subscribed_to_a_camera()
-        picture = bytes(range(256)) * 280  # (70 kB: an idle loopback socket takes it whole)
+        picture = bytes(range(256)) * 280  # (70 kB: the socket takes it whole)
         connection.session.deliver(TopicRead("/camera", None, [picture], STAMP))
         assert bridge.config.queue_pool.shared == 0 and len(connection.session._outbox) == 0
         assert await read_all(client, len(image_frame(picture))) == image_frame(picture)
@@ -113,5 +113,23 @@ def test_an_image_to_a_client_that_left_is_let_go_of():
         assert bridge.config.queue_pool.shared == 2_000_000
         client.close()
         await until(lambda: bridge.config.queue_pool.shared == 0)
+
+    run(test)
+
+
+def test_images_to_a_paced_client_are_let_go_of_once_written():
+    """With delay_between_messages, frames go one per turn, queued; the turn that finds nothing more told the pool
+    that the last image had left only if it had written it itself. Before, each image to a client whose socket
+    kept up stayed held: the pool shared by every client filled, and every client's big messages were dropped."""
+
+    async def test():
+        connection, client, bridge = await subscribed_to_a_camera(delay_between_messages=0.01)
+        pictures = [bytes([n]) * 70_000 for n in range(3)]
+        for picture in pictures:
+            connection.session.deliver(TopicRead("/camera", None, [picture], STAMP))
+        expected = b"".join(map(image_frame, pictures))
+        assert await read_all(client, len(expected)) == expected
+        await until(lambda: bridge.config.queue_pool.shared == 0)
+        client.close()
 
     run(test)

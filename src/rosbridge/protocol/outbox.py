@@ -101,8 +101,9 @@ class Outbox:
     - With a `pool` (a QueuePool shared by every client's outbox), what waits beyond OWN_QUEUE_BYTES, and what
       the socket was given but has not sent (in_flight, from set_backed_up), must also be granted by the pool:
       beyond what it grants, whole messages are dropped as above, the newest too. The big buffers that clients
-      hold by reference are held in the pool instead, once for all, from their push until they have left (the
-      socket has drained: set_backed_up(False), which the transport says after it wrote a big frame too)."""
+      hold by reference are held in the pool instead, once for all, from their push (or take_at_once) until they
+      have left (the socket has drained: set_backed_up(False), which the transport says after it wrote a big frame
+      whole too)."""
 
     def __init__(self, max_frames, max_bytes, clock, pool=None):
         self.max_frames, self.max_bytes, self._clock = max_frames, max_bytes, clock

@@ -336,6 +336,8 @@ class ClientConnection:
                     self.close(ws.POLICY, self._close_reason)
                 return
             if one_at_a_time:
+                if big_sent:  # (the socket took it whole; the next turn knows nothing of it)
+                    self._backed_up()
                 self._loop.call_later(self.bridge.settings.delay_between_messages, self._flush)
                 return
 
