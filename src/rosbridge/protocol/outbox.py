@@ -153,11 +153,10 @@ class Outbox:
         have left (set_backed_up(False)). Else None, and nothing is held."""
         if self.frames or self.backed_up or self.skipped or self.dropped or self.refused:
             return None
-        sizes = list(map(len, frames))
-        size = sum(sizes)
-        if len(sizes) > self.max_frames:
+        size = sum(map(len, frames))
+        if len(frames) > self.max_frames:
             return None
-        if max(sizes) < SMALL_MESSAGE or self._pool is None:  # (no shared buffers to hold)
+        if size < SMALL_MESSAGE or self._pool is None or max(map(len, frames)) < SMALL_MESSAGE:  # (nothing to hold)
             return size if size <= self._allowed else None
         shared = tuple(itertools.chain.from_iterable(map(shared_buffers, frames)))
         held = sum(map(len, shared))
