@@ -196,10 +196,10 @@ def main():
     leases = DriverLeases(current.deadman_timeout) if current.deadman_timeout > 0 else None
     backend = RosBackend(
         loop,
+        writes,
         rosapi=rosapi,
         unregister_timeout=current.unregister_timeout,
         stop_drivers_leaving=current.deadman_timeout > 0,
-        deliveries=writes.delivering,
         driving_began=leases.driving_began if leases is not None else lambda: None,
     )
     bridge = Bridge(backend, config, writes, allowed_origins=origins, allowed_hosts=hosts)

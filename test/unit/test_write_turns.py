@@ -18,8 +18,8 @@ def test_outside_a_delivery_the_woken_write_in_the_next_turn_once_for_all():
 def test_a_delivery_writes_when_it_ends_in_the_same_turn_and_asks_for_no_other():
     loop, written = Loop(), []
     turns = WriteTurns(loop.call_soon)
-    with turns.delivering():
-        with turns.delivering():  # (a delivery inside a delivery: written once the outer one ends)
+    with turns:
+        with turns:  # (a delivery inside a delivery: written once the outer one ends)
             turns.wake(lambda: written.append("a"))
         assert written == []
         turns.wake(lambda: written.append("b"))
@@ -31,7 +31,7 @@ def test_woken_before_a_delivery_writes_with_it_and_the_turn_asked_for_finds_not
     loop, written = Loop(), []
     turns = WriteTurns(loop.call_soon)
     turns.wake(lambda: written.append("status"))
-    with turns.delivering():
+    with turns:
         turns.wake(lambda: written.append("message"))
     assert written == ["status", "message"]
     loop.next_turn()

@@ -12,7 +12,7 @@ Threads, what each may touch, and how work crosses between them:
   (links.py: reading from publishers, writing to subscribers, the handshakes) and what a topic keeps for them
   (a publisher's subscribers, its latched message and early replay; a subscriber's latched message); every
   timer. Nothing here asks the master or makes a rospy object. The messages of one read of a publisher are
-  delivered in the server's `deliveries()` context (write_turns.py), DELIVERY_BATCH at a time
+  delivered in the server's `delivery` context (write_turns.py), DELIVERY_BATCH at a time
   (subscribers.py): the clients write them when it ends.
 - The worker (one thread, RosWorker): asks the master (GraphSnapshot, only it touches that) and makes and drops
   rospy subscribers, publishers and services, in the order the loop submitted them. Each job's outcome goes

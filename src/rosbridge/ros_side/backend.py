@@ -1,7 +1,6 @@
 """RosBackend: the protocol's backend (backend.Backend), a short front over publishers, subscribers and
 services, plus the bridge's own /client_count and the master look-ups they share."""
 
-import contextlib
 import functools
 
 import rospy
@@ -26,20 +25,20 @@ class RosBackend(Backend):
     def __init__(
         self,
         loop,
+        delivery,
         rosapi=None,
         unregister_timeout=10.0,
         service_timeout=60.0,
         stop_drivers_leaving=False,
-        deliveries=contextlib.nullcontext,
         driving_began=lambda: None,
     ):
-        """deliveries(): a context that each delivery of topics' messages runs in (write_turns.WriteTurns).
+        """delivery: the context that each delivery of topics' messages runs in (write_turns.WriteTurns).
         driving_began(): a client began to drive (Backend.drives became true for it; transport/deadman.py)."""
         self._stop_drivers_leaving = stop_drivers_leaving
         worker = self._worker = RosWorker(loop)
         links = TopicLinks(loop, lambda text: rospy.logwarn_throttle(60, "bridge topics: " + text))
         self._publishers = Publishers(loop, worker, links, unregister_timeout, driving_began)
-        self._subscribers = Subscribers(loop, worker, links, deliveries)
+        self._subscribers = Subscribers(loop, worker, links, delivery)
         self._calls = ServiceCalls(
             loop, rosapi, MAX_CALLS_RUNNING_PER_CLIENT, MAX_CALLS_RUNNING, MAX_CALLS_PENDING_PER_CLIENT
         )

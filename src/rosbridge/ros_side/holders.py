@@ -4,31 +4,34 @@ holder makes the object, the last one to leave lets it go. Pure (no rospy), so i
 
 class Holders:
     def __init__(self):
-        self._by_name = {}
+        # name -> its holders, in the order they came: a tuple, replaced (never changed) as holders come and go, so
+        # that a delivery may go through it while its holders leave, with no copy a message (subscribers.py)
+        self.by_name = {}
 
     def add(self, name, holder):
         """Returns True when `name` had no holder before."""
-        holders = self._by_name.setdefault(name, set())
-        first = not holders
-        holders.add(holder)
-        return first
+        holders = self.by_name.get(name, ())
+        if holder not in holders:
+            self.by_name[name] = (*holders, holder)
+        return not holders
 
     def discard(self, name, holder):
         """Returns True when `holder` was the last holder of `name`."""
-        holders = self._by_name.get(name)
-        if holders is None or holder not in holders:
+        holders = self.by_name.get(name, ())
+        if holder not in holders:
             return False
-        holders.discard(holder)
-        if holders:
+        rest = tuple(other for other in holders if other != holder)
+        if rest:
+            self.by_name[name] = rest
             return False
-        del self._by_name[name]
+        del self.by_name[name]
         return True
 
     def holds(self, name, holder):
-        return holder in self._by_name.get(name, ())
+        return holder in self.by_name.get(name, ())
 
     def holders(self, name):
-        return tuple(self._by_name.get(name, ()))
+        return self.by_name.get(name, ())
 
     def names_of(self, holder):
-        return [name for name, holders in self._by_name.items() if holder in holders]
+        return [name for name, holders in self.by_name.items() if holder in holders]

@@ -171,13 +171,12 @@ class InboundLink(Link):
         try:
             if self._sending:
                 self._send_header()
-            else:
-                self._paced(*self._read())
+                return
+            messages, more = self._read()
         except (OSError, tcpros.TcprosError) as error:
             self._fail(error)
-
-    def _paced(self, messages, more):
-        """After a read: the next when the socket is readable, or in a while (read_pace.py), unwatched meanwhile."""
+            return
+        # the next read when the socket is readable, or in a while (read_pace.py), unwatched meanwhile
         if self.done or self._sock is None:
             return
         was_polling = self._pace.polling

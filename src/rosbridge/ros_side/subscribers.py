@@ -30,14 +30,15 @@ class TopicSubscriber:
         "_loop",
         "_links",
         "_clients",
-        "_deliveries",
+        "_delivery",
         "_subscriber",
         "_class",
     )
 
-    def __init__(self, loop, links, topic, clients, deliveries):
-        self._loop, self._links, self.topic, self._clients = loop, links, topic, clients
-        self._deliveries = deliveries  # (the clients write once each DELIVERY_BATCH of a read is delivered)
+    def __init__(self, loop, links, topic, clients, delivery):
+        self._loop, self._links, self.topic = loop, links, topic
+        self._clients = clients  # topic -> its clients (Holders.by_name: a tuple, which no delivery copies)
+        self._delivery = delivery  # (the clients write once each DELIVERY_BATCH of a read is delivered)
         self.type = None  # known once made (loop)
         self.asked = {}  # session -> the type it asked for, checked once the type is known (loop)
         self.ready = False  # (loop)
@@ -87,23 +88,20 @@ class TopicSubscriber:
 
     def _deliver(self, messages, latched_by):
         """On the loop: messages (their bytes) read from one publisher: its link if it latches, else None."""
-        if len(messages) <= DELIVERY_BATCH:
-            if self.active:
-                self._deliver_batch(messages, latched_by)
+        if len(messages) > DELIVERY_BATCH:
+            for start in range(0, len(messages), DELIVERY_BATCH):
+                self._deliver(messages[start : start + DELIVERY_BATCH], latched_by)
             return
-        for start in range(0, len(messages), DELIVERY_BATCH):
-            if self.active:  # (every client may leave as one batch is written)
-                self._deliver_batch(messages[start : start + DELIVERY_BATCH], latched_by)
-
-    def _deliver_batch(self, serialized, latched_by):
+        if not self.active:  # (every client may leave as one batch is written)
+            return
         topic = self.topic
-        read = TopicRead(topic, self._class, serialized, time.time())
+        read = TopicRead(topic, self._class, messages, time.time())
         if latched_by is not None:
             if latched_by not in self.latched:  # a new publisher: forget those gone
                 self.latched_reads()
             self.latched[latched_by] = read.last()
-        with self._deliveries():
-            for session in self._clients(topic):
+        with self._delivery:
+            for session in self._clients.get(topic, ()):
                 try:
                     session.deliver(read)
                 except Exception:  # one client's failure must not starve the others
@@ -114,8 +112,8 @@ class Subscribers:
     """The topics clients subscribe to. A new topic's subscriber is made on the worker; a client learns of a
     failure there through session.ros_refused."""
 
-    def __init__(self, loop, worker, links, deliveries):
-        self._loop, self._worker, self._links, self._deliveries = loop, worker, links, deliveries
+    def __init__(self, loop, worker, links, delivery):
+        self._loop, self._worker, self._links, self._delivery = loop, worker, links, delivery
         self._entries = {}
         self._holders = Holders()
 
@@ -125,7 +123,7 @@ class Subscribers:
         entry = self._entries.get(topic)
         if entry is None:
             entry = self._entries[topic] = TopicSubscriber(
-                self._loop, self._links, topic, self._holders.holders, self._deliveries
+                self._loop, self._links, topic, self._holders.by_name, self._delivery
             )
             self._worker.submit(
                 lambda: entry.make(self._worker.graph, type_name),

@@ -1,9 +1,9 @@
 """When the clients that have frames to send write them. A client's frames are queued by whatever runs on the loop
 (a ROS message delivered, a status, a service's answer) and written later, together, so that a burst is one
 write: at the end of the delivery under way, if one is (the messages one read of a publisher brought, which
-ros_side/subscribers.py delivers inside `delivering()`, DELIVERY_BATCH at a time: they are written in the same
-turn of the loop as the read, one turn a message at 1 kHz instead of two), else in the loop's next turn. Pure: the
-server gives it the loop's call_soon. Loop thread only."""
+ros_side/subscribers.py delivers DELIVERY_BATCH at a time inside the WriteTurns, the context a delivery runs in:
+they are written in the same turn of the loop as the read, one turn a message at 1 kHz instead of two), else in
+the loop's next turn. Pure: the server gives it the loop's call_soon. Loop thread only."""
 
 from rosbridge.errors import log_bug
 
@@ -22,11 +22,8 @@ class WriteTurns:
             self._scheduled = True
             self._call_soon(self._write)
 
-    def delivering(self):
-        """A context for delivering messages: the clients it wakes write once it ends."""
-        return self
-
     def __enter__(self):
+        """A delivery of messages begins: the clients it wakes write once it ends."""
         self._delivering += 1
 
     def __exit__(self, *_):
