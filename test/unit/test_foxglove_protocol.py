@@ -24,8 +24,7 @@ from fakes import BackendRecorder, Host, drain
 
 # ---- binary messages -------------------------------------------------------------------------------------
 def test_message_data_is_the_head_then_the_bytes_as_they_are():
-    head = wire.message_head(7, 1_700_000_000_123_456_789)
-    assert wire.message_data(head, [b"\x01\x02\x03", b""]) == [
+    assert wire.message_data(7, 1_700_000_000_123_456_789, [b"\x01\x02\x03", b""]) == [
         struct.pack("<BIQ", 1, 7, 1_700_000_000_123_456_789) + b"\x01\x02\x03",
         struct.pack("<BIQ", 1, 7, 1_700_000_000_123_456_789),
     ]
@@ -33,7 +32,7 @@ def test_message_data_is_the_head_then_the_bytes_as_they_are():
 
 def test_a_big_message_is_not_copied_into_its_frame():
     data = bytes(1 << 20)
-    small, frame = wire.message_data(wire.message_head(1, 0), [b"x", data])
+    small, frame = wire.message_data(1, 0, [b"x", data])
     assert isinstance(frame, SplicedFrame) and frame.parts[1] is data and len(frame) == 13 + len(data)
     assert small == struct.pack("<BIQ", 1, 1, 0) + b"x"
 

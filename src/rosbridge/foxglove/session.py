@@ -374,7 +374,7 @@ class FoxgloveSession(OutboxSession):
             return
         clock = self._catalog.sim_clock
         receive_ns = clock.now_ns() if clock is not None else int(read.stamp * 1e9)
-        self._queue_each(topic, wire.message_data(wire.message_head(sub_id, receive_ns), read.datas))
+        self._queue_each(topic, wire.message_data(sub_id, receive_ns, read.datas))
 
     def ros_refused(self, op, name, text):
         if op == "subscribe" and name in self._topics:

@@ -22,16 +22,11 @@ _CHANNEL_HEAD = struct.Struct("<BI")
 U32_MAX = 2**32 - 1
 
 
-def message_head(subscription_id, receive_ns):
-    """The 13-byte head of a message for one subscription (opcode, subscription id, receive time): the same for
-    every message one read brought, which share their receive time."""
-    return _MESSAGE_HEAD.pack(MESSAGE_DATA, subscription_id, receive_ns)
-
-
-def message_data(head, datas):
-    """The frames of messages for one subscription that share their head (one read's): each message's bytes as
-    they came from TCPROS, after the head. A big one (an image) is not copied: its frame refers to the same bytes
-    for every client."""
+def message_data(subscription_id, receive_ns, datas):
+    """The frames of messages for one subscription that share their receive time (one read's): the 13-byte head
+    (opcode, subscription id, receive time), then each message's bytes as they came from TCPROS. A big one (an
+    image) is not copied: its frame refers to the same bytes for every client."""
+    head = _MESSAGE_HEAD.pack(MESSAGE_DATA, subscription_id, receive_ns)
     return [head + data if len(data) < BIG_BYTES else SplicedFrame((head, data), text=False) for data in datas]
 
 

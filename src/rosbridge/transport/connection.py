@@ -270,20 +270,22 @@ class ClientConnection:
             self._answered
             and not (
                 self._awaiting_drain
-                or self._deflating
-                or self._ready is not None
                 or self._closing
                 or self._close_reason is not None
                 or self.bridge.settings.delay_between_messages
             )
-            and self._sends_as_they_are()
-            and not self._io.closed()
-            and not self._io.writing()
+            and (  # (deflate's state: only a client that offered it has any)
+                self._window_bits is None
+                or (not (self._deflating or self._ready is not None) and self._sends_as_they_are())
+            )
+            and not self._io.writing()  # (a closed one writes nothing: write_now then lets the pool go at once)
         )
 
     def write_now(self, frames, size):
         big = self._write(frames)
-        if not self._awaits_drain(size) and big:
+        if self._io.writing():
+            self._wait_for_drain(size)
+        elif big:
             self._backed_up()  # (the socket took them all: the pool's holds on their big buffers go)
 
     def close_after_sending(self, reason):
@@ -325,7 +327,8 @@ class ClientConnection:
                     break
             if batch:
                 big_sent = self._write(batch) or big_sent
-                if self._awaits_drain(size):
+                if io.writing():
+                    self._wait_for_drain(size)
                     return
             if self._deflating:  # (_deflated goes on)
                 return
@@ -374,14 +377,10 @@ class ClientConnection:
         """No frame of this client's is deflated now: it did not offer deflate, or the link is fast enough."""
         return self._window_bits is None or not deflates_some(self.bridge.settings.use_compression, self._link)
 
-    def _awaits_drain(self, size):
-        """After a write of size bytes: whether the socket left some of it unsent (then _drained goes on, once it
-        has all gone)."""
-        if not self._io.writing():
-            return False
+    def _wait_for_drain(self, size):
+        """After a write of size bytes the socket did not take all of: _drained goes on once it has all gone."""
         self._write_waited = (time.monotonic(), size)
         self._await_drain()
-        return True
 
     def _deflated(self, frame, payload):
         """A frame taken is deflated (payload None: that failed, and was logged; it goes as it is)."""
