@@ -31,6 +31,11 @@ def shared_buffers(frame):
     return (frame,)
 
 
+def _shared(frames):
+    """The shared buffers of a message's frames (or of one-frame messages), all together."""
+    return tuple(itertools.chain.from_iterable(map(shared_buffers, frames)))
+
+
 class _Unit:
     """One message's frames (its fragments, or its one frame) waiting for the socket; `shared`, the big buffers
     among them that the pool holds (counted once for every client), `own` the rest of its bytes."""
@@ -158,12 +163,11 @@ class Outbox:
             return None
         if size < SMALL_MESSAGE or self._pool is None or max(map(len, frames)) < SMALL_MESSAGE:  # (nothing to hold)
             return size if size <= self._allowed else None
-        shared = tuple(itertools.chain.from_iterable(map(shared_buffers, frames)))
+        shared = _shared(frames)
         held = sum(map(len, shared))
         if size > self.max_bytes or size - held > self._allowed or not self._pool.hold(shared):
             return None
-        self._sent.extend(shared)
-        self._sent_bytes += held
+        self._taken(shared, held)
         return size
 
     def push_each(self, key, frames):
@@ -201,7 +205,7 @@ class Outbox:
             return
         shared, own = (), size
         if self._pool is not None and size >= BIG_BYTES:
-            shared = tuple(itertools.chain.from_iterable(map(shared_buffers, frames)))
+            shared = _shared(frames)
             if shared and not self._hold(shared):
                 self.dropped[key] += 1
                 return
@@ -299,6 +303,11 @@ class Outbox:
             self._granted = wanted
         self._allowed = min(self.max_bytes, OWN_QUEUE_BYTES + self._granted - in_flight)
 
+    def _taken(self, shared, held):
+        """Shared buffers the pool holds, `held` bytes, are taken: the holds go once they have left (_release_sent)."""
+        self._sent.extend(shared)
+        self._sent_bytes += held
+
     def _release_sent(self):
         """What was taken has left: the pool's holds on its buffers go."""
         self._pool.release(self._sent)
@@ -359,8 +368,7 @@ class Outbox:
             self._by_key[unit.key].popleft()
             self._forget(unit)
             if unit.shared:  # (held until the socket has them all, the current message's rest included)
-                self._sent.extend(unit.shared)
-                self._sent_bytes += unit.size - unit.own
+                self._taken(unit.shared, unit.size - unit.own)
             if len(unit.frames) == 1:
                 return unit.frames[0]
             self.frames += len(unit.frames) - 1  # (the rest now counted as the current message)
