@@ -5,7 +5,7 @@ holder makes the object, the last one to leave lets it go. Pure (no rospy), so i
 class Holders:
     def __init__(self):
         # name -> its holders, in the order they came: a tuple, replaced (never changed) as holders come and go, so
-        # that a delivery may go through it while its holders leave, with no copy a message (subscribers.py)
+        # that a delivery may go through it while holders leave, without a copy for each message (subscribers.py)
         self.by_name = {}
 
     def add(self, name, holder):
