@@ -117,6 +117,21 @@ def test_an_image_to_a_client_that_left_is_let_go_of():
     run(test)
 
 
+def test_an_image_delivered_after_the_socket_closed_leaves_no_hold_behind():
+    """The socket closed, and the connection hears of it in a later turn: an image delivered meanwhile goes to
+    write_now (may_write_now no longer asks whether the socket is closed), which writes nothing and lets the pool
+    go at once; nothing is queued for a client that is gone."""
+
+    async def test():
+        connection, client, bridge = await subscribed_to_a_camera()
+        connection._io.close()
+        connection.session.deliver(TopicRead("/camera", None, [b"1" * 2_000_000], STAMP))
+        assert bridge.config.queue_pool.shared == 0 and len(connection.session._outbox) == 0
+        client.close()
+
+    run(test)
+
+
 def test_images_to_a_paced_client_are_let_go_of_once_written():
     """With delay_between_messages, frames go one per turn, queued; the turn that finds nothing more told the pool
     that the last image had left only if it had written it itself. Before, each image to a client whose socket
