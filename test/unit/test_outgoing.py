@@ -333,6 +333,23 @@ def test_a_client_that_leaves_lets_go_of_every_buffer_it_held():
     assert (pool.shared, pool.granted) == (0, 0)
 
 
+def test_the_unsent_fragments_of_a_message_stay_held_while_its_first_ones_have_left():
+    """The socket drains between a big message's fragments: what has left is let go, the rest still counts."""
+    pool = QueuePool(100_000_000)
+    box = Outbox(1000, 64_000_000, Clock(), pool)
+    fragments = tuple(bytes([i]) * 1_000_000 for i in range(3))
+    box.push("/map", fragments)
+    assert take(box) is fragments[0] and pool.shared == 3_000_000
+    box.set_backed_up(False)
+    assert pool.shared == 2_000_000
+    assert take(box) is fragments[1]
+    box.set_backed_up(True, in_flight=1_000_000)
+    box.set_backed_up(False)
+    assert pool.shared == 1_000_000
+    box.clear()
+    assert (pool.shared, pool.granted) == (0, 0)
+
+
 def test_a_fragmented_message_leaves_nothing_counted_once_sent_with_or_without_a_pool():
     for pool in (None, QueuePool(100_000_000)):
         box = Outbox(1000, 64_000_000, Clock(), pool)

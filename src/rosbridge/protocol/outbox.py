@@ -367,31 +367,34 @@ class Outbox:
         if unit is not None:
             self._by_key[unit.key].popleft()
             self._forget(unit)
-            if unit.shared:  # (held until the socket has them all, the current message's rest included)
-                self._taken(unit.shared, unit.size - unit.own)
             if len(unit.frames) == 1:
+                if unit.shared:  # (held until the socket has it: _release_sent)
+                    self._taken(unit.shared, unit.size - unit.own)
                 return unit.frames[0]
-            self.frames += len(unit.frames) - 1  # (the rest now counted as the current message)
-            self.bytes += unit.size - len(unit.frames[0])
-            self._own += unit.own - self._own_part(unit.frames[0])
-            current.extend(unit.frames[1:])
+            # its frames become the current message, counted as they wait, and are taken from there one by one
+            self.frames += len(unit.frames)
+            self.bytes += unit.size
+            self._own += unit.own
+            current.extend(unit.frames)
             self._current_key = unit.key
-            return unit.frames[0]
-        if not current:
+        elif not current:
             if self._granted:  # (drained: what it held of the pool goes back)
                 self._regrant()
             return None
         frame = current.popleft()
         self.frames -= 1
         self.bytes -= len(frame)
-        self._own -= self._own_part(frame)
-        return frame
-
-    def _own_part(self, frame):
-        """The bytes of a frame of the current message that the pool does not hold."""
         if self._pool is None:
-            return len(frame)
-        return len(frame) - sum(map(len, shared_buffers(frame)))
+            self._own -= len(frame)
+            return frame
+        # A fragment's shared buffers are taken with it, not before: the socket may drain between fragments, and
+        # the holds of those still waiting must stay until they too have left.
+        shared = shared_buffers(frame)
+        held = sum(map(len, shared))
+        self._own -= len(frame) - held
+        if shared:
+            self._taken(shared, held)
+        return frame
 
     def _next_unit(self, lane):
         while lane:
@@ -422,6 +425,8 @@ class Outbox:
         for unit in itertools.chain(self._small, self._big):
             if unit.frames is not None and unit.shared:
                 self._pool.release(unit.shared)
+        if self._pool is not None:
+            self._pool.release(_shared(self._current))
         for lane in (self._small, self._big, self._current, self._passing):
             lane.clear()
         self._current_key = None
