@@ -138,7 +138,7 @@ class Reader:
         self.loop.add_handler(sock, self.read, self.loop.READ)
 
     def read(self, fd=None, events=None):
-        # (the bridge's read, links.InboundLink._read and _paced, which live in a rospy Transport: written again)
+        # (the bridge's read, links.InboundLink._on_events, which lives in a rospy Transport: written again)
         space = self.frames.into()
         try:
             if space is not None:  # the rest of a big message: straight into its buffer

@@ -168,19 +168,51 @@ class InboundLink(Link):
         )
 
     def _on_events(self, fd, events):
+        """One read (or the header's write): its complete messages delivered, then the next read when the socket is
+        readable, or in a while (read_pace.py), unwatched meanwhile. (The read is written here, not in a method of
+        its own: it is the one call every message of every topic pays.)"""
+        space = None
         try:
             if self._sending:
                 self._send_header()
                 return
-            messages, more = self._read()
+            space = self._reader.into()
+            if space is not None:  # the rest of a big message: straight into its buffer
+                count = self._sock.recv_into(space)
+            else:
+                chunk = self._sock.recv(READ_CHUNK)
+                count = len(chunk)
+            if not count:  # the publisher left
+                if self._latching is None:
+                    raise ConnectionResetError("the publisher closed the connection before answering")
+                self.close()
+                return
+            self.stat_bytes += count
+            # more may be waiting: it filled its chunk, or a big message is on its way
+            more = space is not None or count == READ_CHUNK
+            if space is not None:
+                messages = self._reader.received(count)
+            elif self._latching is not None:
+                messages = self._reader.feed(chunk)
+            elif self._read_reply(chunk):
+                messages = self._reader.feed(b"")  # (what came with the answer)
+            else:
+                return
+        except BlockingIOError:
+            messages, more = (), False
         except (OSError, tcpros.TcprosError) as error:
             self._fail(error)
             return
-        # the next read when the socket is readable, or in a while (read_pace.py), unwatched meanwhile
+        finally:
+            if space is not None:
+                space.release()
+        if messages and not self.done:
+            self.stat_num_msg += len(messages)
+            self._deliver(messages, self if self._latching else None)
         if self.done or self._sock is None:
             return
         was_polling = self._pace.polling
-        wait = self._pace.after_read(time.monotonic(), messages, more)
+        wait = self._pace.after_read(time.monotonic(), len(messages), more)
         if wait is not None:
             if not was_polling:
                 self._loop.update_handler(self._sock, 0)
@@ -207,40 +239,6 @@ class InboundLink(Link):
         if not self._unsent:
             self._sending = False
             self._loop.update_handler(sock, self._loop.READ)
-
-    def _read(self):
-        """One read: (the complete messages it brought, whether more may be waiting: it filled its chunk, or a big
-        message is on its way)."""
-        space = self._reader.into()
-        try:
-            if space is not None:  # the rest of a big message: straight into its buffer
-                count = self._sock.recv_into(space)
-            else:
-                chunk = self._sock.recv(READ_CHUNK)
-                count = len(chunk)
-        except BlockingIOError:
-            return 0, False
-        finally:
-            if space is not None:
-                space.release()
-        if not count:  # the publisher left
-            if self._latching is None:
-                raise ConnectionResetError("the publisher closed the connection before answering")
-            self.close()
-            return 0, False
-        self.stat_bytes += count
-        if space is not None:
-            messages = self._reader.received(count)
-        elif self._latching is None:
-            if not self._read_reply(chunk):
-                return 0, False
-            messages = self._reader.feed(b"")  # (what came with the answer)
-        else:
-            messages = self._reader.feed(chunk)
-        if messages and not self.done:
-            self.stat_num_msg += len(messages)
-            self._deliver(messages, self if self._latching else None)
-        return len(messages), space is not None or count == READ_CHUNK
 
     def _read_reply(self, chunk):
         """The publisher's header, the first frame it sends: True once it is read and accepts us."""
