@@ -45,12 +45,13 @@ class Run:
         self.topics += 1
         return f"/bench/{stem}{self.topics}"
 
-    def role(self, script, *args, name=None):
+    def role(self, script, *args, name=None, env=None):
         """Starts one bench role (ros_roles.py / ws_roles.py / transport_server.py); stdin is its cue."""
         self.spawned += 1  # (log files are named by this count: harness's own count shrinks as we stop procs)
         return self.ros.spawn(
             [PY, str(BENCH / script), *map(str, args)],
             f"{name or script.split('.')[0]}-{self.spawned}",
+            env=env,
             stdin=subprocess.PIPE,
         )
 
@@ -81,9 +82,9 @@ class Run:
             if p in self.ros.procs:
                 self.ros.procs.remove(p)
 
-    def bridge(self, **launch_args):
+    def bridge(self, env=None, **launch_args):
         """A fresh bridge (the launch file, as a user starts it): (Proc, websocket URL, ProcStat of the server)."""
-        proc, port = harness.launch_bridge(self.ros, **launch_args)
+        proc, port = harness.launch_bridge(self.ros, env=env, **launch_args)
         return proc, f"ws://127.0.0.1:{port}", harness.ProcStat(harness.node_pid(self.ros, "/rosbridge_websocket"))
 
     def foxglove(self):
@@ -280,15 +281,16 @@ def on_foxglove(run, measure, kind, count, **options):
         run.stop(proc)
 
 
-def foxglove_ceiling_out(run, kind, count, **options):
+def foxglove_ceiling_out(run, kind, count, env=None, then=None, **options):
     """bridge_out through bench/foxglove_ceiling.py: the same TCPROS bytes read and written to the clients as
-    Foxglove message data, nothing else."""
+    Foxglove message data, nothing else. `then(stat)`, if given, runs before the ceiling stops."""
     topic, port = run.topic("out"), harness.free_port()
-    server = run.role("foxglove_ceiling.py", "--port", port, "--topic", topic, "--kind", kind)
+    server = run.role("foxglove_ceiling.py", "--port", port, "--topic", topic, "--kind", kind, env=env)
     run.ready(server)
     try:
         url, stat = f"ws://127.0.0.1:{port}/", harness.ProcStat(server.pid)
-        return bridge_out(run, url, stat, kind, count, protocol="foxglove", topic=topic, **options)
+        result = bridge_out(run, url, stat, kind, count, protocol="foxglove", topic=topic, **options)
+        return result if then is None else then(stat)
     finally:
         run.stop(server)
 
@@ -377,6 +379,56 @@ def ceiling_pair(run, url, server, kind, hz):
 
 def ceiling_pair_end(run, kind, hz):
     return foxglove_ceiling_out(run, kind, int(hz * CEILING_SECONDS), rate=hz)
+
+
+OPCODE_RATE = 200  # Hz: each message a read of its own, as at 1 kHz, and the traced server keeps up
+OPCODE_MESSAGES = 1000
+
+
+def section_opcodes(run, table):
+    """What the ceiling rows measure, counted instead of timed: the Python opcodes the server's event loop runs
+    per message (bench/opcount), the bridge's Foxglove path and the bare ceiling, Twist at OPCODE_RATE to one
+    client. Each side runs OPCODE_MESSAGES and twice as many, each in a fresh process: the difference is what
+    OPCODE_MESSAGES cost, without start-up, connection or subscription. The same from run to run, where the CPU
+    ratios move by +-15 % on this VM; an opcode costs 20-30 ns here (perf: the interpreter's share of the two
+    servers' time was in the ratio of their opcodes)."""
+    per_message = {}
+    for side in ("bridge", "ceiling"):
+        counts = [traced_opcodes(run, side, n) for n in (OPCODE_MESSAGES, 2 * OPCODE_MESSAGES)]
+        per_message[side] = (counts[1] - counts[0]) / OPCODE_MESSAGES
+    table.row(
+        f"ROS -> client at {OPCODE_RATE} Hz (Foxglove protocol): Python opcodes per message on the event loop, "
+        "vs the bare ceiling",
+        per_message["bridge"],
+        "",
+        FOXGLOVE_CEILING,
+        per_message["ceiling"],
+    )
+
+
+def traced_opcodes(run, side, count):
+    """The opcodes a fresh server (`side`: "bridge" or "ceiling") ran on its main thread by the time it had
+    delivered `count` Twists."""
+    out = run.workdir / f"opcodes-{side}-{count}-{run.spawned}"
+    script = "rosbridge_websocket" if side == "bridge" else "foxglove_ceiling.py"
+    env = {
+        "PYTHONPATH": os.pathsep.join(filter(None, (str(BENCH / "opcount"), run.ros.env.get("PYTHONPATH")))),
+        "BENCH_OPCODES": str(out),
+        "BENCH_OPCODES_OF": script,
+    }
+
+    def so_far(stat):
+        os.kill(stat.pid, signal.SIGUSR2)
+        return int(harness.wait_for(lambda: out.exists() and out.read_text(), 10, what=f"{script}'s opcodes"))
+
+    if side == "ceiling":
+        return foxglove_ceiling_out(run, "twist", count, env=env, then=so_far, rate=OPCODE_RATE)
+    bridge, url, server = run.bridge(env=env)
+    try:
+        bridge_out(run, url, server, "twist", count, rate=OPCODE_RATE, protocol="foxglove")
+        return so_far(server)
+    finally:
+        run.stop(bridge)
 
 
 def foxglove_in_rows(run, table, label, bridged, fox_rounds, limit):
@@ -1190,6 +1242,7 @@ def other_bench(run, script, title, code_block=False, python=PY, args=()):
 SECTIONS = (
     "throughput",
     "rates",
+    "opcodes",
     "latency",
     "idle",
     "fanout",
@@ -1228,6 +1281,7 @@ def main():
         sections = {
             "throughput": lambda: section_throughput(run, table, a.rounds, a.count),
             "rates": lambda: section_rates(run, table, a.rounds),
+            "opcodes": lambda: section_opcodes(run, table),
             "latency": lambda: section_latency(run, table, a.rounds),
             "idle": lambda: section_idle(run, table, a.rounds),
             "isolation": lambda: section_isolation(run, table),

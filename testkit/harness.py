@@ -293,15 +293,17 @@ def start_bridge(ros, node_name="rosbridge_websocket", timeout=30.0, max_fds=Non
     return proc, _listening_port(ros, proc, node_name, timeout)
 
 
-def launch_bridge(ros, node_name="rosbridge_websocket", timeout=30.0, **launch_args):
+def launch_bridge(ros, node_name="rosbridge_websocket", timeout=30.0, env=None, **launch_args):
     """Runs `roslaunch turtlesim rosbridge_websocket.launch` (launch args may override the free port of
-    127.0.0.1), as a user starts it; returns (Proc, port) once the server listens."""
+    127.0.0.1), as a user starts it, with `env` added to the master's environment; returns (Proc, port) once the
+    server listens."""
     args = {"port": 0, "foxglove_port": -1, "address": "127.0.0.1", "node_name": node_name, **launch_args}
     if ros.master().hasParam(f"/{node_name}/actual_port"):  # (an earlier bridge's)
         ros.master().deleteParam(f"/{node_name}/actual_port")
     proc = ros.spawn(
         ["roslaunch", "turtlesim", "rosbridge_websocket.launch", *(f"{key}:={value}" for key, value in args.items())],
         node_name,
+        env=env,
     )
     return proc, _listening_port(ros, proc, node_name, timeout)
 
