@@ -8,17 +8,34 @@ import os
 import sys
 
 if os.environ.get("BENCH_OPCODES") and os.path.basename(sys.argv[0]) == os.environ.get("BENCH_OPCODES_OF"):
+    import _thread
     import signal
 
     _count = 0
+    _main = _thread.get_ident()
 
-    def _trace(frame, event, arg):
-        global _count
-        if event == "opcode":
-            _count += 1
-        else:  # (a frame's first event: from then on its opcodes, not its lines)
-            frame.f_trace_lines, frame.f_trace_opcodes = False, True
-        return _trace
+    if hasattr(sys, "monitoring"):  # (Python 3.12 on: a tracer set this early sees no opcode events there)
+
+        def _instruction(code, offset):
+            global _count
+            if _thread.get_ident() == _main:
+                _count += 1
+
+        _tool, _events = sys.monitoring.PROFILER_ID, sys.monitoring.events
+        sys.monitoring.use_tool_id(_tool, "bench opcount")
+        sys.monitoring.register_callback(_tool, _events.INSTRUCTION, _instruction)
+        sys.monitoring.set_events(_tool, _events.INSTRUCTION)
+    else:
+
+        def _trace(frame, event, arg):
+            global _count
+            if event == "opcode":
+                _count += 1
+            else:  # (a frame's first event: from then on its opcodes, not its lines)
+                frame.f_trace_lines, frame.f_trace_opcodes = False, True
+            return _trace
+
+        sys.settrace(_trace)
 
     def _write(*_):
         path = os.environ["BENCH_OPCODES"]
@@ -27,4 +44,3 @@ if os.environ.get("BENCH_OPCODES") and os.path.basename(sys.argv[0]) == os.envir
         os.replace(path + ".part", path)  # (the bench reads it once it is whole)
 
     signal.signal(signal.SIGUSR2, _write)
-    sys.settrace(_trace)
