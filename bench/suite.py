@@ -412,7 +412,7 @@ def traced_opcodes(run, side, count):
     out = run.workdir / f"opcodes-{side}-{count}-{run.spawned}"
     script = "rosbridge_websocket" if side == "bridge" else "foxglove_ceiling.py"
     env = {
-        "PYTHONPATH": os.pathsep.join(filter(None, (str(BENCH / "opcount"), run.ros.env.get("PYTHONPATH")))),
+        "PYTHONPATH": f"{BENCH / 'opcount'}:{run.ros.env['PYTHONPATH']}",  # (Run set it: bench/ and testkit/ first)
         "BENCH_OPCODES": str(out),
         "BENCH_OPCODES_OF": script,
     }

@@ -12,9 +12,9 @@ if os.environ.get("BENCH_OPCODES") and os.path.basename(sys.argv[0]) == os.envir
     import signal
 
     _count = 0
-    _main = _thread.get_ident()
 
     if hasattr(sys, "monitoring"):  # (Python 3.12 on: a tracer set this early sees no opcode events there)
+        _main = _thread.get_ident()  # (monitoring sees every thread; a tracer only the one that set it)
 
         def _instruction(code, offset):
             global _count
